@@ -1,0 +1,60 @@
+#include "models/cache.h"
+
+#include <algorithm>
+
+namespace rtsim {
+
+Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level)
+    : sc_core::sc_module(name), params_(params), next_(next_level) {
+    ways_.resize(params_.sets() * params_.ways);
+    set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
+    line_shift_ = 0;
+    while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
+}
+
+Cycle Cache::access_line(uint64_t line_addr, Cycle now) {
+    ++accesses;
+    const uint64_t set = line_addr & set_mask_;
+    const uint64_t tag = line_addr >> 0;  // full line address as tag: simple and unambiguous
+    Way* base = &ways_[set * params_.ways];
+    Way* victim = base;
+    const Cycle lookup_done = now + params_.hit_latency_cycles;
+    for (int w = 0; w < params_.ways; ++w) {
+        Way& way = base[w];
+        if (way.valid && way.tag == tag) {
+            ++hits;
+            way.last_use = ++use_clock_;
+            if (way.ready > lookup_done) ++merged_misses;
+            return std::max(lookup_done, way.ready);
+        }
+        if (!way.valid || (victim->valid && way.last_use < victim->last_use)) victim = &way;
+    }
+    ++misses;
+    fill_bytes += params_.line_bytes;
+    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, lookup_done);
+    victim->valid = true;
+    victim->tag = tag;
+    victim->last_use = ++use_clock_;
+    victim->ready = ready;
+    return ready;
+}
+
+Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now) {
+    bytes_requested += size_bytes;
+    const uint64_t first = addr >> line_shift_;
+    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+    Cycle done = now;
+    for (uint64_t line = first; line <= last; ++line) done = std::max(done, access_line(line, now));
+    return done;
+}
+
+void Cache::register_stats(StatsRegistry& reg, const std::string& block) {
+    reg.add(block, "accesses", &accesses, "line lookups");
+    reg.add(block, "hits", &hits, "lookups that found the line (including lines still filling)");
+    reg.add(block, "misses", &misses, "lookups that fetched the line from the next level");
+    reg.add(block, "merged_misses", &merged_misses, "hits that waited for an in-flight fill");
+    reg.add(block, "bytes_requested", &bytes_requested, "bytes delivered to the level above");
+    reg.add(block, "fill_bytes", &fill_bytes, "bytes read from the level below");
+}
+
+}  // namespace rtsim

@@ -1,0 +1,56 @@
+// A set-associative, read-only (BVH data is never written during traversal), LRU cache.
+// Loosely timed: a hit costs `hit_latency_cycles`; a miss adds the next level's latency.
+// A line stays "filling" until its data arrives, so a second access to it waits for the same
+// fill instead of issuing another (miss merging, as MSHRs do).
+#pragma once
+
+#include <string>
+#include <systemc>
+#include <vector>
+
+#include "models/stats.h"
+#include "models/timing.h"
+
+namespace rtsim {
+
+struct CacheParams {
+    uint64_t size_bytes = 32 * 1024;
+    int ways = 4;
+    uint32_t line_bytes = 64;
+    Cycle hit_latency_cycles = 4;
+
+    uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
+};
+
+class Cache : public sc_core::sc_module, public MemoryPort {
+public:
+    Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level);
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
+    void register_stats(StatsRegistry& reg, const std::string& block);
+    const CacheParams& params() const { return params_; }
+
+    uint64_t accesses = 0;      // line lookups (a request spanning two lines counts two)
+    uint64_t hits = 0;
+    uint64_t misses = 0;
+    uint64_t merged_misses = 0;  // hits on a line whose fill was still in flight
+    uint64_t bytes_requested = 0;  // bytes delivered to the level above
+    uint64_t fill_bytes = 0;       // bytes read from the level below
+
+private:
+    struct Way {
+        uint64_t tag = 0;
+        uint64_t last_use = 0;
+        Cycle ready = 0;  // cycle the line's data is present
+        bool valid = false;
+    };
+    Cycle access_line(uint64_t line_addr, Cycle now);
+
+    CacheParams params_;
+    MemoryPort* next_;
+    std::vector<Way> ways_;  // sets * ways, set-major
+    uint64_t set_mask_;
+    uint32_t line_shift_;
+    uint64_t use_clock_ = 0;
+};
+
+}  // namespace rtsim

@@ -1,0 +1,77 @@
+#include "models/core.h"
+
+#include <algorithm>
+
+namespace rtsim {
+
+Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
+           PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source)
+    : sc_core::sc_module(name),
+      params_(params),
+      l1_(l1),
+      box_(box_unit),
+      tri_(triangle_unit),
+      source_(source),
+      slots_(static_cast<size_t>(params.ray_slots)) {
+    SC_THREAD(run);
+}
+
+Cycle Core::issue(Cycle t) {
+    if (t > issue_cycle_) {
+        issue_cycle_ = t;
+        issued_in_cycle_ = 0;
+    }
+    if (issued_in_cycle_ == params_.issue_width) {
+        ++issue_cycle_;
+        issued_in_cycle_ = 0;
+    }
+    ++issued_in_cycle_;
+    issue_stall_cycles += issue_cycle_ - t;
+    return issue_cycle_ + params_.issue_latency_cycles;
+}
+
+void Core::run() {
+    for (;;) {
+        Slot* s = nullptr;
+        for (Slot& c : slots_)
+            if (!c.retired && (!s || c.ready < s->ready)) s = &c;
+        if (!s) break;  // every slot retired: the queue is empty and all rays are done
+        const Cycle now = now_cycles();
+        if (s->ready > now + params_.quantum_cycles) {
+            wait(cycles_to_time(s->ready - now));
+            continue;
+        }
+        const Cycle t = s->ready;
+        if (!s->busy) {
+            if (!source_->next(s->work)) {
+                s->retired = true;
+                continue;
+            }
+            s->busy = true;
+            s->pos = 0;
+            s->start = t;
+            s->ready = issue(t);  // ray setup; a ray that misses the root box ends here
+        } else {
+            const Step& st = s->work.steps[s->pos++];
+            ++steps;
+            const Cycle fetched = l1_->access(st.addr, st.size_bytes, issue(t));
+            s->ready = (st.kind == StepKind::Node ? box_ : tri_)->issue(fetched);
+        }
+        if (s->pos == s->work.steps.size()) {
+            ++rays;
+            ray_latency_cycles += s->ready - s->start;
+            last_cycle = std::max(last_cycle, s->ready);
+            s->busy = false;
+        }
+    }
+}
+
+void Core::register_stats(StatsRegistry& reg, const std::string& block) {
+    reg.add(block, "rays", &rays, "rays completed");
+    reg.add(block, "steps", &steps, "traversal steps executed");
+    reg.add(block, "ray_latency_cycles", &ray_latency_cycles, "summed ray latency, dispatch to result");
+    reg.add(block, "issue_stall_cycles", &issue_stall_cycles, "cycles steps waited for an issue slot");
+    reg.add(block, "last_cycle", &last_cycle, "cycle the core's last ray finished");
+}
+
+}  // namespace rtsim

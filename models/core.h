@@ -1,0 +1,73 @@
+// A MIMD traversal core: `ray_slots` thread contexts, each running one ray's step stream
+// (node fetch + box test, triangle fetch + triangle test) against the core's L1 and units.
+//
+// Speed: a ray slot's steps cost no SystemC event. The core runs the slot that is ready
+// earliest in a tight loop against the resource calendars of the units and caches, and yields
+// to the kernel only when its next step lies more than `quantum_cycles` ahead of simulated time
+// (temporal decoupling, as TLM-2.0's quantum keeper). A quantum of 0 keeps every core's requests
+// to shared levels in global time order, the exact reference.
+#pragma once
+
+#include <string>
+#include <systemc>
+#include <vector>
+
+#include "models/stats.h"
+#include "models/timing.h"
+#include "models/unit.h"
+#include "workloads/step.h"
+
+namespace rtsim {
+
+// Hands out rays to cores; the chip's shared work queue. Calls arrive in simulated time order
+// (to within the quantum) from every core.
+class RayWorkSource {
+public:
+    virtual ~RayWorkSource() = default;
+    // Fills `work` with the next ray's steps; false when no ray is left.
+    virtual bool next(RayWork& work) = 0;
+};
+
+struct CoreParams {
+    int ray_slots = 8;
+    int issue_width = 1;             // steps the core can issue per cycle, over all slots
+    Cycle issue_latency_cycles = 1;  // control work per step before its fetch starts
+    Cycle quantum_cycles = 0;
+};
+
+class Core : public sc_core::sc_module {
+public:
+    SC_HAS_PROCESS(Core);
+    Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
+         PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source);
+    void register_stats(StatsRegistry& reg, const std::string& block);
+
+    uint64_t rays = 0;
+    uint64_t steps = 0;
+    uint64_t ray_latency_cycles = 0;  // summed over rays, dispatch to last result
+    uint64_t issue_stall_cycles = 0;  // cycles steps waited for an issue slot
+    uint64_t last_cycle = 0;          // cycle the core's last ray finished
+
+private:
+    struct Slot {
+        RayWork work;
+        size_t pos = 0;
+        Cycle ready = 0;
+        Cycle start = 0;
+        bool busy = false;
+        bool retired = false;
+    };
+    void run();
+    Cycle issue(Cycle t);
+
+    CoreParams params_;
+    MemoryPort* l1_;
+    PipelinedUnit* box_;
+    PipelinedUnit* tri_;
+    RayWorkSource* source_;
+    std::vector<Slot> slots_;
+    Cycle issue_cycle_ = 0;
+    int issued_in_cycle_ = 0;
+};
+
+}  // namespace rtsim

@@ -1,0 +1,28 @@
+// Time in the timing models is counted in cycles of the chip clock. SystemC time carries the same
+// count at 1 ns per cycle; the configured clock only matters when converting to seconds.
+#pragma once
+
+#include <cstdint>
+#include <systemc>
+
+namespace rtsim {
+
+using Cycle = uint64_t;
+
+inline sc_core::sc_time cycles_to_time(Cycle c) {
+    return sc_core::sc_time(static_cast<double>(c), sc_core::SC_NS);
+}
+inline Cycle now_cycles() {
+    return static_cast<Cycle>(sc_core::sc_time_stamp().to_seconds() * 1e9 + 0.5);
+}
+
+// A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
+// that returns the cycle the data is available. Requests must arrive in non-decreasing time
+// order per level (the cores' quantum keeps them within a bound).
+class MemoryPort {
+public:
+    virtual ~MemoryPort() = default;
+    virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) = 0;
+};
+
+}  // namespace rtsim

@@ -1,0 +1,26 @@
+#include "models/unit.h"
+
+#include <algorithm>
+
+namespace rtsim {
+
+PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params)
+    : sc_core::sc_module(name), params_(params), next_free_(static_cast<size_t>(params.count), 0) {}
+
+Cycle PipelinedUnit::issue(Cycle ready) {
+    auto it = std::min_element(next_free_.begin(), next_free_.end());
+    const Cycle start = std::max(ready, *it);
+    *it = start + params_.interval_cycles;
+    ops++;
+    busy_cycles += params_.interval_cycles;
+    queue_cycles += start - ready;
+    return start + params_.latency_cycles;
+}
+
+void PipelinedUnit::register_stats(StatsRegistry& reg, const std::string& block) {
+    reg.add(block, "ops", &ops, "operations issued");
+    reg.add(block, "busy_cycles", &busy_cycles, "pipeline issue slots occupied, summed over pipelines");
+    reg.add(block, "queue_cycles", &queue_cycles, "cycles operations waited for a free pipeline");
+}
+
+}  // namespace rtsim

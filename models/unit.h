@@ -1,0 +1,39 @@
+// A fixed-function pipelined unit (ray-box or ray-triangle): `count` identical pipelines, each
+// accepting one operation every `interval_cycles` and finishing it `latency_cycles` later.
+// A passive resource calendar: it has no process and costs nothing while idle.
+#pragma once
+
+#include <string>
+#include <systemc>
+#include <vector>
+
+#include "models/stats.h"
+#include "models/timing.h"
+
+namespace rtsim {
+
+struct UnitParams {
+    int count = 1;
+    Cycle latency_cycles = 1;
+    Cycle interval_cycles = 1;
+};
+
+class PipelinedUnit : public sc_core::sc_module {
+public:
+    PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params);
+    // Issues one operation that is ready at `ready`; returns the cycle its result is available.
+    // Arbitration is first come, first served, onto the pipeline that frees first.
+    Cycle issue(Cycle ready);
+    void register_stats(StatsRegistry& reg, const std::string& block);
+    const UnitParams& params() const { return params_; }
+
+    uint64_t ops = 0;
+    uint64_t busy_cycles = 0;   // pipeline issue slots occupied, summed over pipelines
+    uint64_t queue_cycles = 0;  // cycles operations waited for a free pipeline
+
+private:
+    UnitParams params_;
+    std::vector<Cycle> next_free_;  // per pipeline: first cycle it accepts a new operation
+};
+
+}  // namespace rtsim

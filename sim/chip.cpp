@@ -1,0 +1,66 @@
+#include "sim/chip.h"
+
+#include <fmt/format.h>
+
+namespace rtsim {
+namespace {
+
+CacheParams cache_params(const Config& cfg, const std::string& level) {
+    CacheParams p;
+    p.size_bytes = uint64_t(cfg.integer(level + ".size_kib")) * 1024;
+    p.ways = int(cfg.integer(level + ".ways"));
+    p.line_bytes = uint32_t(cfg.integer(level + ".line_bytes"));
+    p.hit_latency_cycles = Cycle(cfg.integer(level + ".hit_latency_cycles"));
+    return p;
+}
+
+UnitParams unit_params(const Config& cfg, const std::string& unit) {
+    UnitParams p;
+    p.count = int(cfg.integer(unit + ".count"));
+    p.latency_cycles = Cycle(cfg.integer(unit + ".latency_cycles"));
+    p.interval_cycles = Cycle(cfg.integer(unit + ".interval_cycles"));
+    return p;
+}
+
+}  // namespace
+
+Chip::Chip(const Config& cfg, RayWorkSource* source) {
+    DramParams dp;
+    dp.latency_cycles = Cycle(cfg.integer("dram.latency_cycles"));
+    dp.bytes_per_cycle = cfg.number("dram.bytes_per_cycle");
+    dram = std::make_unique<Dram>("dram", dp);
+    dram->register_stats(stats, "dram");
+    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get());
+    l2->register_stats(stats, "l2");
+
+    CoreParams cp;
+    cp.ray_slots = int(cfg.integer("core.ray_slots"));
+    cp.issue_width = int(cfg.integer("core.issue_width"));
+    cp.issue_latency_cycles = Cycle(cfg.integer("core.issue_latency_cycles"));
+    cp.quantum_cycles = Cycle(cfg.integer("sim.quantum_cycles"));
+    const CacheParams l1p = cache_params(cfg, "l1");
+    const UnitParams bp = unit_params(cfg, "box_unit"), tp = unit_params(cfg, "triangle_unit");
+    const int n = int(cfg.integer("core.count"));
+    for (int i = 0; i < n; ++i) {
+        const std::string idx = fmt::format("[{}]", i);
+        l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, l2.get()));
+        l1.back()->register_stats(stats, "l1" + idx);
+        box_units.push_back(std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(i)).c_str(), bp));
+        box_units.back()->register_stats(stats, "box_unit" + idx);
+        triangle_units.push_back(
+            std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(i)).c_str(), tp));
+        triangle_units.back()->register_stats(stats, "triangle_unit" + idx);
+        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, l1.back().get(),
+                                               box_units.back().get(), triangle_units.back().get(),
+                                               source));
+        cores.back()->register_stats(stats, "core" + idx);
+    }
+}
+
+Cycle Chip::total_cycles() const {
+    Cycle c = 0;
+    for (const auto& core : cores) c = std::max<Cycle>(c, core->last_cycle);
+    return c;
+}
+
+}  // namespace rtsim

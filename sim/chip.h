@@ -1,0 +1,31 @@
+// Chip assembly: instantiates the SystemC models a config asks for and wires them
+// cores -> L1 -> shared L2 -> DRAM, registering every block's counters in one registry.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "models/cache.h"
+#include "models/core.h"
+#include "models/dram.h"
+#include "models/stats.h"
+#include "models/unit.h"
+#include "sim/config.h"
+
+namespace rtsim {
+
+class Chip {
+public:
+    Chip(const Config& cfg, RayWorkSource* source);
+    // Cycle the last ray finished (valid after the simulation ran).
+    Cycle total_cycles() const;
+
+    StatsRegistry stats;
+    std::unique_ptr<Dram> dram;
+    std::unique_ptr<Cache> l2;
+    std::vector<std::unique_ptr<Cache>> l1;
+    std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
+    std::vector<std::unique_ptr<Core>> cores;
+};
+
+}  // namespace rtsim

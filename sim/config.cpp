@@ -1,0 +1,242 @@
+#include "sim/config.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "workloads/error.h"
+
+namespace rtsim {
+
+extern const char* const kConfigSchemaJson;
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+const json& config_schema() {
+    static const json schema = json::parse(kConfigSchemaJson);
+    return schema;
+}
+
+namespace {
+
+// Finds the schema entry for a dotted path, or nullptr.
+const json* schema_entry(const std::string& path) {
+    const json* node = &config_schema();
+    std::stringstream ss(path);
+    std::string part;
+    while (std::getline(ss, part, '.')) {
+        if (!node->contains("fields")) return nullptr;
+        const json& fields = (*node)["fields"];
+        if (!fields.contains(part)) return nullptr;
+        node = &fields[part];
+    }
+    return node;
+}
+
+json defaults_of(const json& node) {
+    if (!node.contains("fields")) return node.at("default");
+    json out = json::object();
+    for (auto& [k, v] : node["fields"].items()) out[k] = defaults_of(v);
+    return out;
+}
+
+std::string expectation(const json& field) {
+    const std::string type = field.at("type");
+    std::string s = type == "integer" ? "an integer" : type == "number" ? "a number" : "a " + type;
+    if (field.contains("enum")) {
+        std::string list;
+        for (auto& e : field["enum"]) list += (list.empty() ? "" : ", ") + e.dump();
+        s += " (one of " + list + ")";
+    }
+    if (field.contains("minimum")) s += fmt::format(" >= {}", field["minimum"].dump());
+    if (field.contains("exclusive_minimum")) s += fmt::format(" > {}", field["exclusive_minimum"].dump());
+    if (field.contains("maximum")) s += fmt::format(" <= {}", field["maximum"].dump());
+    if (field.value("power_of_two", false)) s += ", a power of two";
+    return s;
+}
+
+bool is_power_of_two(int64_t v) { return v > 0 && (v & (v - 1)) == 0; }
+
+// Checks one leaf value; returns an empty string if fine, else what was expected.
+std::string check_leaf(const json& field, const json& v) {
+    const std::string type = field.at("type");
+    bool ok_type = (type == "integer" && v.is_number_integer()) ||
+                   (type == "number" && v.is_number()) || (type == "string" && v.is_string()) ||
+                   (type == "boolean" && v.is_boolean());
+    if (ok_type && type == "number" && !std::isfinite(v.get<double>())) ok_type = false;
+    bool ok = ok_type;
+    if (ok && v.is_number()) {
+        const double d = v.get<double>();
+        if (field.contains("minimum") && d < field["minimum"].get<double>()) ok = false;
+        if (field.contains("exclusive_minimum") && d <= field["exclusive_minimum"].get<double>()) ok = false;
+        if (field.contains("maximum") && d > field["maximum"].get<double>()) ok = false;
+        if (field.value("power_of_two", false) && !is_power_of_two(v.get<int64_t>())) ok = false;
+    }
+    if (ok && field.contains("enum")) {
+        ok = false;
+        for (auto& e : field["enum"]) ok = ok || e == v;
+    }
+    return ok ? std::string() : expectation(field);
+}
+
+// Validates a (partial) config object against the schema node; `where` names the source.
+void validate(const json& schema_node, const json& v, const std::string& path, const std::string& where) {
+    if (schema_node.contains("fields")) {
+        if (!v.is_object())
+            throw InputError(fmt::format("{}: {}: expected an object, got {}", where,
+                                         path.empty() ? "(top level)" : path, v.dump()));
+        for (auto& [k, child] : v.items()) {
+            if (path.empty() && k == "extends") continue;
+            const std::string p = path.empty() ? k : path + "." + k;
+            if (!schema_node["fields"].contains(k)) {
+                std::string known;
+                for (auto& [fk, fv] : schema_node["fields"].items()) known += (known.empty() ? "" : ", ") + fk;
+                throw InputError(fmt::format("{}: {}: unknown key (expected one of: {})", where, p, known));
+            }
+            validate(schema_node["fields"][k], child, p, where);
+        }
+        return;
+    }
+    const std::string why = check_leaf(schema_node, v);
+    if (!why.empty()) throw InputError(fmt::format("{}: {}: expected {}, got {}", where, path, why, v.dump()));
+}
+
+void merge_into(json& base, const json& over) {
+    for (auto& [k, v] : over.items()) {
+        if (v.is_object() && base.contains(k) && base[k].is_object())
+            merge_into(base[k], v);
+        else
+            base[k] = v;
+    }
+}
+
+json read_json_file(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open config file", path));
+    std::stringstream ss;
+    ss << in.rdbuf();
+    try {
+        return json::parse(ss.str());
+    } catch (const json::parse_error& e) {
+        std::string msg = e.what();
+        const auto pos = msg.find("] ");
+        if (pos != std::string::npos) msg = msg.substr(pos + 2);
+        throw InputError(fmt::format("{}: invalid JSON at byte {}: {}", path, e.byte, msg));
+    }
+}
+
+// Reads `path` and its extends chain into `out` (parent values first).
+void load_chain(const std::string& path, json& out, std::vector<std::string>& files, int depth) {
+    for (const std::string& f : files)
+        if (fs::weakly_canonical(f) == fs::weakly_canonical(path))
+            throw InputError(fmt::format("{}: extends: cycle through this file", path));
+    if (depth > 32) throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
+    json j = read_json_file(path);
+    validate(config_schema(), j, "", path);
+    if (j.contains("extends")) {
+        if (!j["extends"].is_string())
+            throw InputError(fmt::format("{}: extends: expected a file name string, got {}", path, j["extends"].dump()));
+        fs::path parent = j["extends"].get<std::string>();
+        if (parent.is_relative()) parent = fs::path(path).parent_path() / parent;
+        files.push_back(path);  // marks it for cycle detection while the parent loads
+        load_chain(parent.string(), out, files, depth + 1);
+        files.pop_back();
+        j.erase("extends");
+    }
+    merge_into(out, j);
+    files.push_back(path);
+}
+
+// Checks that involve several fields, on the effective config.
+void validate_cross(const json& c, const std::string& where) {
+    for (const char* level : {"l1", "l2"}) {
+        const int64_t size = c[level]["size_kib"].get<int64_t>() * 1024;
+        const int64_t ways = c[level]["ways"], line = c[level]["line_bytes"];
+        if (size % (ways * line) != 0 || !is_power_of_two(size / (ways * line)))
+            throw InputError(fmt::format(
+                "{}: {}: size_kib / (ways * line_bytes) must be a power-of-two number of sets, got "
+                "{} KiB / ({} * {}) = {:.4g} sets",
+                where, level, size / 1024, ways, line, double(size) / double(ways * line)));
+    }
+    if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
+        throw InputError(fmt::format("{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}",
+                                     where, c["l1"]["line_bytes"].get<int64_t>(),
+                                     c["l2"]["line_bytes"].get<int64_t>()));
+}
+
+const json& lookup(const json& values, const std::string& path) {
+    const json* node = &values;
+    std::stringstream ss(path);
+    std::string part;
+    while (std::getline(ss, part, '.')) node = &node->at(part);
+    return *node;
+}
+
+}  // namespace
+
+int64_t Config::integer(const std::string& path) const { return lookup(values, path).get<int64_t>(); }
+double Config::number(const std::string& path) const { return lookup(values, path).get<double>(); }
+std::string Config::string(const std::string& path) const {
+    return lookup(values, path).get<std::string>();
+}
+
+std::string Config::hash() const {
+    uint64_t h = 1469598103934665603ull;
+    for (unsigned char c : values.dump()) {
+        h ^= c;
+        h *= 1099511628211ull;
+    }
+    return fmt::format("{:016x}", h);
+}
+
+Config load_config(const std::string& path, const std::vector<std::string>& sets) {
+    Config cfg;
+    cfg.values = defaults_of(config_schema());
+    if (!path.empty()) load_chain(path, cfg.values, cfg.files, 0);
+    for (const std::string& s : sets) {
+        const std::string where = "--set " + s;
+        const auto eq = s.find('=');
+        if (eq == std::string::npos || eq == 0)
+            throw InputError(fmt::format("{}: expected KEY=VALUE, e.g. l1.size_kib=64", where));
+        const std::string key = s.substr(0, eq), text = s.substr(eq + 1);
+        const json* field = schema_entry(key);
+        if (!field) throw InputError(fmt::format("{}: {}: unknown key", where, key));
+        if (field->contains("fields"))
+            throw InputError(fmt::format("{}: {}: is a section; set one of its fields", where, key));
+        json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+        if (value.is_discarded()) value = text;  // bare words are strings: --set bvh.builder=sah
+        const std::string why = check_leaf(*field, value);
+        if (!why.empty())
+            throw InputError(fmt::format("{}: {}: expected {}, got {}", where, key, why, value.dump()));
+        json* node = &cfg.values;
+        std::stringstream ss(key);
+        std::string part;
+        while (std::getline(ss, part, '.')) node = &(*node)[part];
+        *node = value;
+        cfg.overrides.push_back(s);
+    }
+    validate_cross(cfg.values, path.empty() ? (sets.empty() ? "defaults" : "--set") : path);
+    return cfg;
+}
+
+std::string config_reference_markdown() {
+    std::string out = "# RTSim config reference\n\nGenerated from configs/schema.json by `rtsim config --doc`.\n\n";
+    out += config_schema().value("description", "") + "\n\n| key | type | default | limits | description |\n|---|---|---|---|---|\n";
+    std::function<void(const json&, const std::string&)> walk = [&](const json& node, const std::string& path) {
+        if (node.contains("fields")) {
+            for (auto& [k, v] : node["fields"].items()) walk(v, path.empty() ? k : path + "." + k);
+            return;
+        }
+        std::string limits = expectation(node);
+        out += fmt::format("| `{}` | {} | `{}` | {} | {} |\n", path, node["type"].get<std::string>(),
+                           node["default"].dump(), limits, node.value("description", ""));
+    };
+    walk(config_schema(), "");
+    return out;
+}
+
+}  // namespace rtsim

@@ -1,0 +1,36 @@
+// Architecture configs: JSON files validated against configs/schema.json (embedded), with
+// "extends" inheritance and --set KEY=VALUE overrides. Unknown keys, wrong types and impossible
+// values are errors naming the file, the JSON path and what was expected.
+#pragma once
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace rtsim {
+
+class Config {
+public:
+    nlohmann::json values;             // effective config: defaults < extends chain < file < --set
+    std::vector<std::string> files;    // files read, parent first
+    std::vector<std::string> overrides;  // --set arguments applied, in order
+
+    // Typed access by dotted path ("l1.size_kib"). The path must be in the schema.
+    int64_t integer(const std::string& path) const;
+    double number(const std::string& path) const;
+    std::string string(const std::string& path) const;
+    // FNV-1a 64 over the canonical (sorted-key) dump of `values`, as 16 hex digits.
+    std::string hash() const;
+};
+
+// Loads `path` (empty: defaults only) and applies `sets` ("a.b=value"; value parsed as JSON,
+// else taken as a string). Throws InputError.
+Config load_config(const std::string& path, const std::vector<std::string>& sets);
+
+// The schema (configs/schema.json) as compiled in.
+const nlohmann::json& config_schema();
+// Markdown reference of every field, generated from the schema (rtsim config --doc).
+std::string config_reference_markdown();
+
+}  // namespace rtsim

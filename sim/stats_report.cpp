@@ -1,0 +1,99 @@
+#include "sim/stats_report.h"
+
+#include <cstdio>
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <stdexcept>
+
+namespace rtsim {
+
+using nlohmann::json;
+
+json timing_report(const ReportInputs& in) {
+    const StatsRegistry& s = *in.stats;
+    const double cycles = double(in.total_cycles);
+    const double seconds = cycles / (in.clock_ghz * 1e9);
+    auto gbps = [&](uint64_t bytes) { return seconds > 0 ? double(bytes) / seconds / 1e9 : 0.0; };
+    auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
+
+    json out;
+    out["total_cycles"] = in.total_cycles;
+    out["simulated_seconds"] = seconds;
+
+    json units = json::object();
+    for (int i = 0; i < in.cores; ++i)
+        for (auto [kind, pipes] : {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
+                                   {"triangle_unit", in.triangle_pipelines_per_core}}) {
+            const std::string b = fmt::format("{}[{}]", kind, i);
+            const uint64_t busy = s.get(b + ".busy_cycles");
+            units[b] = {{"ops", s.get(b + ".ops")},
+                        {"busy_cycles", busy},
+                        {"queue_cycles", s.get(b + ".queue_cycles")},
+                        {"utilization", ratio(double(busy), cycles * pipes)}};
+        }
+    for (auto [kind, pipes] : {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
+                               {"triangle_unit", in.triangle_pipelines_per_core}}) {
+        const std::string prefix = std::string(kind) + "[";
+        const uint64_t busy = s.sum(prefix, "busy_cycles");
+        units[std::string(kind) + "_total"] = {
+            {"ops", s.sum(prefix, "ops")},
+            {"busy_cycles", busy},
+            {"utilization", ratio(double(busy), cycles * pipes * in.cores)}};
+    }
+    out["units"] = units;
+
+    json caches = json::object();
+    auto cache_entry = [&](const std::string& prefix, uint64_t acc, uint64_t hits, uint64_t misses,
+                           uint64_t merged) {
+        caches[prefix] = {{"accesses", acc},
+                          {"hits", hits},
+                          {"misses", misses},
+                          {"merged_misses", merged},
+                          {"hit_rate", ratio(double(hits), double(acc))}};
+    };
+    for (int i = 0; i < in.cores; ++i) {
+        const std::string b = fmt::format("l1[{}]", i);
+        cache_entry(b, s.get(b + ".accesses"), s.get(b + ".hits"), s.get(b + ".misses"),
+                    s.get(b + ".merged_misses"));
+    }
+    cache_entry("l1_total", s.sum("l1[", "accesses"), s.sum("l1[", "hits"), s.sum("l1[", "misses"),
+                s.sum("l1[", "merged_misses"));
+    cache_entry("l2", s.get("l2.accesses"), s.get("l2.hits"), s.get("l2.misses"), s.get("l2.merged_misses"));
+    out["caches"] = caches;
+
+    // Bytes crossing each boundary: core<-L1 (requested), L1<-L2 (L1 fills), L2<-DRAM (L2 fills).
+    const uint64_t l1_bytes = s.sum("l1[", "bytes_requested");
+    const uint64_t l2_bytes = s.sum("l1[", "fill_bytes");
+    const uint64_t dram_bytes = s.get("dram.bytes");
+    out["bandwidth"] = {
+        {"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},
+        {"l2", {{"bytes", l2_bytes}, {"gbps", gbps(l2_bytes)}}},
+        {"dram", {{"bytes", dram_bytes}, {"gbps", gbps(dram_bytes)},
+                  {"busy_cycles", s.get("dram.busy_cycles")},
+                  {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles)}}}};
+
+    json counters = json::object();
+    for (const auto& e : s.entries()) counters[e.name] = *e.value;
+    out["counters"] = counters;
+    return out;
+}
+
+void write_file_atomically(const std::string& path, const std::string& text) {
+    const std::string tmp = path + ".tmp";
+    {
+        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
+        if (!f) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
+        f << text;
+        f.flush();
+        if (!f) throw std::runtime_error(fmt::format("{}: write failed", tmp));
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::filesystem::remove(tmp, ec);
+        throw std::runtime_error(fmt::format("{}: cannot move into place", path));
+    }
+}
+
+}  // namespace rtsim

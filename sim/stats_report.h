@@ -1,0 +1,27 @@
+// Turns the registry's raw counters into stats.json: derived figures (rates, utilization,
+// bandwidth) are computed here, at dump time, so counting stays cheap.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "models/stats.h"
+#include "models/timing.h"
+
+namespace rtsim {
+
+struct ReportInputs {
+    const StatsRegistry* stats = nullptr;
+    Cycle total_cycles = 0;
+    double clock_ghz = 1.0;
+    int cores = 0;
+    int box_pipelines_per_core = 1, triangle_pipelines_per_core = 1;
+};
+
+// Sections "cycles", "units", "caches", "bandwidth", "counters" of stats.json.
+nlohmann::json timing_report(const ReportInputs& in);
+
+// Writes text to path through a temporary file and a rename: readers never see a partial file.
+void write_file_atomically(const std::string& path, const std::string& text);
+
+}  // namespace rtsim

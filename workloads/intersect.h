@@ -1,0 +1,85 @@
+// Robust ray-box (Ize 2013) and watertight ray-triangle (Woop, Benthin, Wald 2013) tests.
+#pragma once
+
+#include <cmath>
+#include <utility>
+
+#include "workloads/geometry.h"
+
+namespace rtsim {
+
+// Per-ray constants shared by all box and triangle tests of one traversal.
+struct RayPrecomp {
+    Vec3 org, dir, inv_dir;
+    int kx, ky, kz;      // watertight test: kz is the dominant direction axis
+    float sx, sy, sz;    // shear constants
+    explicit RayPrecomp(const Ray& r) : org(r.org), dir(r.dir) {
+        inv_dir = Vec3(1.0f / r.dir.x, 1.0f / r.dir.y, 1.0f / r.dir.z);
+        kz = max_axis(vabs(r.dir));
+        kx = (kz + 1) % 3;
+        ky = (kx + 1) % 3;
+        if (r.dir[kz] < 0.0f) std::swap(kx, ky);  // keep winding, so the sign test stays valid
+        sx = r.dir[kx] / r.dir[kz];
+        sy = r.dir[ky] / r.dir[kz];
+        sz = 1.0f / r.dir[kz];
+    }
+};
+
+// Ize 2013: scaling the far slab distance by 1 + 2*gamma(3) makes the float test conservative.
+constexpr float kSlabFarScale = 1.0f + 2.0f * (3.0f * 0.5f * 1.1920929e-7f) /
+                                           (1.0f - 3.0f * 0.5f * 1.1920929e-7f);
+
+// Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
+// An axis-parallel ray whose origin lies on a slab plane yields NaN there; the comparisons are
+// ordered so that NaN never narrows the interval.
+inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax, float& tnear) {
+    for (int a = 0; a < 3; ++a) {
+        float t0 = (b.lo[a] - r.org[a]) * r.inv_dir[a];
+        float t1 = (b.hi[a] - r.org[a]) * r.inv_dir[a];
+        if (t0 > t1) std::swap(t0, t1);
+        t1 *= kSlabFarScale;
+        tmin = t0 > tmin ? t0 : tmin;
+        tmax = t1 < tmax ? t1 : tmax;
+        if (tmin > tmax) return false;
+    }
+    tnear = tmin;
+    return true;
+}
+
+// Watertight test. On a hit with t in [tmin, hit.t) updates hit (t, u, v; u and v weight
+// vertices 1 and 2, as in Embree) and returns true. Edges shared by two triangles are never
+// both missed: a ray through an edge or vertex hits at least one of its triangles.
+inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                               float tmin, Hit& hit) {
+    const Vec3 A = v0 - r.org, B = v1 - r.org, C = v2 - r.org;
+    const float ax = A[r.kx] - r.sx * A[r.kz], ay = A[r.ky] - r.sy * A[r.kz];
+    const float bx = B[r.kx] - r.sx * B[r.kz], by = B[r.ky] - r.sy * B[r.kz];
+    const float cx = C[r.kx] - r.sx * C[r.kz], cy = C[r.ky] - r.sy * C[r.kz];
+    float U = cx * by - cy * bx;
+    float V = ax * cy - ay * cx;
+    float W = bx * ay - by * ax;
+    if (U == 0.0f || V == 0.0f || W == 0.0f) {
+        // On an edge in float: decide in double so that neighbours agree.
+        U = float(double(cx) * by - double(cy) * bx);
+        V = float(double(ax) * cy - double(ay) * cx);
+        W = float(double(bx) * ay - double(by) * ax);
+    }
+    if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
+    const float det = U + V + W;
+    if (det == 0.0f) return false;
+    const float az = r.sz * A[r.kz], bz = r.sz * B[r.kz], cz = r.sz * C[r.kz];
+    const float T = U * az + V * bz + W * cz;
+    const float sign = det < 0.0f ? -1.0f : 1.0f;
+    const float abs_det = std::fabs(det);
+    const float ts = T * sign;
+    if (ts < tmin * abs_det || ts >= hit.t * abs_det) return false;
+    const float inv = 1.0f / det;
+    const float t = T * inv;
+    if (!(t >= tmin && t < hit.t)) return false;  // guards rounding of the scaled comparison
+    hit.t = t;
+    hit.u = V * inv;
+    hit.v = W * inv;
+    return true;
+}
+
+}  // namespace rtsim

@@ -1,0 +1,37 @@
+// Triangle scenes: loaded from mesh files through assimp or built procedurally.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "workloads/geometry.h"
+
+namespace rtsim {
+
+struct Scene {
+    std::string name;    // e.g. "bunny.obj" or "builtin:cornell"
+    std::string source;  // path, or "builtin"
+    std::vector<Vec3> vertices;
+    // Triangles in the file's own order (polygons split into fans in file order).
+    std::vector<std::array<uint32_t, 3>> triangles;
+
+    size_t triangle_count() const { return triangles.size(); }
+    AABB bounds() const;
+    AABB triangle_bounds(uint32_t prim) const;
+    // FNV-1a over positions and indices: identifies the geometry for stats and traces.
+    uint64_t content_hash() const;
+    // Light vertex lookup for tracers.
+    const Vec3& v(uint32_t prim, int corner) const { return vertices[triangles[prim][corner]]; }
+};
+
+// Loads "builtin:NAME" or a mesh file (OBJ, PLY, OFF, STL, anything assimp reads).
+// Throws InputError naming the file and the problem.
+Scene load_scene(const std::string& spec);
+
+// Procedural scenes that need no file. Throws InputError for an unknown name.
+Scene make_builtin_scene(const std::string& name);
+std::vector<std::string> builtin_scene_names();
+
+}  // namespace rtsim

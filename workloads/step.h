@@ -1,0 +1,36 @@
+// The per-ray step stream: the contract between the functional tracer (what a ray does) and the
+// timing models (when it happens). Self-contained, so models can use it without knowing scenes.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace rtsim {
+
+// One traversal step as the hardware sees it.
+enum class StepKind : uint8_t {
+    Node = 0,      // fetch an inner-node record, then one box test of `count` child boxes
+    Triangle = 1,  // fetch one triangle, then one ray-triangle test
+};
+
+struct Step {
+    uint64_t addr;        // byte address in the BVH layout
+    uint32_t id;          // inner-node record index, or leaf slot of the triangle
+    uint16_t size_bytes;  // bytes fetched
+    StepKind kind;
+    uint8_t count;        // Node: child boxes tested
+};
+static_assert(sizeof(Step) == 16, "Step is streamed in bulk; keep it 16 bytes");
+
+enum class RayKind : uint8_t { Primary = 0, Shadow = 1, AO = 2 };
+constexpr int kRayKindCount = 3;
+const char* ray_kind_name(RayKind k);
+
+// One ray's work for the timing model.
+struct RayWork {
+    uint32_t ray_id = 0;
+    RayKind kind = RayKind::Primary;
+    std::vector<Step> steps;
+};
+
+}  // namespace rtsim
