@@ -129,12 +129,14 @@ json read_json_file(const std::string& path) {
     }
 }
 
-// Reads `path` and its extends chain into `out` (parent values first).
-void load_chain(const std::string& path, json& out, std::vector<std::string>& files, int depth) {
-    for (const std::string& f : files)
+// Reads `path` and its extends chain into `out` (parent values first). `chain` holds the files
+// being loaded, child first, to detect cycles; `files` collects them parent first.
+void load_chain(const std::string& path, json& out, std::vector<std::string>& files,
+                std::vector<std::string>& chain) {
+    for (const std::string& f : chain)
         if (fs::weakly_canonical(f) == fs::weakly_canonical(path))
             throw InputError(fmt::format("{}: extends: cycle through this file", path));
-    if (depth > 32) throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
+    if (chain.size() > 32) throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
     json j = read_json_file(path);
     validate(config_schema(), j, "", path);
     if (j.contains("extends")) {
@@ -142,9 +144,9 @@ void load_chain(const std::string& path, json& out, std::vector<std::string>& fi
             throw InputError(fmt::format("{}: extends: expected a file name string, got {}", path, j["extends"].dump()));
         fs::path parent = j["extends"].get<std::string>();
         if (parent.is_relative()) parent = fs::path(path).parent_path() / parent;
-        files.push_back(path);  // marks it for cycle detection while the parent loads
-        load_chain(parent.string(), out, files, depth + 1);
-        files.pop_back();
+        chain.push_back(path);
+        load_chain(parent.string(), out, files, chain);
+        chain.pop_back();
         j.erase("extends");
     }
     merge_into(out, j);
@@ -196,7 +198,10 @@ std::string Config::hash() const {
 Config load_config(const std::string& path, const std::vector<std::string>& sets) {
     Config cfg;
     cfg.values = defaults_of(config_schema());
-    if (!path.empty()) load_chain(path, cfg.values, cfg.files, 0);
+    if (!path.empty()) {
+        std::vector<std::string> chain;
+        load_chain(path, cfg.values, cfg.files, chain);
+    }
     for (const std::string& s : sets) {
         const std::string where = "--set " + s;
         const auto eq = s.find('=');

@@ -69,13 +69,11 @@ inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& 
     if (det == 0.0f) return false;
     const float az = r.sz * A[r.kz], bz = r.sz * B[r.kz], cz = r.sz * C[r.kz];
     const float T = U * az + V * bz + W * cz;
-    const float sign = det < 0.0f ? -1.0f : 1.0f;
-    const float abs_det = std::fabs(det);
-    const float ts = T * sign;
-    if (ts < tmin * abs_det || ts >= hit.t * abs_det) return false;
+    // Decide on the divided t alone: a pre-division test in scaled space rounds differently and
+    // would make the nearer of two almost-equal hits depend on the order they are tested in.
     const float inv = 1.0f / det;
     const float t = T * inv;
-    if (!(t >= tmin && t < hit.t)) return false;  // guards rounding of the scaled comparison
+    if (!(t >= tmin && t < hit.t)) return false;
     hit.t = t;
     hit.u = V * inv;
     hit.v = W * inv;

@@ -4,6 +4,7 @@
 #include <assimp/scene.h>
 
 #include <assimp/Importer.hpp>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -73,6 +74,24 @@ Scene load_scene(const std::string& spec) {
     if (!fs::exists(spec, ec)) throw InputError(fmt::format("{}: scene file not found", spec));
     if (fs::is_directory(spec, ec)) throw InputError(fmt::format("{}: is a directory, expected a mesh file", spec));
 
+    Scene scene;
+    std::string ext = fs::path(spec).extension().string();
+    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (ext == ".off") {
+        scene = read_off(spec);
+    } else {
+        read_with_assimp(spec, scene);
+    }
+    scene.name = fs::path(spec).filename().string();
+    scene.source = spec;
+    if (scene.triangles.empty()) throw InputError(fmt::format("{}: mesh has no triangles", spec));
+    for (const Vec3& p : scene.vertices)
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            throw InputError(fmt::format("{}: mesh has a non-finite vertex coordinate", spec));
+    return scene;
+}
+
+void read_with_assimp(const std::string& spec, Scene& scene) {
     Assimp::Importer importer;
     // Triangulate splits polygons in file order; no vertex joining or sorting, so primitive ids
     // follow the file's own face order.
@@ -83,16 +102,7 @@ Scene load_scene(const std::string& spec) {
             if (c == '\n' || c == '\r') c = ' ';
         throw InputError(fmt::format("{}: cannot read mesh: {}", spec, why.empty() ? "unknown format" : why));
     }
-    Scene scene;
-    scene.name = fs::path(spec).filename().string();
-    scene.source = spec;
     append_node(ai, ai->mRootNode, aiMatrix4x4(), scene);
-    if (scene.triangles.empty())
-        throw InputError(fmt::format("{}: mesh has no triangles", spec));
-    for (const Vec3& p : scene.vertices)
-        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-            throw InputError(fmt::format("{}: mesh has a non-finite vertex coordinate", spec));
-    return scene;
 }
 
 }  // namespace rtsim

@@ -30,6 +30,11 @@ struct Scene {
 // Throws InputError naming the file and the problem.
 Scene load_scene(const std::string& spec);
 
+// Format readers behind load_scene. OFF has its own reader (assimp rejects inline comments);
+// everything else goes through assimp. Both keep the file's face order.
+Scene read_off(const std::string& path);
+void read_with_assimp(const std::string& path, Scene& out);
+
 // Procedural scenes that need no file. Throws InputError for an unknown name.
 Scene make_builtin_scene(const std::string& name);
 std::vector<std::string> builtin_scene_names();

@@ -21,6 +21,11 @@ struct VectorSink {
     }
 };
 
+// A box's entry distance and a triangle's hit distance on the box's face are two roundings of
+// one number and may differ by a few ulps. Culling boxes strictly beyond the current hit could
+// then drop a triangle that is nearer than the one found: keep boxes within this margin.
+constexpr float kCullScale = 1.0f + 1.0f / 65536.0f;
+
 template <class Sink>
 Hit traverse(const Scene& scene, const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink,
              TraceCounters& c) {
@@ -43,7 +48,7 @@ Hit traverse(const Scene& scene, const Bvh& bvh, const Ray& ray, HitQuery query,
     const bool any = query == HitQuery::Any;
     while (sp > 0) {
         const Entry e = stack[--sp];
-        if (e.tnear > hit.t) continue;  // culled: a closer hit was found after it was pushed
+        if (e.tnear > hit.t * kCullScale) continue;  // a closer hit was found after the push
         const BvhNode& n = bvh.nodes[e.node];
         if (n.is_leaf()) {
             for (uint32_t i = 0; i < n.prim_count; ++i) {
@@ -63,8 +68,9 @@ Hit traverse(const Scene& scene, const Bvh& bvh, const Ray& ray, HitQuery query,
         c.nodes++;
         c.box_tests += 2;
         float t0, t1;
-        const bool h0 = intersect_box(rp, bvh.nodes[n.a].box, ray.tmin, hit.t, t0);
-        const bool h1 = intersect_box(rp, bvh.nodes[n.b].box, ray.tmin, hit.t, t1);
+        const float tmax = hit.t * kCullScale;
+        const bool h0 = intersect_box(rp, bvh.nodes[n.a].box, ray.tmin, tmax, t0);
+        const bool h1 = intersect_box(rp, bvh.nodes[n.b].box, ray.tmin, tmax, t1);
         if (h0 && h1) {
             // Nearest child on top of the stack.
             if (t0 <= t1) {

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# One-step set-up for a fresh Debian bookworm machine (as root, no terminal needed):
+# installs what is missing, fetches the Debian test meshes, builds Release, then
+#   scripts/setup.sh run    runs the main job (rtsim run, default config, built-in scene)
+#   scripts/setup.sh test   runs the whole test suite through ctest
+#   scripts/setup.sh build  only builds
+# Environment: BUILD_DIR (default build), RTSIM_SANITIZE=ON for an ASan+UBSan build.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+mode="${1:-run}"
+build_dir="${BUILD_DIR:-build}"
+
+packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
+          libassimp-dev libembree-dev libcli11-dev glmark2-data python3)
+missing=()
+for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "[setup] installing: ${missing[*]}"
+    sudo_cmd=""
+    [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
+    $sudo_cmd apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# libcgal-demo ships a data archive of meshes; it depends on libcgal-dev, so unpack the .deb
+# into a cache instead of installing it.
+mesh_dir=".cache/meshes/cgal"
+if [ ! -f "$mesh_dir/.done" ]; then
+    echo "[setup] fetching libcgal-demo meshes into $mesh_dir"
+    tmp="$(mktemp -d)"
+    (cd "$tmp" && apt-get download libcgal-demo >/dev/null 2>&1) || {
+        echo "[setup] apt-get download libcgal-demo failed; run 'apt-get update' and retry" >&2; exit 1; }
+    dpkg -x "$tmp"/libcgal-demo_*.deb "$tmp/x"
+    mkdir -p "$mesh_dir"
+    tar -xzf "$tmp/x/usr/share/doc/libcgal-dev/data.tar.gz" -C "$tmp" data/meshes
+    cp "$tmp"/data/meshes/*.off "$mesh_dir"/
+    rm -rf "$tmp"
+    touch "$mesh_dir/.done"
+fi
+
+cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DRTSIM_SANITIZE="${RTSIM_SANITIZE:-OFF}" >/dev/null
+cmake --build "$build_dir" -j"$(nproc)"
+
+case "$mode" in
+    build) ;;
+    run) "$build_dir"/rtsim run --out out/default ;;
+    test) ctest --test-dir "$build_dir" --output-on-failure -j"$(nproc)" ;;
+    *) echo "usage: scripts/setup.sh [run|test|build]" >&2; exit 2 ;;
+esac

@@ -1,0 +1,192 @@
+// End-to-end: the rtsim binary as a user runs it.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <filesystem>
+#include <fmt/format.h>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+struct Result {
+    int status;
+    std::string out, err;
+};
+
+fs::path work_dir() {
+    static const fs::path d = [] {
+        fs::path p = fs::temp_directory_path() /
+                     ("rtsim_e2e_" + std::to_string(::getpid()) + "_" +
+                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
+        fs::remove_all(p);
+        fs::create_directories(p);
+        return p;
+    }();
+    return d;
+}
+
+std::string slurp(const fs::path& p) {
+    std::ifstream in(p);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+Result rtsim(const std::string& args) {
+    const fs::path out = work_dir() / "stdout.txt", err = work_dir() / "stderr.txt";
+    const std::string cmd = fmt::format("'{}' {} >'{}' 2>'{}' </dev/null", RTSIM_BINARY, args, out.string(), err.string());
+    const int raw = std::system(cmd.c_str());
+    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, slurp(out), slurp(err)};
+}
+
+json stats_of(const fs::path& dir) { return json::parse(slurp(dir / "stats.json")); }
+
+void expect_one_line_error(const Result& r, const std::string& fragment) {
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find(fragment), std::string::npos) << r.err;
+}
+
+// The fields item 7 of the foundation issue promises.
+void expect_complete_stats(const json& s) {
+    for (const char* k : {"config", "config_hash", "scene", "bvh", "rays", "total_cycles", "rays_per_second",
+                          "units", "caches", "bandwidth", "counters", "host"})
+        ASSERT_TRUE(s.contains(k)) << k;
+    EXPECT_GT(s["total_cycles"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["rays"]["total"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["rays_per_second"].get<double>(), 0.0);
+    for (const char* u : {"box_unit[0]", "triangle_unit[0]", "box_unit_total"}) {
+        ASSERT_TRUE(s["units"].contains(u)) << u;
+        const double util = s["units"][u]["utilization"];
+        EXPECT_GT(util, 0.0);
+        EXPECT_LE(util, 1.0);
+        EXPECT_TRUE(s["units"][u].contains("busy_cycles"));
+    }
+    for (const char* c : {"l1[0]", "l1_total", "l2"})
+        for (const char* f : {"accesses", "hits", "misses", "hit_rate"}) ASSERT_TRUE(s["caches"][c].contains(f)) << c << f;
+    for (const char* l : {"l1", "l2", "dram"}) {
+        EXPECT_GT(s["bandwidth"][l]["bytes"].get<uint64_t>(), 0u) << l;
+        EXPECT_GT(s["bandwidth"][l]["gbps"].get<double>(), 0.0) << l;
+    }
+    EXPECT_GT(s["host"]["run_time_s"].get<double>(), 0.0);
+    EXPECT_GT(s["host"]["simulated_rays_per_host_second"].get<double>(), 0.0);
+}
+
+json without_host(json s) {
+    s.erase("host");
+    return s;
+}
+
+}  // namespace
+
+TEST(Run, DefaultSceneWritesCompleteStats) {
+    const fs::path out = work_dir() / "default";
+    const Result r = rtsim(fmt::format("run --out '{}'", out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    expect_complete_stats(s);
+    EXPECT_EQ(s["scene"]["name"], "builtin:cornell");
+    EXPECT_EQ(s["rays"]["by_kind"]["primary"].get<uint64_t>(), 128u * 128u);
+    EXPECT_NE(r.out.find("Mrays/s"), std::string::npos);
+    EXPECT_TRUE(r.err.empty()) << r.err;  // no banner, no progress when not on a terminal
+}
+
+TEST(Run, Glmark2BunnyWithSecondaryRays) {
+    ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
+    const fs::path out = work_dir() / "bunny";
+    const Result r = rtsim(fmt::format("run --scene {} --rays primary,shadow,ao --res 64x64 --out '{}'",
+                                       RTSIM_BUNNY_OBJ, out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    expect_complete_stats(s);
+    EXPECT_EQ(s["scene"]["triangles"].get<uint64_t>(), 69666u);
+    EXPECT_GT(s["rays"]["by_kind"]["ao"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["rays"]["by_kind"]["shadow"].get<uint64_t>(), 0u);
+}
+
+TEST(Run, SameInputsGiveIdenticalSimulatedStats) {
+    const std::string args = "run --rays primary,ao --res 48x48 --seed 7 --set core.count=3";
+    const fs::path a = work_dir() / "a", b = work_dir() / "b", c = work_dir() / "c";
+    ASSERT_EQ(rtsim(args + " --out '" + a.string() + "'").status, 0);
+    ASSERT_EQ(rtsim(args + " --out '" + b.string() + "'").status, 0);
+    ASSERT_EQ(rtsim("run --rays primary,ao --res 48x48 --seed 8 --set core.count=3 --out '" + c.string() + "'").status, 0);
+    const json sa = stats_of(a), sb = stats_of(b), sc = stats_of(c);
+    EXPECT_EQ(without_host(sa), without_host(sb));
+    // A different seed changes the AO rays, and so the simulated result.
+    EXPECT_NE(sa["total_cycles"], sc["total_cycles"]);
+}
+
+TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
+    // Caches far smaller than the bunny's 5.5 MiB BVH: every L2 miss is one line from DRAM,
+    // and every L1 miss is one L2 access.
+    ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ));
+    const fs::path out = work_dir() / "tiny";
+    const Result r = rtsim(fmt::format("run --scene {} --rays ao --res 64x64 --set l1.size_kib=1 --set l1.ways=2 "
+                                       "--set l2.size_kib=16 --set l2.line_bytes=128 --out '{}'",
+                                       RTSIM_BUNNY_OBJ, out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    const uint64_t l2_misses = s["caches"]["l2"]["misses"], l2_acc = s["caches"]["l2"]["accesses"];
+    EXPECT_GT(l2_misses, 10000u);
+    EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), l2_misses * 128);
+    EXPECT_EQ(l2_acc, s["caches"]["l1_total"]["misses"].get<uint64_t>());
+    EXPECT_EQ(s["bandwidth"]["l2"]["bytes"].get<uint64_t>(), s["caches"]["l1_total"]["misses"].get<uint64_t>() * 64);
+}
+
+TEST(Run, BiggerCachesNeverMoveMoreDramBytes) {
+    const fs::path small = work_dir() / "small", big = work_dir() / "big";
+    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=64 --out '" + small.string() + "'").status, 0);
+    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=4096 --out '" + big.string() + "'").status, 0);
+    EXPECT_LT(stats_of(big)["bandwidth"]["dram"]["bytes"].get<uint64_t>(),
+              stats_of(small)["bandwidth"]["dram"]["bytes"].get<uint64_t>());
+}
+
+TEST(Run, BrokenConfigExitsTwoWithOneLine) {
+    const fs::path cfg = work_dir() / "broken.json";
+    std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";
+    const fs::path out = work_dir() / "never";
+    const Result r = rtsim(fmt::format("run --config '{}' --out '{}'", cfg.string(), out.string()));
+    expect_one_line_error(r, cfg.string() + ": l1.size_kib");
+    EXPECT_FALSE(fs::exists(out / "stats.json"));
+}
+
+TEST(Run, MissingSceneExitsTwoWithOneLine) {
+    const fs::path out = work_dir() / "never";
+    const Result r = rtsim(fmt::format("run --scene /no/such/mesh.obj --out '{}'", out.string()));
+    expect_one_line_error(r, "/no/such/mesh.obj: scene file not found");
+    EXPECT_FALSE(fs::exists(out / "stats.json"));
+}
+
+TEST(Run, BadCommandLinesExitTwo) {
+    expect_one_line_error(rtsim("run --res 0x5"), "--res");
+    expect_one_line_error(rtsim("run --rays primary,bogus"), "unknown ray kind 'bogus'");
+    expect_one_line_error(rtsim("run --set nope=1"), "unknown key");
+    EXPECT_EQ(rtsim("run --no-such-flag").status, 2);
+    EXPECT_EQ(rtsim("").status, 2);
+    EXPECT_EQ(rtsim("frobnicate").status, 2);
+}
+
+TEST(Run, HelpOnEveryCommand) {
+    for (const char* c : {"--help", "run --help", "config --help"}) {
+        const Result r = rtsim(c);
+        EXPECT_EQ(r.status, 0) << c;
+        EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
+    }
+    const Result run_help = rtsim("run --help");
+    for (const char* opt : {"--config", "--set", "--scene", "--rays", "--res", "--seed", "--out"})
+        EXPECT_NE(run_help.out.find(opt), std::string::npos) << opt;
+}
+
+TEST(Run, ConfigCommandPrintsEffectiveConfig) {
+    const Result r = rtsim(fmt::format("config --config {}/configs/small_caches.json --set l1.ways=2", RTSIM_SOURCE_DIR));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json c = json::parse(r.out);
+    EXPECT_EQ(c["l1"]["size_kib"], 4);
+    EXPECT_EQ(c["l1"]["ways"], 2);
+    EXPECT_EQ(c["l2"]["ways"], 16);
+}

@@ -1,0 +1,25 @@
+// Test double: a memory level with a fixed latency and no contention.
+#pragma once
+
+#include <vector>
+
+#include "models/timing.h"
+
+namespace rtsim::test {
+
+class FixedLatencyMemory : public MemoryPort {
+public:
+    explicit FixedLatencyMemory(Cycle latency) : latency_(latency) {}
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+        addrs.push_back(addr);
+        bytes += size_bytes;
+        return now + latency_;
+    }
+    std::vector<uint64_t> addrs;
+    uint64_t bytes = 0;
+
+private:
+    Cycle latency_;
+};
+
+}  // namespace rtsim::test

@@ -1,0 +1,40 @@
+#include <gtest/gtest.h>
+
+#include "models/unit.h"
+
+using namespace rtsim;
+
+// Analytical pipeline timing: N operations, all ready at cycle 0, on `count` pipelines of
+// latency L and interval II. The last one starts at ceil(N/count - 1) * II and ends L later.
+TEST(PipelinedUnit, LatencyLIntervalOneFinishesNOpsInNPlusLMinusOneCycles) {
+    for (Cycle L : {1, 4, 18}) {
+        for (uint64_t N : {1, 2, 100}) {
+            PipelinedUnit u(sc_core::sc_gen_unique_name("u"), UnitParams{1, L, 1});
+            Cycle last = 0;
+            for (uint64_t i = 0; i < N; ++i) last = std::max(last, u.issue(0));
+            // Results of op i are available at i + L; the N ops occupy cycles 0 .. N+L-1 exclusive.
+            EXPECT_EQ(last, N - 1 + L) << "N=" << N << " L=" << L;
+            EXPECT_EQ(u.ops, N);
+            EXPECT_EQ(u.busy_cycles, N);
+            EXPECT_EQ(u.queue_cycles, N * (N - 1) / 2);
+        }
+    }
+}
+
+TEST(PipelinedUnit, IntervalAndPipelineCount) {
+    PipelinedUnit slow(sc_core::sc_gen_unique_name("u"), UnitParams{1, 10, 3});
+    Cycle last = 0;
+    for (int i = 0; i < 5; ++i) last = slow.issue(0);
+    EXPECT_EQ(last, 4u * 3 + 10);
+    PipelinedUnit wide(sc_core::sc_gen_unique_name("u"), UnitParams{2, 10, 1});
+    for (int i = 0; i < 6; ++i) last = wide.issue(0);
+    EXPECT_EQ(last, 2u + 10);  // 6 ops over 2 pipelines: starts 0,0,1,1,2,2
+}
+
+TEST(PipelinedUnit, IdleGapsAreNotBusy) {
+    PipelinedUnit u(sc_core::sc_gen_unique_name("u"), UnitParams{1, 5, 1});
+    EXPECT_EQ(u.issue(0), 5u);
+    EXPECT_EQ(u.issue(100), 105u);
+    EXPECT_EQ(u.busy_cycles, 2u);
+    EXPECT_EQ(u.queue_cycles, 0u);
+}

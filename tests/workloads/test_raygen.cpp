@@ -1,0 +1,106 @@
+#include <gtest/gtest.h>
+
+#include "workloads/error.h"
+#include "workloads/raygen.h"
+
+using namespace rtsim;
+
+namespace {
+std::vector<GeneratedRay> all_rays(const Scene& s, const Bvh& bvh, const RayGenOptions& o) {
+    RayGenerator g(s, bvh, o);
+    std::vector<GeneratedRay> out;
+    while (g.next_tile(out)) {
+    }
+    return out;
+}
+}  // namespace
+
+TEST(RayGen, ParsesKinds) {
+    auto k = parse_ray_kinds("primary,ao", "--rays");
+    EXPECT_TRUE(k[0]);
+    EXPECT_FALSE(k[1]);
+    EXPECT_TRUE(k[2]);
+    EXPECT_EQ(ray_kinds_to_string(k), "primary,ao");
+    EXPECT_THROW(parse_ray_kinds("primary,diffuse", "--rays"), InputError);
+    EXPECT_THROW(parse_ray_kinds("", "--rays"), InputError);
+}
+
+TEST(RayGen, CameraFramesTheWholeScene) {
+    Scene s = load_scene("builtin:cornell");
+    const AABB b = s.bounds();
+    for (auto [w, h] : {std::pair{64, 64}, std::pair{160, 90}, std::pair{90, 160}}) {
+        Camera c = Camera::frame(b, w, h);
+        for (int i = 0; i < 8; ++i) {
+            const Vec3 p((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
+            const Vec3 d = p - c.eye;
+            const float z = dot(d, c.forward);
+            ASSERT_GT(z, 0.0f);
+            EXPECT_LE(std::fabs(dot(d, c.right) / z), c.tan_half_fov_y * c.aspect * 1.0001f);
+            EXPECT_LE(std::fabs(dot(d, c.up) / z), c.tan_half_fov_y * 1.0001f);
+        }
+    }
+}
+
+TEST(RayGen, EmitsOnePrimaryPerPixelAndSecondariesFromHits) {
+    Scene s = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    RayGenOptions o;
+    o.width = 37;  // not a multiple of the tile size
+    o.height = 21;
+    o.kinds = parse_ray_kinds("primary,shadow,ao", "test");
+    o.ao_samples = 3;
+    auto rays = all_rays(s, bvh, o);
+    size_t prim = 0, shadow = 0, ao = 0, hits = 0;
+    for (size_t i = 0; i < rays.size(); ++i) {
+        EXPECT_EQ(rays[i].id, i);
+        if (rays[i].kind == RayKind::Primary) {
+            ++prim;
+            hits += trace_ray(s, bvh, rays[i].ray, HitQuery::Closest).valid();
+        }
+        shadow += rays[i].kind == RayKind::Shadow;
+        ao += rays[i].kind == RayKind::AO;
+    }
+    EXPECT_EQ(prim, 37u * 21u);
+    EXPECT_EQ(ao, 3 * hits);
+    EXPECT_GT(shadow, 0u);
+    EXPECT_LE(shadow, hits);
+}
+
+TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
+    // A single large plane seen from above: no AO or shadow ray may hit it.
+    Scene s;
+    s.vertices = {{-10, 0, -10}, {10, 0, -10}, {10, 0, 10}, {-10, 0, 10}, {0, 5, 0}, {0.01f, 5, 0}, {0, 5, 0.01f}};
+    s.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}};  // the tiny triangle lifts the bounds
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    RayGenOptions o;
+    o.width = o.height = 48;
+    o.kinds = parse_ray_kinds("ao", "test");
+    o.ao_samples = 4;
+    o.ao_length_fraction = 0.05f;
+    int checked = 0;
+    for (const GeneratedRay& r : all_rays(s, bvh, o)) {
+        const Hit h = trace_ray(s, bvh, r.ray, HitQuery::Closest);
+        EXPECT_FALSE(h.valid() && h.prim != 2) << "AO ray " << r.id << " re-hit the plane at t=" << h.t;
+        ++checked;
+    }
+    EXPECT_GT(checked, 1000);
+}
+
+TEST(RayGen, SeedChangesAoDirectionsDeterministically) {
+    Scene s = load_scene("builtin:sphere");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    RayGenOptions o;
+    o.width = o.height = 16;
+    o.kinds = parse_ray_kinds("ao", "test");
+    auto a = all_rays(s, bvh, o), b = all_rays(s, bvh, o);
+    o.seed = 2;
+    auto c = all_rays(s, bvh, o);
+    ASSERT_EQ(a.size(), b.size());
+    ASSERT_EQ(a.size(), c.size());
+    int differ = 0;
+    for (size_t i = 0; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].ray.dir.x, b[i].ray.dir.x);
+        differ += a[i].ray.dir.x != c[i].ray.dir.x;
+    }
+    EXPECT_GT(differ, int(a.size()) / 2);
+}

@@ -1,0 +1,178 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "workloads/bvh.h"
+#include "workloads/intersect.h"
+#include "workloads/scene.h"
+#include "workloads/tracer.h"
+
+using namespace rtsim;
+
+namespace {
+
+Hit brute_force(const Scene& s, const Ray& r) {
+    Hit h;
+    h.t = r.tmax;
+    const RayPrecomp rp(r);
+    for (uint32_t p = 0; p < s.triangle_count(); ++p)
+        if (intersect_triangle(rp, s.v(p, 0), s.v(p, 1), s.v(p, 2), r.tmin, h)) h.prim = p;
+    if (!h.valid()) h.t = std::numeric_limits<float>::infinity();
+    return h;
+}
+
+std::vector<Ray> random_rays(const AABB& b, int n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(0.0f, 1.0f);
+    std::vector<Ray> rays;
+    const Vec3 c = b.center(), e = b.extent();
+    for (int i = 0; i < n; ++i) {
+        Ray r;
+        // Origins around and inside the scene, directions uniform: hits, misses and grazes.
+        r.org = c + Vec3((u(rng) - 0.5f) * e.x * 1.5f, (u(rng) - 0.5f) * e.y * 1.5f, (u(rng) - 0.5f) * e.z * 1.5f);
+        Vec3 d;
+        do d = Vec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
+        while (dot(d, d) > 1.0f || dot(d, d) < 1e-4f);
+        r.dir = normalize(d);
+        if (i % 7 == 0) r.dir = Vec3(0, 0, (i % 2) ? 1.0f : -1.0f);  // axis-parallel
+        if (i % 11 == 0) r.tmax = 0.3f * length(e);                  // bounded
+        rays.push_back(r);
+    }
+    return rays;
+}
+
+}  // namespace
+
+TEST(Tracer, ClosestHitMatchesBruteForce) {
+    Scene s = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    int hits = 0;
+    for (const Ray& r : random_rays(s.bounds(), 1000, 7)) {
+        const Hit a = trace_ray(s, bvh, r, HitQuery::Closest);
+        const Hit b = brute_force(s, r);
+        ASSERT_EQ(a.valid(), b.valid());
+        if (!a.valid()) continue;
+        ++hits;
+        // Same intersector, so the same t; the primitive may differ only on an exact tie.
+        ASSERT_EQ(a.t, b.t);
+        if (a.prim != b.prim) {
+            Hit other;
+            const RayPrecomp rp(r);
+            ASSERT_TRUE(intersect_triangle(rp, s.v(a.prim, 0), s.v(a.prim, 1), s.v(a.prim, 2), r.tmin, other));
+            ASSERT_EQ(other.t, b.t);
+        }
+    }
+    EXPECT_GT(hits, 300);
+}
+
+TEST(Tracer, AnyHitAgreesWithClosestHitOnOcclusion) {
+    Scene s = load_scene("builtin:sphere");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    for (const Ray& r : random_rays(s.bounds(), 500, 3)) {
+        const Hit a = trace_ray(s, bvh, r, HitQuery::Any);
+        const Hit c = trace_ray(s, bvh, r, HitQuery::Closest);
+        ASSERT_EQ(a.valid(), c.valid());
+        if (a.valid()) {
+            EXPECT_GE(a.t, c.t);
+        }
+    }
+}
+
+TEST(Tracer, StepStreamMatchesCountersAndLayout) {
+    Scene s = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    const BvhLayout& L = bvh.layout;
+    for (const Ray& r : random_rays(s.bounds(), 200, 5)) {
+        std::vector<Step> steps;
+        TraceCounters c;
+        const Hit with = trace_ray(s, bvh, r, HitQuery::Closest, &steps, &c);
+        const Hit without = trace_ray(s, bvh, r, HitQuery::Closest);
+        ASSERT_EQ(with.prim, without.prim);
+        uint32_t nodes = 0, tris = 0;
+        for (const Step& st : steps) {
+            if (st.kind == StepKind::Node) {
+                ++nodes;
+                ASSERT_EQ(st.addr, L.node_addr(st.id));
+                ASSERT_LT(st.id, L.inner_node_count);
+                ASSERT_EQ(st.size_bytes, L.node_size_bytes);
+                ASSERT_EQ(st.count, 2);
+            } else {
+                ++tris;
+                ASSERT_EQ(st.addr, L.tri_addr(st.id));
+                ASSERT_LT(st.id, L.triangle_count);
+                ASSERT_EQ(st.size_bytes, L.tri_size_bytes);
+            }
+        }
+        ASSERT_EQ(nodes, c.nodes);
+        ASSERT_EQ(tris, c.tri_tests);
+        ASSERT_EQ(c.box_tests, 2 * c.nodes);
+        if (!steps.empty()) {
+            ASSERT_EQ(steps.front().kind, StepKind::Node);  // traversal starts at the root record
+            ASSERT_EQ(steps.front().id, 0u);
+        }
+    }
+}
+
+TEST(Tracer, RayMissingRootBoxCostsNoStep) {
+    Scene s = load_scene("builtin:sphere");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Ray r;
+    r.org = Vec3(10, 10, 10);
+    r.dir = normalize(Vec3(1, 1, 1));
+    std::vector<Step> steps;
+    const Hit h = trace_ray(s, bvh, r, HitQuery::Closest, &steps);
+    EXPECT_FALSE(h.valid());
+    EXPECT_TRUE(steps.empty());
+}
+
+TEST(Intersect, WatertightOnSharedEdgesAndVertices) {
+    // A fan of triangles around a vertex: rays exactly through the shared vertex and through
+    // every shared edge must hit at least one triangle.
+    Scene s;
+    s.vertices.push_back({0, 0, 0});
+    const int n = 7;
+    for (int i = 0; i < n; ++i) {
+        const float a = 6.2831853f * i / n;
+        s.vertices.push_back({std::cos(a), std::sin(a), 0});
+    }
+    for (int i = 0; i < n; ++i) s.triangles.push_back({0, uint32_t(1 + i), uint32_t(1 + (i + 1) % n)});
+    auto hits_any = [&](const Ray& r) {
+        const RayPrecomp rp(r);
+        for (uint32_t p = 0; p < s.triangle_count(); ++p) {
+            Hit h;
+            if (intersect_triangle(rp, s.v(p, 0), s.v(p, 1), s.v(p, 2), 0.0f, h)) return true;
+        }
+        return false;
+    };
+    for (Vec3 o : {Vec3(0, 0, 1), Vec3(0.3f, -0.2f, 2.0f), Vec3(-5, 3, 7)}) {
+        Ray r;
+        r.org = o;
+        r.dir = normalize(Vec3(0, 0, 0) - o);
+        EXPECT_TRUE(hits_any(r)) << "through the shared vertex";
+        for (int i = 0; i < n; ++i) {
+            for (float f : {0.1f, 0.37f, 0.5f, 0.93f}) {
+                Ray e;
+                e.org = o;
+                e.dir = normalize(s.vertices[1 + i] * f - o);
+                EXPECT_TRUE(hits_any(e)) << "through edge " << i << " at " << f;
+            }
+        }
+    }
+}
+
+TEST(Intersect, SlabTestHandlesAxisParallelRaysOnPlanes) {
+    AABB b;
+    b.lo = Vec3(0, 0, 0);
+    b.hi = Vec3(1, 1, 1);
+    Ray r;
+    r.org = Vec3(0, 0.5f, -1);  // on the x = 0 plane, parallel to it
+    r.dir = Vec3(0, 0, 1);
+    float tn;
+    EXPECT_TRUE(intersect_box(RayPrecomp(r), b, 0.0f, 100.0f, tn));
+    EXPECT_FLOAT_EQ(tn, 1.0f);
+    r.org = Vec3(-1e-3f, 0.5f, -1);  // just outside
+    EXPECT_FALSE(intersect_box(RayPrecomp(r), b, 0.0f, 100.0f, tn));
+    r.org = Vec3(0.5f, 0.5f, 0.5f);  // inside: enters at tmin
+    EXPECT_TRUE(intersect_box(RayPrecomp(r), b, 0.0f, 100.0f, tn));
+    EXPECT_EQ(tn, 0.0f);
+}
