@@ -116,7 +116,8 @@ TEST(Scene, MalformedFilesAreInputErrors) {
     expect_input_error(write_temp("trunc.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
                                                "property float y\nproperty float z\nelement face 1\n"
                                                "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0\n"),
-                       "cannot read mesh");
+                       "no triangles");
+    expect_input_error(write_temp("mesh.unknownformat", "whatever\n"), "cannot read mesh");
     expect_input_error(write_temp("bad.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n"), "");
     expect_input_error(write_temp("empty.obj", "# no faces\nv 0 0 0\n"), "");
     expect_input_error(fs::temp_directory_path().string(), "directory");
