@@ -23,20 +23,20 @@ struct CacheParams {
 };
 
 class Cache : public sc_core::sc_module, public MemoryPort {
-public:
+  public:
     Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
     const CacheParams& params() const { return params_; }
 
-    uint64_t accesses = 0;      // line lookups (a request spanning two lines counts two)
+    uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
     uint64_t hits = 0;
     uint64_t misses = 0;
-    uint64_t merged_misses = 0;  // hits on a line whose fill was still in flight
+    uint64_t merged_misses = 0;    // hits on a line whose fill was still in flight
     uint64_t bytes_requested = 0;  // bytes delivered to the level above
     uint64_t fill_bytes = 0;       // bytes read from the level below
 
-private:
+  private:
     struct Way {
         uint64_t tag = 0;
         uint64_t last_use = 0;

@@ -69,8 +69,10 @@ void Core::run() {
 void Core::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "rays", &rays, "rays completed");
     reg.add(block, "steps", &steps, "traversal steps executed");
-    reg.add(block, "ray_latency_cycles", &ray_latency_cycles, "summed ray latency, dispatch to result");
-    reg.add(block, "issue_stall_cycles", &issue_stall_cycles, "cycles steps waited for an issue slot");
+    reg.add(block, "ray_latency_cycles", &ray_latency_cycles,
+            "summed ray latency, dispatch to result");
+    reg.add(block, "issue_stall_cycles", &issue_stall_cycles,
+            "cycles steps waited for an issue slot");
     reg.add(block, "last_cycle", &last_cycle, "cycle the core's last ray finished");
 }
 

@@ -22,7 +22,7 @@ namespace rtsim {
 // Hands out rays to cores; the chip's shared work queue. Calls arrive in simulated time order
 // (to within the quantum) from every core.
 class RayWorkSource {
-public:
+  public:
     virtual ~RayWorkSource() = default;
     // Fills `work` with the next ray's steps; false when no ray is left.
     virtual bool next(RayWork& work) = 0;
@@ -36,7 +36,7 @@ struct CoreParams {
 };
 
 class Core : public sc_core::sc_module {
-public:
+  public:
     SC_HAS_PROCESS(Core);
     Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source);
@@ -48,7 +48,7 @@ public:
     uint64_t issue_stall_cycles = 0;  // cycles steps waited for an issue slot
     uint64_t last_cycle = 0;          // cycle the core's last ray finished
 
-private:
+  private:
     struct Slot {
         RayWork work;
         size_t pos = 0;

@@ -16,7 +16,7 @@ struct DramParams {
 };
 
 class Dram : public sc_core::sc_module, public MemoryPort {
-public:
+  public:
     Dram(sc_core::sc_module_name name, const DramParams& params);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
@@ -27,7 +27,7 @@ public:
     uint64_t busy_cycles = 0;   // cycles the channel spent transferring (rounded up per access)
     uint64_t queue_cycles = 0;  // cycles requests waited for the channel
 
-private:
+  private:
     DramParams params_;
     double next_free_ = 0.0;  // fractional, so that e.g. 12.8 bytes per cycle is exact over time
 };

@@ -9,7 +9,7 @@
 namespace rtsim {
 
 class StatsRegistry {
-public:
+  public:
     struct Entry {
         std::string name;  // "l1[3].misses": block instance, dot, counter (unit in the name)
         const uint64_t* value;
@@ -26,7 +26,7 @@ public:
     // Sum of `counter` over every block whose name starts with `block_prefix` ("l1[").
     uint64_t sum(const std::string& block_prefix, const std::string& counter) const;
 
-private:
+  private:
     std::vector<Entry> entries_;
 };
 

@@ -20,7 +20,7 @@ inline Cycle now_cycles() {
 // that returns the cycle the data is available. Requests must arrive in non-decreasing time
 // order per level (the cores' quantum keeps them within a bound).
 class MemoryPort {
-public:
+  public:
     virtual ~MemoryPort() = default;
     virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) = 0;
 };

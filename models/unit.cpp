@@ -19,7 +19,8 @@ Cycle PipelinedUnit::issue(Cycle ready) {
 
 void PipelinedUnit::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "ops", &ops, "operations issued");
-    reg.add(block, "busy_cycles", &busy_cycles, "pipeline issue slots occupied, summed over pipelines");
+    reg.add(block, "busy_cycles", &busy_cycles,
+            "pipeline issue slots occupied, summed over pipelines");
     reg.add(block, "queue_cycles", &queue_cycles, "cycles operations waited for a free pipeline");
 }
 

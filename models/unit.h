@@ -19,7 +19,7 @@ struct UnitParams {
 };
 
 class PipelinedUnit : public sc_core::sc_module {
-public:
+  public:
     PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params);
     // Issues one operation that is ready at `ready`; returns the cycle its result is available.
     // Arbitration is first come, first served, onto the pipeline that frees first.
@@ -31,7 +31,7 @@ public:
     uint64_t busy_cycles = 0;   // pipeline issue slots occupied, summed over pipelines
     uint64_t queue_cycles = 0;  // cycles operations waited for a free pipeline
 
-private:
+  private:
     UnitParams params_;
     std::vector<Cycle> next_free_;  // per pipeline: first cycle it accepts a new operation
 };

@@ -11,7 +11,7 @@ mode="${1:-run}"
 build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
-          libassimp-dev libembree-dev libcli11-dev glmark2-data python3)
+          libassimp-dev libembree-dev libcli11-dev glmark2-data)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -45,14 +45,15 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
         const std::string idx = fmt::format("[{}]", i);
         l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, l2.get()));
         l1.back()->register_stats(stats, "l1" + idx);
-        box_units.push_back(std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(i)).c_str(), bp));
+        box_units.push_back(
+            std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(i)).c_str(), bp));
         box_units.back()->register_stats(stats, "box_unit" + idx);
         triangle_units.push_back(
             std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(i)).c_str(), tp));
         triangle_units.back()->register_stats(stats, "triangle_unit" + idx);
-        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, l1.back().get(),
-                                               box_units.back().get(), triangle_units.back().get(),
-                                               source));
+        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp,
+                                               l1.back().get(), box_units.back().get(),
+                                               triangle_units.back().get(), source));
         cores.back()->register_stats(stats, "core" + idx);
     }
 }

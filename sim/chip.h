@@ -15,7 +15,7 @@
 namespace rtsim {
 
 class Chip {
-public:
+  public:
     Chip(const Config& cfg, RayWorkSource* source);
     // Cycle the last ray finished (valid after the simulation ran).
     Cycle total_cycles() const;

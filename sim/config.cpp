@@ -1,8 +1,8 @@
 #include "sim/config.h"
 
+#include <fmt/format.h>
 #include <cmath>
 #include <filesystem>
-#include <fmt/format.h>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -52,14 +52,22 @@ std::string expectation(const json& field) {
         for (auto& e : field["enum"]) list += (list.empty() ? "" : ", ") + e.dump();
         s += " (one of " + list + ")";
     }
-    if (field.contains("minimum")) s += fmt::format(" >= {}", field["minimum"].dump());
-    if (field.contains("exclusive_minimum")) s += fmt::format(" > {}", field["exclusive_minimum"].dump());
-    if (field.contains("maximum")) s += fmt::format(" <= {}", field["maximum"].dump());
+    const bool lo = field.contains("minimum"), xlo = field.contains("exclusive_minimum"),
+               hi = field.contains("maximum");
+    if (lo && hi)
+        s += fmt::format(" from {} to {}", field["minimum"].dump(), field["maximum"].dump());
+    else if (lo)
+        s += fmt::format(" >= {}", field["minimum"].dump());
+    if (xlo) s += fmt::format(" > {}", field["exclusive_minimum"].dump());
+    if (xlo && hi) s += fmt::format(" and <= {}", field["maximum"].dump());
+    if (!lo && !xlo && hi) s += fmt::format(" <= {}", field["maximum"].dump());
     if (field.value("power_of_two", false)) s += ", a power of two";
     return s;
 }
 
-bool is_power_of_two(int64_t v) { return v > 0 && (v & (v - 1)) == 0; }
+bool is_power_of_two(int64_t v) {
+    return v > 0 && (v & (v - 1)) == 0;
+}
 
 // Checks one leaf value; returns an empty string if fine, else what was expected.
 std::string check_leaf(const json& field, const json& v) {
@@ -72,7 +80,8 @@ std::string check_leaf(const json& field, const json& v) {
     if (ok && v.is_number()) {
         const double d = v.get<double>();
         if (field.contains("minimum") && d < field["minimum"].get<double>()) ok = false;
-        if (field.contains("exclusive_minimum") && d <= field["exclusive_minimum"].get<double>()) ok = false;
+        if (field.contains("exclusive_minimum") && d <= field["exclusive_minimum"].get<double>())
+            ok = false;
         if (field.contains("maximum") && d > field["maximum"].get<double>()) ok = false;
         if (field.value("power_of_two", false) && !is_power_of_two(v.get<int64_t>())) ok = false;
     }
@@ -84,7 +93,8 @@ std::string check_leaf(const json& field, const json& v) {
 }
 
 // Validates a (partial) config object against the schema node; `where` names the source.
-void validate(const json& schema_node, const json& v, const std::string& path, const std::string& where) {
+void validate(const json& schema_node, const json& v, const std::string& path,
+              const std::string& where) {
     if (schema_node.contains("fields")) {
         if (!v.is_object())
             throw InputError(fmt::format("{}: {}: expected an object, got {}", where,
@@ -94,15 +104,18 @@ void validate(const json& schema_node, const json& v, const std::string& path, c
             const std::string p = path.empty() ? k : path + "." + k;
             if (!schema_node["fields"].contains(k)) {
                 std::string known;
-                for (auto& [fk, fv] : schema_node["fields"].items()) known += (known.empty() ? "" : ", ") + fk;
-                throw InputError(fmt::format("{}: {}: unknown key (expected one of: {})", where, p, known));
+                for (auto& [fk, fv] : schema_node["fields"].items())
+                    known += (known.empty() ? "" : ", ") + fk;
+                throw InputError(
+                    fmt::format("{}: {}: unknown key (expected one of: {})", where, p, known));
             }
             validate(schema_node["fields"][k], child, p, where);
         }
         return;
     }
     const std::string why = check_leaf(schema_node, v);
-    if (!why.empty()) throw InputError(fmt::format("{}: {}: expected {}, got {}", where, path, why, v.dump()));
+    if (!why.empty())
+        throw InputError(fmt::format("{}: {}: expected {}, got {}", where, path, why, v.dump()));
 }
 
 void merge_into(json& base, const json& over) {
@@ -136,12 +149,14 @@ void load_chain(const std::string& path, json& out, std::vector<std::string>& fi
     for (const std::string& f : chain)
         if (fs::weakly_canonical(f) == fs::weakly_canonical(path))
             throw InputError(fmt::format("{}: extends: cycle through this file", path));
-    if (chain.size() > 32) throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
+    if (chain.size() > 32)
+        throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
     json j = read_json_file(path);
     validate(config_schema(), j, "", path);
     if (j.contains("extends")) {
         if (!j["extends"].is_string())
-            throw InputError(fmt::format("{}: extends: expected a file name string, got {}", path, j["extends"].dump()));
+            throw InputError(fmt::format("{}: extends: expected a file name string, got {}", path,
+                                         j["extends"].dump()));
         fs::path parent = j["extends"].get<std::string>();
         if (parent.is_relative()) parent = fs::path(path).parent_path() / parent;
         chain.push_back(path);
@@ -165,9 +180,9 @@ void validate_cross(const json& c, const std::string& where) {
                 where, level, size / 1024, ways, line, double(size) / double(ways * line)));
     }
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
-        throw InputError(fmt::format("{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}",
-                                     where, c["l1"]["line_bytes"].get<int64_t>(),
-                                     c["l2"]["line_bytes"].get<int64_t>()));
+        throw InputError(fmt::format(
+            "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,
+            c["l1"]["line_bytes"].get<int64_t>(), c["l2"]["line_bytes"].get<int64_t>()));
 }
 
 const json& lookup(const json& values, const std::string& path) {
@@ -180,8 +195,12 @@ const json& lookup(const json& values, const std::string& path) {
 
 }  // namespace
 
-int64_t Config::integer(const std::string& path) const { return lookup(values, path).get<int64_t>(); }
-double Config::number(const std::string& path) const { return lookup(values, path).get<double>(); }
+int64_t Config::integer(const std::string& path) const {
+    return lookup(values, path).get<int64_t>();
+}
+double Config::number(const std::string& path) const {
+    return lookup(values, path).get<double>();
+}
 std::string Config::string(const std::string& path) const {
     return lookup(values, path).get<std::string>();
 }
@@ -211,12 +230,14 @@ Config load_config(const std::string& path, const std::vector<std::string>& sets
         const json* field = schema_entry(key);
         if (!field) throw InputError(fmt::format("{}: {}: unknown key", where, key));
         if (field->contains("fields"))
-            throw InputError(fmt::format("{}: {}: is a section; set one of its fields", where, key));
+            throw InputError(
+                fmt::format("{}: {}: is a section; set one of its fields", where, key));
         json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
         if (value.is_discarded()) value = text;  // bare words are strings: --set bvh.builder=sah
         const std::string why = check_leaf(*field, value);
         if (!why.empty())
-            throw InputError(fmt::format("{}: {}: expected {}, got {}", where, key, why, value.dump()));
+            throw InputError(
+                fmt::format("{}: {}: expected {}, got {}", where, key, why, value.dump()));
         json* node = &cfg.values;
         std::stringstream ss(key);
         std::string part;
@@ -229,16 +250,21 @@ Config load_config(const std::string& path, const std::vector<std::string>& sets
 }
 
 std::string config_reference_markdown() {
-    std::string out = "# RTSim config reference\n\nGenerated from configs/schema.json by `rtsim config --doc`.\n\n";
-    out += config_schema().value("description", "") + "\n\n| key | type | default | limits | description |\n|---|---|---|---|---|\n";
-    std::function<void(const json&, const std::string&)> walk = [&](const json& node, const std::string& path) {
+    std::string out =
+        "# RTSim config reference\n\nGenerated from configs/schema.json by `rtsim config "
+        "--doc`.\n\n";
+    out += config_schema().value("description", "") +
+           "\n\n| key | type | default | limits | description |\n|---|---|---|---|---|\n";
+    std::function<void(const json&, const std::string&)> walk = [&](const json& node,
+                                                                    const std::string& path) {
         if (node.contains("fields")) {
             for (auto& [k, v] : node["fields"].items()) walk(v, path.empty() ? k : path + "." + k);
             return;
         }
         std::string limits = expectation(node);
-        out += fmt::format("| `{}` | {} | `{}` | {} | {} |\n", path, node["type"].get<std::string>(),
-                           node["default"].dump(), limits, node.value("description", ""));
+        out +=
+            fmt::format("| `{}` | {} | `{}` | {} | {} |\n", path, node["type"].get<std::string>(),
+                        node["default"].dump(), limits, node.value("description", ""));
     };
     walk(config_schema(), "");
     return out;

@@ -11,9 +11,9 @@
 namespace rtsim {
 
 class Config {
-public:
-    nlohmann::json values;             // effective config: defaults < extends chain < file < --set
-    std::vector<std::string> files;    // files read, parent first
+  public:
+    nlohmann::json values;           // effective config: defaults < extends chain < file < --set
+    std::vector<std::string> files;  // files read, parent first
     std::vector<std::string> overrides;  // --set arguments applied, in order
 
     // Typed access by dotted path ("l1.size_kib"). The path must be in the schema.

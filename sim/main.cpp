@@ -1,7 +1,7 @@
 // The rtsim command line. libsystemc supplies main() and calls sc_main().
+#include <fmt/format.h>
 #include <CLI/CLI.hpp>
 #include <cstdlib>
-#include <fmt/format.h>
 #include <systemc>
 
 #include "sim/config.h"
@@ -12,13 +12,17 @@ namespace {
 
 // Scene and ray options, shared by every command that makes rays.
 void add_workload_options(CLI::App* cmd, rtsim::WorkloadOptions& w, std::string& res) {
-    cmd->add_option("--scene", w.scene, "Mesh file (OBJ, PLY, OFF, STL, ...) or builtin:NAME (cornell, sphere)")
+    cmd->add_option("--scene", w.scene,
+                    "Mesh file (OBJ, PLY, OFF, STL, ...) or builtin:NAME (cornell, sphere)")
         ->capture_default_str();
-    cmd->add_option("--rays", w.rays, "Comma list of ray kinds: primary, shadow, ao")->capture_default_str();
+    cmd->add_option("--rays", w.rays, "Comma list of ray kinds: primary, shadow, ao")
+        ->capture_default_str();
     cmd->add_option("--res", res, "Image resolution WIDTHxHEIGHT")->capture_default_str();
-    cmd->add_option("--seed", w.seed, "Seed for sampled rays (AO directions)")->capture_default_str();
+    cmd->add_option("--seed", w.seed, "Seed for sampled rays (AO directions)")
+        ->capture_default_str();
     cmd->add_option("--ao-samples", w.ao_samples, "AO rays per primary hit")->capture_default_str();
-    cmd->add_option("--ao-length", w.ao_length_fraction, "AO ray length as a fraction of the scene diagonal")
+    cmd->add_option("--ao-length", w.ao_length_fraction,
+                    "AO ray length as a fraction of the scene diagonal")
         ->capture_default_str();
 }
 
@@ -29,17 +33,22 @@ int main_impl(int argc, char** argv) {
 
     rtsim::RunOptions run;
     std::string run_res = "128x128";
-    CLI::App* run_cmd = app.add_subcommand("run", "Simulate a frame's rays on an architecture config; writes stats.json");
-    run_cmd->add_option("--config", run.config_path, "Architecture config JSON (default: built-in defaults)");
-    run_cmd->add_option("--set", run.sets, "Override a config field, KEY=VALUE (e.g. l1.size_kib=64); repeatable");
+    CLI::App* run_cmd = app.add_subcommand(
+        "run", "Simulate a frame's rays on an architecture config; writes stats.json");
+    run_cmd->add_option("--config", run.config_path,
+                        "Architecture config JSON (default: built-in defaults)");
+    run_cmd->add_option("--set", run.sets,
+                        "Override a config field, KEY=VALUE (e.g. l1.size_kib=64); repeatable");
     add_workload_options(run_cmd, run.workload, run_res);
-    run_cmd->add_option("--out,-o", run.out_dir, "Output folder for stats.json (default: a fresh folder under out/)");
+    run_cmd->add_option("--out,-o", run.out_dir,
+                        "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
 
     std::string cfg_path;
     std::vector<std::string> cfg_sets;
     bool cfg_doc = false;
-    CLI::App* cfg_cmd = app.add_subcommand("config", "Print the effective config, or the field reference");
+    CLI::App* cfg_cmd =
+        app.add_subcommand("config", "Print the effective config, or the field reference");
     cfg_cmd->add_option("--config", cfg_path, "Config JSON to resolve");
     cfg_cmd->add_option("--set", cfg_sets, "Override a field, KEY=VALUE; repeatable");
     cfg_cmd->add_flag("--doc", cfg_doc, "Print the reference of every field (Markdown)");
@@ -77,7 +86,9 @@ int main_impl(int argc, char** argv) {
 
 }  // namespace
 
-int sc_main(int argc, char** argv) { return main_impl(argc, argv); }
+int sc_main(int argc, char** argv) {
+    return main_impl(argc, argv);
+}
 
 // Our own main (the linker prefers it to libsystemc's): the kernel prints a banner to stderr
 // unless this variable is set before it starts, and stderr is for errors and progress.

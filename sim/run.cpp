@@ -2,12 +2,12 @@
 
 #include <unistd.h>
 
+#include <fmt/format.h>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
 #include <deque>
 #include <filesystem>
-#include <fmt/format.h>
 #include <nlohmann/json.hpp>
 #include <systemc>
 
@@ -35,7 +35,8 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
     char x = 0, extra = 0;
     if (std::sscanf(text.c_str(), "%d%c%d%c", &w, &x, &h, &extra) != 3 || (x != 'x' && x != 'X') ||
         w <= 0 || h <= 0 || w > 65536 || h > 65536)
-        throw InputError(fmt::format("{}: expected WIDTHxHEIGHT with each in 1..65536, got '{}'", what, text));
+        throw InputError(
+            fmt::format("{}: expected WIDTHxHEIGHT with each in 1..65536, got '{}'", what, text));
     width = w;
     height = h;
 }
@@ -45,8 +46,9 @@ namespace {
 // The chip's shared work queue, filled tile by tile from the ray generator. Each ray is traced
 // functionally when a core takes it, so only the rays in flight hold step streams.
 class GeneratedWorkSource : public RayWorkSource {
-public:
-    GeneratedWorkSource(const Scene& scene, const Bvh& bvh, RayGenerator& gen, int total_tiles, bool progress)
+  public:
+    GeneratedWorkSource(const Scene& scene, const Bvh& bvh, RayGenerator& gen, int total_tiles,
+                        bool progress)
         : scene_(scene), bvh_(bvh), gen_(gen), total_tiles_(total_tiles), progress_(progress) {}
 
     bool next(RayWork& work) override {
@@ -84,7 +86,7 @@ public:
     uint64_t steps = 0;
     double functional_seconds = 0;
 
-private:
+  private:
     void report_progress() {
         if (!progress_) return;
         const auto now = Clock::now();
@@ -118,7 +120,9 @@ std::string fresh_out_dir() {
     }
 }
 
-json aabb_json(const AABB& b) { return {{"lo", {b.lo.x, b.lo.y, b.lo.z}}, {"hi", {b.hi.x, b.hi.y, b.hi.z}}}; }
+json aabb_json(const AABB& b) {
+    return {{"lo", {b.lo.x, b.lo.y, b.lo.z}}, {"hi", {b.hi.x, b.hi.y, b.hi.z}}};
+}
 
 }  // namespace
 
@@ -136,15 +140,17 @@ int run_command(const RunOptions& opt) {
     if (rg.ao_samples < 1 || rg.ao_samples > 1024)
         throw InputError(fmt::format("--ao-samples: expected 1..1024, got {}", rg.ao_samples));
     if (!(rg.ao_length_fraction > 0.0f) || !std::isfinite(rg.ao_length_fraction))
-        throw InputError(fmt::format("--ao-length: expected a positive fraction of the scene diagonal, got {}",
-                                     rg.ao_length_fraction));
+        throw InputError(
+            fmt::format("--ao-length: expected a positive fraction of the scene diagonal, got {}",
+                        rg.ao_length_fraction));
 
     // Checked before the long work, so a bad --out fails fast and nothing is half-written.
     const std::string out_dir = opt.out_dir.empty() ? fresh_out_dir() : opt.out_dir;
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec || !fs::is_directory(out_dir))
-        throw InputError(fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
+        throw InputError(
+            fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
 
     const auto t_scene = Clock::now();
     const Scene scene = load_scene(opt.workload.scene);
@@ -159,7 +165,8 @@ int run_command(const RunOptions& opt) {
     const Bvh bvh = build_bvh_sah(scene, bo, layout);
 
     RayGenerator gen(scene, bvh, rg);
-    const int tiles = ((rg.width + rg.tile_size - 1) / rg.tile_size) * ((rg.height + rg.tile_size - 1) / rg.tile_size);
+    const int tiles = ((rg.width + rg.tile_size - 1) / rg.tile_size) *
+                      ((rg.height + rg.tile_size - 1) / rg.tile_size);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
     GeneratedWorkSource source(scene, bvh, gen, tiles, progress);
 
@@ -224,7 +231,8 @@ int run_command(const RunOptions& opt) {
                        {"ao_length_fraction", rg.ao_length_fraction},
                        {"ao_length", gen.ao_length()},
                        {"tile_size", rg.tile_size}};
-    out["rays"] = {{"total", total_rays}, {"by_kind", rays}, {"hits_by_kind", hits}, {"steps", source.steps}};
+    out["rays"] = {
+        {"total", total_rays}, {"by_kind", rays}, {"hits_by_kind", hits}, {"steps", source.steps}};
     out["total_cycles"] = timing["total_cycles"];
     out["clock_ghz"] = ri.clock_ghz;
     out["simulated_seconds"] = sim_s;
@@ -236,7 +244,8 @@ int run_command(const RunOptions& opt) {
                    {"bvh_build_s", q.build_seconds},
                    {"simulation_s", sim_seconds},
                    {"functional_trace_s", source.functional_seconds},
-                   {"simulated_rays_per_host_second", sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0}};
+                   {"simulated_rays_per_host_second",
+                    sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0}};
 
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
     write_file_atomically(stats_path, out.dump(2) + "\n");
@@ -246,25 +255,33 @@ int run_command(const RunOptions& opt) {
         const json& un = out["units"];
         const json& ca = out["caches"];
         std::string kinds;
-        for (auto& [k, v] : rays.items()) kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", k, v.get<uint64_t>());
-        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles)\n", cfg.string("name"), cfg.hash(),
-                   scene.name, scene.triangle_count());
-        fmt::print("  bvh      {} BVH2: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n", bvh.builder,
-                   q.node_count, q.leaf_count, q.max_depth, q.sah_cost, q.bytes / 1048576.0);
+        for (auto& [k, v] : rays.items())
+            kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", k, v.get<uint64_t>());
+        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles)\n", cfg.string("name"),
+                   cfg.hash(), scene.name, scene.triangle_count());
+        fmt::print(
+            "  bvh      {} BVH2: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
+            bvh.builder, q.node_count, q.leaf_count, q.max_depth, q.sah_cost, q.bytes / 1048576.0);
         fmt::print("  rays     {} ({}), {} steps\n", total_rays, kinds, source.steps);
-        fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n", ri.total_cycles, sim_s * 1e3,
-                   ri.clock_ghz, out["rays_per_second"].get<double>() / 1e6);
+        fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n", ri.total_cycles,
+                   sim_s * 1e3, ri.clock_ghz, out["rays_per_second"].get<double>() / 1e6);
         fmt::print("  units    box {:.1f}% busy, triangle {:.1f}% busy\n",
                    100 * un["box_unit_total"]["utilization"].get<double>(),
                    100 * un["triangle_unit_total"]["utilization"].get<double>());
-        fmt::print("  caches   L1 hit rate {:.1f}%, L2 hit rate {:.1f}%\n", 100 * ca["l1_total"]["hit_rate"].get<double>(),
+        fmt::print("  caches   L1 hit rate {:.1f}%, L2 hit rate {:.1f}%\n",
+                   100 * ca["l1_total"]["hit_rate"].get<double>(),
                    100 * ca["l2"]["hit_rate"].get<double>());
-        fmt::print("  traffic  L1 {:.1f} MB ({:.1f} GB/s), L2 {:.1f} MB ({:.1f} GB/s), DRAM {:.1f} MB ({:.1f} GB/s)\n",
-                   bw["l1"]["bytes"].get<double>() / 1e6, bw["l1"]["gbps"].get<double>(),
-                   bw["l2"]["bytes"].get<double>() / 1e6, bw["l2"]["gbps"].get<double>(),
-                   bw["dram"]["bytes"].get<double>() / 1e6, bw["dram"]["gbps"].get<double>());
-        fmt::print("  host     {:.2f} s total, {:.2f} s simulating -> {:.3f} M simulated rays per host second\n",
-                   host_total, sim_seconds, out["host"]["simulated_rays_per_host_second"].get<double>() / 1e6);
+        fmt::print(
+            "  traffic  L1 {:.1f} MB ({:.1f} GB/s), L2 {:.1f} MB ({:.1f} GB/s), DRAM {:.1f} MB "
+            "({:.1f} GB/s)\n",
+            bw["l1"]["bytes"].get<double>() / 1e6, bw["l1"]["gbps"].get<double>(),
+            bw["l2"]["bytes"].get<double>() / 1e6, bw["l2"]["gbps"].get<double>(),
+            bw["dram"]["bytes"].get<double>() / 1e6, bw["dram"]["gbps"].get<double>());
+        fmt::print(
+            "  host     {:.2f} s total, {:.2f} s simulating -> {:.3f} M simulated rays per host "
+            "second\n",
+            host_total, sim_seconds,
+            out["host"]["simulated_rays_per_host_second"].get<double>() / 1e6);
         fmt::print("  stats    {}\n", stats_path);
     }
     return 0;

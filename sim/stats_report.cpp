@@ -1,8 +1,8 @@
 #include "sim/stats_report.h"
 
+#include <fmt/format.h>
 #include <cstdio>
 #include <filesystem>
-#include <fmt/format.h>
 #include <fstream>
 #include <stdexcept>
 
@@ -23,8 +23,9 @@ json timing_report(const ReportInputs& in) {
 
     json units = json::object();
     for (int i = 0; i < in.cores; ++i)
-        for (auto [kind, pipes] : {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
-                                   {"triangle_unit", in.triangle_pipelines_per_core}}) {
+        for (auto [kind, pipes] :
+             {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
+              {"triangle_unit", in.triangle_pipelines_per_core}}) {
             const std::string b = fmt::format("{}[{}]", kind, i);
             const uint64_t busy = s.get(b + ".busy_cycles");
             units[b] = {{"ops", s.get(b + ".ops")},
@@ -59,19 +60,21 @@ json timing_report(const ReportInputs& in) {
     }
     cache_entry("l1_total", s.sum("l1[", "accesses"), s.sum("l1[", "hits"), s.sum("l1[", "misses"),
                 s.sum("l1[", "merged_misses"));
-    cache_entry("l2", s.get("l2.accesses"), s.get("l2.hits"), s.get("l2.misses"), s.get("l2.merged_misses"));
+    cache_entry("l2", s.get("l2.accesses"), s.get("l2.hits"), s.get("l2.misses"),
+                s.get("l2.merged_misses"));
     out["caches"] = caches;
 
     // Bytes crossing each boundary: core<-L1 (requested), L1<-L2 (L1 fills), L2<-DRAM (L2 fills).
     const uint64_t l1_bytes = s.sum("l1[", "bytes_requested");
     const uint64_t l2_bytes = s.sum("l1[", "fill_bytes");
     const uint64_t dram_bytes = s.get("dram.bytes");
-    out["bandwidth"] = {
-        {"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},
-        {"l2", {{"bytes", l2_bytes}, {"gbps", gbps(l2_bytes)}}},
-        {"dram", {{"bytes", dram_bytes}, {"gbps", gbps(dram_bytes)},
-                  {"busy_cycles", s.get("dram.busy_cycles")},
-                  {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles)}}}};
+    out["bandwidth"] = {{"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},
+                        {"l2", {{"bytes", l2_bytes}, {"gbps", gbps(l2_bytes)}}},
+                        {"dram",
+                         {{"bytes", dram_bytes},
+                          {"gbps", gbps(dram_bytes)},
+                          {"busy_cycles", s.get("dram.busy_cycles")},
+                          {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles)}}}};
 
     json counters = json::object();
     for (const auto& e : s.entries()) counters[e.name] = *e.value;

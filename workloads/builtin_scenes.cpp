@@ -1,6 +1,6 @@
 // Procedural scenes, so the simulator runs anywhere without a mesh file.
-#include <cmath>
 #include <fmt/format.h>
+#include <cmath>
 #include <map>
 #include <utility>
 
@@ -50,9 +50,9 @@ void add_icosphere(Scene& s, Vec3 center, float radius, int levels) {
                            {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
     for (Vec3& p : v) p = normalize(p);
     std::vector<std::array<uint32_t, 3>> f = {
-        {0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+        {0, 11, 5},  {0, 5, 1},  {0, 1, 7},  {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
         {11, 10, 2}, {10, 7, 6}, {7, 1, 8},  {3, 9, 4},  {3, 4, 2},   {3, 2, 6}, {3, 6, 8},
-        {3, 8, 9},  {4, 9, 5},  {2, 4, 11},  {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
+        {3, 8, 9},   {4, 9, 5},  {2, 4, 11}, {6, 2, 10}, {8, 6, 7},   {9, 8, 1}};
     for (int l = 0; l < levels; ++l) {
         std::map<std::pair<uint32_t, uint32_t>, uint32_t> mid;
         auto midpoint = [&](uint32_t a, uint32_t b) {
@@ -84,11 +84,11 @@ Scene cornell() {
     // large flat walls beside dense small triangles, like real scenes.
     Scene s;
     const int n = 16;
-    add_grid(s, {-1, 0, 1}, {2, 0, 0}, {0, 0, -2}, n);   // floor
-    add_grid(s, {-1, 2, -1}, {2, 0, 0}, {0, 0, 2}, n);   // ceiling
-    add_grid(s, {-1, 0, -1}, {2, 0, 0}, {0, 2, 0}, n);   // back
-    add_grid(s, {-1, 0, 1}, {0, 0, -2}, {0, 2, 0}, n);   // left
-    add_grid(s, {1, 0, -1}, {0, 0, 2}, {0, 2, 0}, n);    // right
+    add_grid(s, {-1, 0, 1}, {2, 0, 0}, {0, 0, -2}, n);  // floor
+    add_grid(s, {-1, 2, -1}, {2, 0, 0}, {0, 0, 2}, n);  // ceiling
+    add_grid(s, {-1, 0, -1}, {2, 0, 0}, {0, 2, 0}, n);  // back
+    add_grid(s, {-1, 0, 1}, {0, 0, -2}, {0, 2, 0}, n);  // left
+    add_grid(s, {1, 0, -1}, {0, 0, 2}, {0, 2, 0}, n);   // right
     add_box(s, {-0.35f, 0.6f, -0.35f}, {0.3f, 0.6f, 0.3f}, 0.3f, 8);
     add_box(s, {0.4f, 0.3f, 0.35f}, {0.3f, 0.3f, 0.3f}, -0.3f, 8);
     add_icosphere(s, {0.4f, 0.95f, 0.35f}, 0.35f, 5);
@@ -103,7 +103,9 @@ Scene sphere() {
 
 }  // namespace
 
-std::vector<std::string> builtin_scene_names() { return {"cornell", "sphere"}; }
+std::vector<std::string> builtin_scene_names() {
+    return {"cornell", "sphere"};
+}
 
 Scene make_builtin_scene(const std::string& name) {
     Scene s;
@@ -112,7 +114,8 @@ Scene make_builtin_scene(const std::string& name) {
     else if (name == "sphere")
         s = sphere();
     else
-        throw InputError(fmt::format("builtin:{}: unknown built-in scene (known: cornell, sphere)", name));
+        throw InputError(
+            fmt::format("builtin:{}: unknown built-in scene (known: cornell, sphere)", name));
     s.name = "builtin:" + name;
     s.source = "builtin";
     return s;

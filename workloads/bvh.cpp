@@ -1,8 +1,8 @@
 #include "workloads/bvh.h"
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <chrono>
-#include <fmt/format.h>
 
 #include "workloads/error.h"
 
@@ -19,7 +19,7 @@ struct BuildPrim {
 constexpr uint32_t kMaxSahDepth = 64;
 
 class SahBuilder {
-public:
+  public:
     SahBuilder(const Scene& scene, const BvhBuildOptions& opt) : opt_(opt) {
         prims_.resize(scene.triangle_count());
         for (uint32_t i = 0; i < prims_.size(); ++i) {
@@ -38,7 +38,7 @@ public:
         for (size_t i = 0; i < prims_.size(); ++i) bvh.prim_order[i] = prims_[i].id;
     }
 
-private:
+  private:
     struct Bucket {
         AABB box;
         uint32_t count = 0;
@@ -100,9 +100,9 @@ private:
                 acc.grow(buckets[b].box);
                 cnt += buckets[b].count;
                 if (cnt == 0 || right_count[b + 1] == 0) continue;
-                float cost = opt_.traversal_cost +
-                             opt_.intersection_cost * inv_area *
-                                 (acc.surface_area() * cnt + right_area[b + 1] * right_count[b + 1]);
+                float cost = opt_.traversal_cost + opt_.intersection_cost * inv_area *
+                                                       (acc.surface_area() * cnt +
+                                                        right_area[b + 1] * right_count[b + 1]);
                 if (cost < best_cost) {
                     best_cost = cost;
                     best_plane = b;
@@ -114,8 +114,9 @@ private:
             if (best_plane < 0) {
                 mid = begin + n / 2;
             } else {
-                auto it = std::partition(prims_.begin() + begin, prims_.begin() + end,
-                                         [&](const BuildPrim& p) { return bucket_of(p) <= best_plane; });
+                auto it =
+                    std::partition(prims_.begin() + begin, prims_.begin() + end,
+                                   [&](const BuildPrim& p) { return bucket_of(p) <= best_plane; });
                 mid = static_cast<uint32_t>(it - prims_.begin());
                 if (mid == begin || mid == end) mid = begin + n / 2;
             }
@@ -187,8 +188,10 @@ BvhQuality measure_bvh(const Bvh& bvh) {
     return q;
 }
 
-Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options, const BvhLayout& layout_sizes) {
-    if (scene.triangles.empty()) throw InputError(fmt::format("{}: scene has no triangles", scene.name));
+Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options,
+                  const BvhLayout& layout_sizes) {
+    if (scene.triangles.empty())
+        throw InputError(fmt::format("{}: scene has no triangles", scene.name));
     const auto t0 = std::chrono::steady_clock::now();
     Bvh bvh;
     bvh.options = options;

@@ -14,9 +14,9 @@ namespace rtsim {
 constexpr uint32_t kMaxBvhDepth = 100;
 
 struct BvhBuildOptions {
-    int sah_buckets = 12;       // centroid buckets per axis; B-1 candidate planes are evaluated
-    int max_leaf_size = 4;      // a leaf never holds more triangles than this
-    float traversal_cost = 1.0f;     // SAH cost of visiting an inner node, relative to...
+    int sah_buckets = 12;         // centroid buckets per axis; B-1 candidate planes are evaluated
+    int max_leaf_size = 4;        // a leaf never holds more triangles than this
+    float traversal_cost = 1.0f;  // SAH cost of visiting an inner node, relative to...
     float intersection_cost = 1.0f;  // ...the cost of one ray-triangle test
 };
 
@@ -34,7 +34,9 @@ struct BvhLayout {
     uint64_t node_addr(uint32_t mem_index) const {
         return node_base_addr + uint64_t(mem_index) * node_size_bytes;
     }
-    uint64_t tri_addr(uint32_t slot) const { return tri_base_addr + uint64_t(slot) * tri_size_bytes; }
+    uint64_t tri_addr(uint32_t slot) const {
+        return tri_base_addr + uint64_t(slot) * tri_size_bytes;
+    }
     uint64_t node_bytes_total() const { return uint64_t(inner_node_count) * node_size_bytes; }
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
 };
@@ -68,7 +70,8 @@ struct Bvh {
 };
 
 // Binned SAH BVH2 (Wald 2007 / pbrt's bucketed partition). Degenerate triangles are kept.
-Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options, const BvhLayout& layout_sizes);
+Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options,
+                  const BvhLayout& layout_sizes);
 
 // Recomputes quality figures from the finished tree (also used by tests).
 BvhQuality measure_bvh(const Bvh& bvh);

@@ -9,7 +9,7 @@ namespace rtsim {
 // Bad user input: a config, scene, trace or command-line value. Message is one line that names
 // the file (or option) and what was expected.
 class InputError : public std::runtime_error {
-public:
+  public:
     using std::runtime_error::runtime_error;
 };
 

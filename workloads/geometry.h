@@ -16,27 +16,51 @@ struct Vec3 {
     float& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
 };
 
-inline Vec3 operator+(Vec3 a, Vec3 b) { return {a.x + b.x, a.y + b.y, a.z + b.z}; }
-inline Vec3 operator-(Vec3 a, Vec3 b) { return {a.x - b.x, a.y - b.y, a.z - b.z}; }
-inline Vec3 operator-(Vec3 a) { return {-a.x, -a.y, -a.z}; }
-inline Vec3 operator*(Vec3 a, float s) { return {a.x * s, a.y * s, a.z * s}; }
-inline Vec3 operator*(float s, Vec3 a) { return a * s; }
-inline Vec3 operator/(Vec3 a, float s) { return a * (1.0f / s); }
-inline float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Vec3 operator+(Vec3 a, Vec3 b) {
+    return {a.x + b.x, a.y + b.y, a.z + b.z};
+}
+inline Vec3 operator-(Vec3 a, Vec3 b) {
+    return {a.x - b.x, a.y - b.y, a.z - b.z};
+}
+inline Vec3 operator-(Vec3 a) {
+    return {-a.x, -a.y, -a.z};
+}
+inline Vec3 operator*(Vec3 a, float s) {
+    return {a.x * s, a.y * s, a.z * s};
+}
+inline Vec3 operator*(float s, Vec3 a) {
+    return a * s;
+}
+inline Vec3 operator/(Vec3 a, float s) {
+    return a * (1.0f / s);
+}
+inline float dot(Vec3 a, Vec3 b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 inline Vec3 cross(Vec3 a, Vec3 b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline float length(Vec3 a) { return std::sqrt(dot(a, a)); }
-inline Vec3 normalize(Vec3 a) { return a / length(a); }
+inline float length(Vec3 a) {
+    return std::sqrt(dot(a, a));
+}
+inline Vec3 normalize(Vec3 a) {
+    return a / length(a);
+}
 inline Vec3 vmin(Vec3 a, Vec3 b) {
     return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
 }
 inline Vec3 vmax(Vec3 a, Vec3 b) {
     return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
 }
-inline Vec3 vabs(Vec3 a) { return {std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)}; }
-inline float max_component(Vec3 a) { return std::max(a.x, std::max(a.y, a.z)); }
-inline int max_axis(Vec3 a) { return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2); }
+inline Vec3 vabs(Vec3 a) {
+    return {std::fabs(a.x), std::fabs(a.y), std::fabs(a.z)};
+}
+inline float max_component(Vec3 a) {
+    return std::max(a.x, std::max(a.y, a.z));
+}
+inline int max_axis(Vec3 a) {
+    return a.x >= a.y ? (a.x >= a.z ? 0 : 2) : (a.y >= a.z ? 1 : 2);
+}
 
 struct AABB {
     Vec3 lo{std::numeric_limits<float>::infinity(), std::numeric_limits<float>::infinity(),

@@ -11,8 +11,8 @@ namespace rtsim {
 // Per-ray constants shared by all box and triangle tests of one traversal.
 struct RayPrecomp {
     Vec3 org, dir, inv_dir;
-    int kx, ky, kz;      // watertight test: kz is the dominant direction axis
-    float sx, sy, sz;    // shear constants
+    int kx, ky, kz;    // watertight test: kz is the dominant direction axis
+    float sx, sy, sz;  // shear constants
     explicit RayPrecomp(const Ray& r) : org(r.org), dir(r.dir) {
         inv_dir = Vec3(1.0f / r.dir.x, 1.0f / r.dir.y, 1.0f / r.dir.z);
         kz = max_axis(vabs(r.dir));
@@ -26,13 +26,14 @@ struct RayPrecomp {
 };
 
 // Ize 2013: scaling the far slab distance by 1 + 2*gamma(3) makes the float test conservative.
-constexpr float kSlabFarScale = 1.0f + 2.0f * (3.0f * 0.5f * 1.1920929e-7f) /
-                                           (1.0f - 3.0f * 0.5f * 1.1920929e-7f);
+constexpr float kSlabFarScale =
+    1.0f + 2.0f * (3.0f * 0.5f * 1.1920929e-7f) / (1.0f - 3.0f * 0.5f * 1.1920929e-7f);
 
 // Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
 // An axis-parallel ray whose origin lies on a slab plane yields NaN there; the comparisons are
 // ordered so that NaN never narrows the interval.
-inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax, float& tnear) {
+inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax,
+                          float& tnear) {
     for (int a = 0; a < 3; ++a) {
         float t0 = (b.lo[a] - r.org[a]) * r.inv_dir[a];
         float t1 = (b.hi[a] - r.org[a]) * r.inv_dir[a];

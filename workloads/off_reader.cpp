@@ -1,10 +1,10 @@
 // OFF reader. assimp's OFF importer rejects '#' comments after values, which real files use
 // (libcgal-demo's mesh_with_colors.off), so OFF gets this small line-based reader with
 // precise errors. Other formats go through assimp.
+#include <fmt/format.h>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
-#include <fmt/format.h>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -16,7 +16,7 @@ namespace rtsim {
 namespace {
 
 class LineReader {
-public:
+  public:
     LineReader(std::istream& in, const std::string& path) : in_(in), path_(path) {}
     // Next line with content, comments stripped; false at end of file.
     bool next(std::string& line) {
@@ -32,7 +32,7 @@ public:
         throw InputError(fmt::format("{}: line {}: {}", path_, number_, what));
     }
 
-private:
+  private:
     std::istream& in_;
     const std::string& path_;
     int number_ = 0;
@@ -53,7 +53,8 @@ Scene read_off(const std::string& path) {
     if (off != std::string::npos && off + 3 == keyword.size()) {
         const std::string prefix = keyword.substr(0, off);
         if (prefix.find_first_not_of("STCN") != std::string::npos)
-            lines.fail(fmt::format("unsupported OFF variant '{}' (expected [ST][C][N]OFF)", keyword));
+            lines.fail(
+                fmt::format("unsupported OFF variant '{}' (expected [ST][C][N]OFF)", keyword));
         std::string rest;
         std::getline(head, rest);
         if (rest.find_first_not_of(" \t\r") == std::string::npos) {
@@ -96,7 +97,8 @@ Scene read_off(const std::string& path) {
         for (auto& i : idx) {
             long v;
             if (!(face >> v)) lines.fail(fmt::format("expected {} vertex indices", n));
-            if (v < 0 || v >= nv) lines.fail(fmt::format("vertex index {} out of range 0..{}", v, nv - 1));
+            if (v < 0 || v >= nv)
+                lines.fail(fmt::format("vertex index {} out of range 0..{}", v, nv - 1));
             i = static_cast<uint32_t>(v);
         }
         // Polygons become fans in file order, like assimp's triangulation of convex faces.

@@ -1,8 +1,8 @@
 #include "workloads/raygen.h"
 
+#include <fmt/format.h>
 #include <cmath>
 #include <cstring>
-#include <fmt/format.h>
 #include <sstream>
 
 #include "workloads/error.h"
@@ -11,9 +11,12 @@ namespace rtsim {
 
 const char* ray_kind_name(RayKind k) {
     switch (k) {
-        case RayKind::Primary: return "primary";
-        case RayKind::Shadow: return "shadow";
-        case RayKind::AO: return "ao";
+        case RayKind::Primary:
+            return "primary";
+        case RayKind::Shadow:
+            return "shadow";
+        case RayKind::AO:
+            return "ao";
     }
     return "unknown";
 }
@@ -31,9 +34,10 @@ std::array<bool, kRayKindCount> parse_ray_kinds(const std::string& list, const s
                 found = any = true;
             }
         if (!found)
-            throw InputError(fmt::format("{}: unknown ray kind '{}' (expected a comma list of "
-                                         "primary, shadow, ao)",
-                                         what, item));
+            throw InputError(
+                fmt::format("{}: unknown ray kind '{}' (expected a comma list of "
+                            "primary, shadow, ao)",
+                            what, item));
     }
     if (!any) throw InputError(fmt::format("{}: no ray kind given", what));
     return kinds;
@@ -94,7 +98,9 @@ uint64_t splitmix64(uint64_t x) {
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
     return x ^ (x >> 31);
 }
-float uniform01(uint64_t h) { return float(h >> 40) * (1.0f / 16777216.0f); }
+float uniform01(uint64_t h) {
+    return float(h >> 40) * (1.0f / 16777216.0f);
+}
 
 void orthonormal_basis(Vec3 n, Vec3& t, Vec3& b) {
     // Duff et al. 2017, branchless basis from one vector.
@@ -110,8 +116,8 @@ void orthonormal_basis(Vec3 n, Vec3& t, Vec3& b) {
 RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options)
     : scene_(scene), bvh_(bvh), opt_(options) {
     if (opt_.width <= 0 || opt_.height <= 0)
-        throw InputError(fmt::format("--res: resolution must be positive, got {}x{}", opt_.width,
-                                     opt_.height));
+        throw InputError(
+            fmt::format("--res: resolution must be positive, got {}x{}", opt_.width, opt_.height));
     const AABB b = bvh.bounds();
     camera_ = Camera::frame(b, opt_.width, opt_.height);
     // A point light just under the top centre of the scene's bounds (inside a closed room).

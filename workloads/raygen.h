@@ -17,8 +17,8 @@ namespace rtsim {
 struct RayGenOptions {
     int width = 256, height = 256;
     std::array<bool, kRayKindCount> kinds{{true, false, false}};  // indexed by RayKind
-    int ao_samples = 2;                // AO rays per primary hit
-    float ao_length_fraction = 0.1f;   // AO ray length, as a fraction of the scene's diagonal
+    int ao_samples = 2;                                           // AO rays per primary hit
+    float ao_length_fraction = 0.1f;  // AO ray length, as a fraction of the scene's diagonal
     uint64_t seed = 1;
     int tile_size = 8;  // pixels per tile edge; rays are emitted tile by tile
 
@@ -51,7 +51,7 @@ struct GeneratedRay {
 };
 
 class RayGenerator {
-public:
+  public:
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
     // Appends the next tile's rays (primaries, then shadow, then AO) to out; false when done.
     bool next_tile(std::vector<GeneratedRay>& out);
@@ -59,7 +59,7 @@ public:
     Vec3 light_position() const { return light_; }
     float ao_length() const { return ao_length_; }
 
-private:
+  private:
     const Scene& scene_;
     const Bvh& bvh_;
     RayGenOptions opt_;

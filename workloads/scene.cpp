@@ -3,12 +3,12 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <fmt/format.h>
 #include <assimp/Importer.hpp>
 #include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fmt/format.h>
 
 #include "workloads/error.h"
 
@@ -72,7 +72,8 @@ Scene load_scene(const std::string& spec) {
     namespace fs = std::filesystem;
     std::error_code ec;
     if (!fs::exists(spec, ec)) throw InputError(fmt::format("{}: scene file not found", spec));
-    if (fs::is_directory(spec, ec)) throw InputError(fmt::format("{}: is a directory, expected a mesh file", spec));
+    if (fs::is_directory(spec, ec))
+        throw InputError(fmt::format("{}: is a directory, expected a mesh file", spec));
 
     Scene scene;
     std::string ext = fs::path(spec).extension().string();
@@ -100,7 +101,8 @@ void read_with_assimp(const std::string& spec, Scene& scene) {
         std::string why = importer.GetErrorString();
         for (char& c : why)
             if (c == '\n' || c == '\r') c = ' ';
-        throw InputError(fmt::format("{}: cannot read mesh: {}", spec, why.empty() ? "unknown format" : why));
+        throw InputError(
+            fmt::format("{}: cannot read mesh: {}", spec, why.empty() ? "unknown format" : why));
     }
     append_node(ai, ai->mRootNode, aiMatrix4x4(), scene);
 }

@@ -18,7 +18,7 @@ struct Step {
     uint32_t id;          // inner-node record index, or leaf slot of the triangle
     uint16_t size_bytes;  // bytes fetched
     StepKind kind;
-    uint8_t count;        // Node: child boxes tested
+    uint8_t count;  // Node: child boxes tested
 };
 static_assert(sizeof(Step) == 16, "Step is streamed in bulk; keep it 16 bytes");
 

@@ -2,8 +2,8 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
-#include <filesystem>
 #include <fmt/format.h>
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -39,12 +39,15 @@ std::string slurp(const fs::path& p) {
 
 Result rtsim(const std::string& args) {
     const fs::path out = work_dir() / "stdout.txt", err = work_dir() / "stderr.txt";
-    const std::string cmd = fmt::format("'{}' {} >'{}' 2>'{}' </dev/null", RTSIM_BINARY, args, out.string(), err.string());
+    const std::string cmd = fmt::format("'{}' {} >'{}' 2>'{}' </dev/null", RTSIM_BINARY, args,
+                                        out.string(), err.string());
     const int raw = std::system(cmd.c_str());
     return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, slurp(out), slurp(err)};
 }
 
-json stats_of(const fs::path& dir) { return json::parse(slurp(dir / "stats.json")); }
+json stats_of(const fs::path& dir) {
+    return json::parse(slurp(dir / "stats.json"));
+}
 
 void expect_one_line_error(const Result& r, const std::string& fragment) {
     EXPECT_EQ(r.status, 2) << r.err;
@@ -54,8 +57,8 @@ void expect_one_line_error(const Result& r, const std::string& fragment) {
 
 // The fields item 7 of the foundation issue promises.
 void expect_complete_stats(const json& s) {
-    for (const char* k : {"config", "config_hash", "scene", "bvh", "rays", "total_cycles", "rays_per_second",
-                          "units", "caches", "bandwidth", "counters", "host"})
+    for (const char* k : {"config", "config_hash", "scene", "bvh", "rays", "total_cycles",
+                          "rays_per_second", "units", "caches", "bandwidth", "counters", "host"})
         ASSERT_TRUE(s.contains(k)) << k;
     EXPECT_GT(s["total_cycles"].get<uint64_t>(), 0u);
     EXPECT_GT(s["rays"]["total"].get<uint64_t>(), 0u);
@@ -68,7 +71,8 @@ void expect_complete_stats(const json& s) {
         EXPECT_TRUE(s["units"][u].contains("busy_cycles"));
     }
     for (const char* c : {"l1[0]", "l1_total", "l2"})
-        for (const char* f : {"accesses", "hits", "misses", "hit_rate"}) ASSERT_TRUE(s["caches"][c].contains(f)) << c << f;
+        for (const char* f : {"accesses", "hits", "misses", "hit_rate"})
+            ASSERT_TRUE(s["caches"][c].contains(f)) << c << f;
     for (const char* l : {"l1", "l2", "dram"}) {
         EXPECT_GT(s["bandwidth"][l]["bytes"].get<uint64_t>(), 0u) << l;
         EXPECT_GT(s["bandwidth"][l]["gbps"].get<double>(), 0.0) << l;
@@ -99,8 +103,9 @@ TEST(Run, DefaultSceneWritesCompleteStats) {
 TEST(Run, Glmark2BunnyWithSecondaryRays) {
     ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
     const fs::path out = work_dir() / "bunny";
-    const Result r = rtsim(fmt::format("run --scene {} --rays primary,shadow,ao --res 64x64 --out '{}'",
-                                       RTSIM_BUNNY_OBJ, out.string()));
+    const Result r =
+        rtsim(fmt::format("run --scene {} --rays primary,shadow,ao --res 64x64 --out '{}'",
+                          RTSIM_BUNNY_OBJ, out.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
     expect_complete_stats(s);
@@ -114,7 +119,10 @@ TEST(Run, SameInputsGiveIdenticalSimulatedStats) {
     const fs::path a = work_dir() / "a", b = work_dir() / "b", c = work_dir() / "c";
     ASSERT_EQ(rtsim(args + " --out '" + a.string() + "'").status, 0);
     ASSERT_EQ(rtsim(args + " --out '" + b.string() + "'").status, 0);
-    ASSERT_EQ(rtsim("run --rays primary,ao --res 48x48 --seed 8 --set core.count=3 --out '" + c.string() + "'").status, 0);
+    ASSERT_EQ(rtsim("run --rays primary,ao --res 48x48 --seed 8 --set core.count=3 --out '" +
+                    c.string() + "'")
+                  .status,
+              0);
     const json sa = stats_of(a), sb = stats_of(b), sc = stats_of(c);
     EXPECT_EQ(without_host(sa), without_host(sb));
     // A different seed changes the AO rays, and so the simulated result.
@@ -126,22 +134,26 @@ TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
     // and every L1 miss is one L2 access.
     ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ));
     const fs::path out = work_dir() / "tiny";
-    const Result r = rtsim(fmt::format("run --scene {} --rays ao --res 64x64 --set l1.size_kib=1 --set l1.ways=2 "
-                                       "--set l2.size_kib=16 --set l2.line_bytes=128 --out '{}'",
-                                       RTSIM_BUNNY_OBJ, out.string()));
+    const Result r = rtsim(
+        fmt::format("run --scene {} --rays ao --res 64x64 --set l1.size_kib=1 --set l1.ways=2 "
+                    "--set l2.size_kib=16 --set l2.line_bytes=128 --out '{}'",
+                    RTSIM_BUNNY_OBJ, out.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
     const uint64_t l2_misses = s["caches"]["l2"]["misses"], l2_acc = s["caches"]["l2"]["accesses"];
     EXPECT_GT(l2_misses, 10000u);
     EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), l2_misses * 128);
     EXPECT_EQ(l2_acc, s["caches"]["l1_total"]["misses"].get<uint64_t>());
-    EXPECT_EQ(s["bandwidth"]["l2"]["bytes"].get<uint64_t>(), s["caches"]["l1_total"]["misses"].get<uint64_t>() * 64);
+    EXPECT_EQ(s["bandwidth"]["l2"]["bytes"].get<uint64_t>(),
+              s["caches"]["l1_total"]["misses"].get<uint64_t>() * 64);
 }
 
 TEST(Run, BiggerCachesNeverMoveMoreDramBytes) {
     const fs::path small = work_dir() / "small", big = work_dir() / "big";
-    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=64 --out '" + small.string() + "'").status, 0);
-    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=4096 --out '" + big.string() + "'").status, 0);
+    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=64 --out '" + small.string() + "'").status,
+              0);
+    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=4096 --out '" + big.string() + "'").status,
+              0);
     EXPECT_LT(stats_of(big)["bandwidth"]["dram"]["bytes"].get<uint64_t>(),
               stats_of(small)["bandwidth"]["dram"]["bytes"].get<uint64_t>());
 }
@@ -183,7 +195,8 @@ TEST(Run, HelpOnEveryCommand) {
 }
 
 TEST(Run, ConfigCommandPrintsEffectiveConfig) {
-    const Result r = rtsim(fmt::format("config --config {}/configs/small_caches.json --set l1.ways=2", RTSIM_SOURCE_DIR));
+    const Result r = rtsim(fmt::format(
+        "config --config {}/configs/small_caches.json --set l1.ways=2", RTSIM_SOURCE_DIR));
     ASSERT_EQ(r.status, 0) << r.err;
     const json c = json::parse(r.out);
     EXPECT_EQ(c["l1"]["size_kib"], 4);

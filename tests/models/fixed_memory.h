@@ -8,7 +8,7 @@
 namespace rtsim::test {
 
 class FixedLatencyMemory : public MemoryPort {
-public:
+  public:
     explicit FixedLatencyMemory(Cycle latency) : latency_(latency) {}
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override {
         addrs.push_back(addr);
@@ -18,7 +18,7 @@ public:
     std::vector<uint64_t> addrs;
     uint64_t bytes = 0;
 
-private:
+  private:
     Cycle latency_;
 };
 

@@ -12,8 +12,9 @@ namespace {
 
 // Deliberately simple LRU reference: one list of line addresses per set, most recent first.
 class ReferenceLru {
-public:
-    ReferenceLru(uint64_t sets, int ways, uint32_t line) : sets_(sets), ways_(ways), line_(line), lists_(sets) {}
+  public:
+    ReferenceLru(uint64_t sets, int ways, uint32_t line)
+        : sets_(sets), ways_(ways), line_(line), lists_(sets) {}
     bool access(uint64_t addr) {
         const uint64_t line = addr / line_;
         auto& l = lists_[line % sets_];
@@ -28,7 +29,7 @@ public:
         return false;
     }
 
-private:
+  private:
     uint64_t sets_;
     int ways_;
     uint32_t line_;
@@ -74,7 +75,7 @@ TEST(Cache, LatenciesAndMissMerging) {
     test::FixedLatencyMemory mem(100);
     Cache c("c", p, &mem);
     EXPECT_EQ(c.access(0x1000, 48, 10), 10u + 4 + 100);  // miss: lookup, then the next level
-    EXPECT_EQ(c.access(0x1010, 16, 20), 114u);          // same line, fill in flight: waits for it
+    EXPECT_EQ(c.access(0x1010, 16, 20), 114u);           // same line, fill in flight: waits for it
     EXPECT_EQ(c.merged_misses, 1u);
     EXPECT_EQ(c.access(0x1000, 64, 500), 504u);  // plain hit
     EXPECT_EQ(mem.addrs.size(), 1u);             // one fill served all three

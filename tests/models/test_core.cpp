@@ -12,18 +12,19 @@ namespace {
 
 // Rays of `steps` identical steps each, at distinct addresses.
 class SyntheticSource : public RayWorkSource {
-public:
+  public:
     SyntheticSource(int rays, int steps, StepKind kind) : rays_(rays), steps_(steps), kind_(kind) {}
     bool next(RayWork& w) override {
         if (given_ == rays_) return false;
         w.ray_id = uint32_t(given_++);
         w.steps.clear();
         for (int i = 0; i < steps_; ++i)
-            w.steps.push_back({uint64_t(i) * 64, uint32_t(i), 64, kind_, kind_ == StepKind::Node ? uint8_t(2) : uint8_t(1)});
+            w.steps.push_back({uint64_t(i) * 64, uint32_t(i), 64, kind_,
+                               kind_ == StepKind::Node ? uint8_t(2) : uint8_t(1)});
         return true;
     }
 
-private:
+  private:
     int rays_, steps_, given_ = 0;
     StepKind kind_;
 };

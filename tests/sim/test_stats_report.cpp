@@ -15,7 +15,8 @@ struct Blocks {
     StatsRegistry reg;
     Blocks() {
         const char* unit[] = {"ops", "busy_cycles", "queue_cycles"};
-        const char* cache[] = {"accesses", "hits", "misses", "merged_misses", "bytes_requested", "fill_bytes"};
+        const char* cache[] = {"accesses",        "hits",      "misses", "merged_misses",
+                               "bytes_requested", "fill_bytes"};
         const char* mem[] = {"reads", "bytes", "busy_cycles", "queue_cycles"};
         for (int i = 0; i < 3; ++i) reg.add("box_unit[0]", unit[i], &box[i], "");
         for (int i = 0; i < 3; ++i) reg.add("triangle_unit[0]", unit[i], &tri[i], "");
@@ -38,7 +39,8 @@ TEST(StatsReport, DerivedFiguresFromCounters) {
     const auto r = timing_report(in);
     EXPECT_DOUBLE_EQ(r["simulated_seconds"].get<double>(), 0.5e-6);
     EXPECT_DOUBLE_EQ(r["units"]["box_unit[0]"]["utilization"].get<double>(), 0.5);
-    EXPECT_DOUBLE_EQ(r["units"]["triangle_unit[0]"]["utilization"].get<double>(), 0.1);  // 200 / (1000 * 2)
+    EXPECT_DOUBLE_EQ(r["units"]["triangle_unit[0]"]["utilization"].get<double>(),
+                     0.1);  // 200 / (1000 * 2)
     EXPECT_DOUBLE_EQ(r["caches"]["l1[0]"]["hit_rate"].get<double>(), 0.9);
     EXPECT_DOUBLE_EQ(r["caches"]["l2"]["hit_rate"].get<double>(), 0.6);
     EXPECT_EQ(r["bandwidth"]["l2"]["bytes"].get<uint64_t>(), 6400u);

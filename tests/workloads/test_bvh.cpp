@@ -32,7 +32,8 @@ void check_invariants(const Scene& scene, const Bvh& bvh, const BvhBuildOptions&
                 const uint32_t prim = bvh.prim_order.at(n.a + i);
                 ASSERT_LT(prim, scene.triangle_count());
                 seen[prim]++;
-                ASSERT_TRUE(n.box.contains(scene.triangle_bounds(prim))) << "leaf box misses its triangle";
+                ASSERT_TRUE(n.box.contains(scene.triangle_bounds(prim)))
+                    << "leaf box misses its triangle";
             }
         } else {
             ASSERT_LT(n.mem_index, bvh.layout.inner_node_count);

@@ -16,20 +16,21 @@ using namespace rtsim;
 namespace {
 
 class EmbreeScene {
-public:
+  public:
     explicit EmbreeScene(const Scene& s) {
         device_ = rtcNewDevice(nullptr);
         scene_ = rtcNewScene(device_);
         RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                              3 * sizeof(float), s.vertices.size()));
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.vertices.size()));
         for (size_t i = 0; i < s.vertices.size(); ++i) {
             v[3 * i] = s.vertices[i].x;
             v[3 * i + 1] = s.vertices[i].y;
             v[3 * i + 2] = s.vertices[i].z;
         }
-        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                   3 * sizeof(unsigned), s.triangles.size()));
+        auto* idx = static_cast<unsigned*>(
+            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                    3 * sizeof(unsigned), s.triangles.size()));
         for (size_t i = 0; i < s.triangles.size(); ++i)
             for (int c = 0; c < 3; ++c) idx[3 * i + c] = s.triangles[i][c];
         rtcCommitGeometry(g);
@@ -62,7 +63,7 @@ public:
         return ray.tfar == -std::numeric_limits<float>::infinity();
     }
 
-private:
+  private:
     static void fill(RTCRay& e, const Ray& r) {
         e.org_x = r.org.x;
         e.org_y = r.org.y;
@@ -83,7 +84,8 @@ private:
 // Distance of the hit point to the triangle's nearest edge, in barycentric units.
 float edge_distance(const Scene& s, uint32_t prim, const Ray& r) {
     Hit h;
-    if (!intersect_triangle(RayPrecomp(r), s.v(prim, 0), s.v(prim, 1), s.v(prim, 2), r.tmin, h)) return 0.0f;
+    if (!intersect_triangle(RayPrecomp(r), s.v(prim, 0), s.v(prim, 1), s.v(prim, 2), r.tmin, h))
+        return 0.0f;
     return std::min({h.u, h.v, 1.0f - h.u - h.v});
 }
 
@@ -136,8 +138,8 @@ Agreement compare(const Scene& s, const std::string& kinds, int res) {
                 // Both hit, at different depths: only acceptable where our nearer hit is on an edge
                 // that Embree's test let the ray slip through.
                 EXPECT_TRUE(ours.t < theirs.t && edge_distance(s, ours.prim, g.ray) < 1e-4f)
-                    << "ray " << g.id << ": ours t=" << ours.t << " prim " << ours.prim << ", embree t=" << theirs.t
-                    << " prim " << theirs.prim;
+                    << "ray " << g.id << ": ours t=" << ours.t << " prim " << ours.prim
+                    << ", embree t=" << theirs.t << " prim " << theirs.prim;
                 ++a.edge_cases;
                 continue;
             }
@@ -155,8 +157,8 @@ Agreement compare(const Scene& s, const std::string& kinds, int res) {
 }
 
 void report(const char* what, const Agreement& a) {
-    std::printf("%s: %zu rays, %zu hits, %zu same primitive, %zu ties, %zu edge cases\n", what, a.rays,
-                a.hits, a.same_prim, a.ties, a.edge_cases);
+    std::printf("%s: %zu rays, %zu hits, %zu same primitive, %zu ties, %zu edge cases\n", what,
+                a.rays, a.hits, a.same_prim, a.ties, a.edge_cases);
 }
 
 }  // namespace

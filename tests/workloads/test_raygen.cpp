@@ -31,7 +31,8 @@ TEST(RayGen, CameraFramesTheWholeScene) {
     for (auto [w, h] : {std::pair{64, 64}, std::pair{160, 90}, std::pair{90, 160}}) {
         Camera c = Camera::frame(b, w, h);
         for (int i = 0; i < 8; ++i) {
-            const Vec3 p((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y, (i & 4) ? b.hi.z : b.lo.z);
+            const Vec3 p((i & 1) ? b.hi.x : b.lo.x, (i & 2) ? b.hi.y : b.lo.y,
+                         (i & 4) ? b.hi.z : b.lo.z);
             const Vec3 d = p - c.eye;
             const float z = dot(d, c.forward);
             ASSERT_GT(z, 0.0f);
@@ -69,7 +70,8 @@ TEST(RayGen, EmitsOnePrimaryPerPixelAndSecondariesFromHits) {
 TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
     // A single large plane seen from above: no AO or shadow ray may hit it.
     Scene s;
-    s.vertices = {{-10, 0, -10}, {10, 0, -10}, {10, 0, 10}, {-10, 0, 10}, {0, 5, 0}, {0.01f, 5, 0}, {0, 5, 0.01f}};
+    s.vertices = {{-10, 0, -10}, {10, 0, -10},  {10, 0, 10},  {-10, 0, 10},
+                  {0, 5, 0},     {0.01f, 5, 0}, {0, 5, 0.01f}};
     s.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}};  // the tiny triangle lifts the bounds
     Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
     RayGenOptions o;
@@ -80,7 +82,8 @@ TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
     int checked = 0;
     for (const GeneratedRay& r : all_rays(s, bvh, o)) {
         const Hit h = trace_ray(s, bvh, r.ray, HitQuery::Closest);
-        EXPECT_FALSE(h.valid() && h.prim != 2) << "AO ray " << r.id << " re-hit the plane at t=" << h.t;
+        EXPECT_FALSE(h.valid() && h.prim != 2)
+            << "AO ray " << r.id << " re-hit the plane at t=" << h.t;
         ++checked;
     }
     EXPECT_GT(checked, 1000);

@@ -12,7 +12,8 @@ using namespace rtsim;
 namespace {
 
 std::string write_temp(const std::string& name, const std::string& text) {
-    const fs::path p = fs::temp_directory_path() / ("rtsim_test_" + std::to_string(::getpid()) + "_" + name);
+    const fs::path p =
+        fs::temp_directory_path() / ("rtsim_test_" + std::to_string(::getpid()) + "_" + name);
     std::ofstream(p, std::ios::binary) << text;
     return p.string();
 }
@@ -82,9 +83,10 @@ TEST(Scene, LoadsEveryCgalDemoMesh) {
 }
 
 TEST(Scene, OffCommentsColorsAndPolygons) {
-    const std::string p = write_temp("poly.off",
-                                     "# leading comment\nCOFF\n5 2 0\n0 0 0 255 0 0 # red\n1 0 0\n1 1 0\n"
-                                     "0 1 0\n0.5 2 0\n4 0 1 2 3 0.5 0.5 0.5\n3 3 2 4\n");
+    const std::string p =
+        write_temp("poly.off",
+                   "# leading comment\nCOFF\n5 2 0\n0 0 0 255 0 0 # red\n1 0 0\n1 1 0\n"
+                   "0 1 0\n0.5 2 0\n4 0 1 2 3 0.5 0.5 0.5\n3 3 2 4\n");
     Scene s = load_scene(p);
     ASSERT_EQ(s.triangle_count(), 3u);  // quad -> 2-triangle fan, then the triangle
     EXPECT_EQ(s.triangles[0], (std::array<uint32_t, 3>{0, 1, 2}));
@@ -99,26 +101,37 @@ TEST(Scene, LoadsPlyAndStlThroughAssimp) {
                                        "property list uchar int vertex_indices\nend_header\n"
                                        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
     EXPECT_EQ(load_scene(ply).triangle_count(), 1u);
-    const std::string stl = write_temp("tri.stl",
-                                       "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n"
-                                       "vertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n");
+    const std::string stl =
+        write_temp("tri.stl",
+                   "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\n"
+                   "vertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n");
     EXPECT_EQ(load_scene(stl).triangle_count(), 1u);
 }
 
-TEST(Scene, MissingFileIsAnInputError) { expect_input_error("/nonexistent/dir/mesh.obj", "not found"); }
+TEST(Scene, MissingFileIsAnInputError) {
+    expect_input_error("/nonexistent/dir/mesh.obj", "not found");
+}
 
 TEST(Scene, MalformedFilesAreInputErrors) {
-    expect_input_error(write_temp("trunc.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n"), "file ends after 2 of 4 vertices");
-    expect_input_error(write_temp("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"), "out of range");
-    expect_input_error(write_temp("nan.off", "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"), "finite");
+    expect_input_error(write_temp("trunc.off", "OFF\n4 2 0\n0 0 0\n1 0 0\n"),
+                       "file ends after 2 of 4 vertices");
+    expect_input_error(write_temp("range.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n"),
+                       "out of range");
+    expect_input_error(write_temp("nan.off", "OFF\n3 1 0\n0 0 0\nnan 0 0\n0 1 0\n3 0 1 2\n"),
+                       "finite");
     expect_input_error(write_temp("header.off", "4OFF\n3 1 0\n"), "unsupported OFF variant");
-    expect_input_error(write_temp("junk.obj", std::string("\x01\x02\x03 not a mesh \xff\xfe", 20)), "no triangles");
-    expect_input_error(write_temp("trunc.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
-                                               "property float y\nproperty float z\nelement face 1\n"
-                                               "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0\n"),
+    static const char kJunk[] = "\x01\x02\x03 not a mesh \xff\xfe";
+    expect_input_error(write_temp("junk.obj", std::string(kJunk, sizeof kJunk - 1)),
                        "no triangles");
+    expect_input_error(
+        write_temp("trunc.ply",
+                   "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"
+                   "property float y\nproperty float z\nelement face 1\n"
+                   "property list uchar int vertex_indices\nend_header\n0 0 0\n1 0\n"),
+        "no triangles");
     expect_input_error(write_temp("mesh.unknownformat", "whatever\n"), "cannot read mesh");
-    expect_input_error(write_temp("bad.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n"), "");
+    expect_input_error(
+        write_temp("bad.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n"), "");
     expect_input_error(write_temp("empty.obj", "# no faces\nv 0 0 0\n"), "");
     expect_input_error(fs::temp_directory_path().string(), "directory");
 }

@@ -29,7 +29,8 @@ std::vector<Ray> random_rays(const AABB& b, int n, uint32_t seed) {
     for (int i = 0; i < n; ++i) {
         Ray r;
         // Origins around and inside the scene, directions uniform: hits, misses and grazes.
-        r.org = c + Vec3((u(rng) - 0.5f) * e.x * 1.5f, (u(rng) - 0.5f) * e.y * 1.5f, (u(rng) - 0.5f) * e.z * 1.5f);
+        r.org = c + Vec3((u(rng) - 0.5f) * e.x * 1.5f, (u(rng) - 0.5f) * e.y * 1.5f,
+                         (u(rng) - 0.5f) * e.z * 1.5f);
         Vec3 d;
         do d = Vec3(u(rng) * 2 - 1, u(rng) * 2 - 1, u(rng) * 2 - 1);
         while (dot(d, d) > 1.0f || dot(d, d) < 1e-4f);
@@ -58,7 +59,8 @@ TEST(Tracer, ClosestHitMatchesBruteForce) {
         if (a.prim != b.prim) {
             Hit other;
             const RayPrecomp rp(r);
-            ASSERT_TRUE(intersect_triangle(rp, s.v(a.prim, 0), s.v(a.prim, 1), s.v(a.prim, 2), r.tmin, other));
+            ASSERT_TRUE(intersect_triangle(rp, s.v(a.prim, 0), s.v(a.prim, 1), s.v(a.prim, 2),
+                                           r.tmin, other));
             ASSERT_EQ(other.t, b.t);
         }
     }
@@ -135,7 +137,8 @@ TEST(Intersect, WatertightOnSharedEdgesAndVertices) {
         const float a = 6.2831853f * i / n;
         s.vertices.push_back({std::cos(a), std::sin(a), 0});
     }
-    for (int i = 0; i < n; ++i) s.triangles.push_back({0, uint32_t(1 + i), uint32_t(1 + (i + 1) % n)});
+    for (int i = 0; i < n; ++i)
+        s.triangles.push_back({0, uint32_t(1 + i), uint32_t(1 + (i + 1) % n)});
     auto hits_any = [&](const Ray& r) {
         const RayPrecomp rp(r);
         for (uint32_t p = 0; p < s.triangle_count(); ++p) {
