@@ -15,7 +15,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
 Cycle Cache::access_line(uint64_t line_addr, Cycle now) {
     ++accesses;
     const uint64_t set = line_addr & set_mask_;
-    const uint64_t tag = line_addr >> 0;  // full line address as tag: simple and unambiguous
+    const uint64_t tag = line_addr;  // the full line address as tag: simple and unambiguous
     Way* base = &ways_[set * params_.ways];
     Way* victim = base;
     const Cycle lookup_done = now + params_.hit_latency_cycles;
@@ -37,6 +37,20 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now) {
     victim->last_use = ++use_clock_;
     victim->ready = ready;
     return ready;
+}
+
+bool Cache::present(uint64_t line_addr) const {
+    const Way* base = &ways_[(line_addr & set_mask_) * params_.ways];
+    for (int w = 0; w < params_.ways; ++w)
+        if (base[w].valid && base[w].tag == line_addr) return true;
+    return false;
+}
+
+bool Cache::served_locally(uint64_t addr, uint32_t size_bytes) const {
+    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+    for (uint64_t line = addr >> line_shift_; line <= last; ++line)
+        if (!present(line)) return false;
+    return true;
 }
 
 Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now) {

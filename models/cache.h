@@ -26,6 +26,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
   public:
     Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
+    // Every line of the request is present (or already being filled): a hit, no next-level access.
+    bool served_locally(uint64_t addr, uint32_t size_bytes) const override;
     void register_stats(StatsRegistry& reg, const std::string& block);
     const CacheParams& params() const { return params_; }
 
@@ -44,6 +46,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         bool valid = false;
     };
     Cycle access_line(uint64_t line_addr, Cycle now);
+    bool present(uint64_t line_addr) const;
 
     CacheParams params_;
     MemoryPort* next_;

@@ -36,12 +36,21 @@ void Core::run() {
         for (Slot& c : slots_)
             if (!c.retired && (!s || c.ready < s->ready)) s = &c;
         if (!s) break;  // every slot retired: the queue is empty and all rays are done
-        const Cycle now = now_cycles();
-        if (s->ready > now + params_.quantum_cycles) {
-            wait(cycles_to_time(s->ready - now));
-            continue;
-        }
         const Cycle t = s->ready;
+        // Only work that touches shared state (the work queue, a level beyond the private L1)
+        // must happen in global time order. Private work runs ahead of simulated time: this
+        // core's own calendars still see its requests in time order, because it always runs
+        // the earliest slot, so this equals waiting before every step (up to the order of
+        // requests from different cores in the same cycle).
+        const bool shared = !s->busy || !l1_->served_locally(s->work.steps[s->pos].addr,
+                                                             s->work.steps[s->pos].size_bytes);
+        if (shared) {
+            const Cycle now = now_cycles();
+            if (t > now + params_.quantum_cycles) {
+                wait(cycles_to_time(t - now));
+                continue;
+            }
+        }
         if (!s->busy) {
             if (!source_->next(s->work)) {
                 s->retired = true;

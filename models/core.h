@@ -2,10 +2,11 @@
 // (node fetch + box test, triangle fetch + triangle test) against the core's L1 and units.
 //
 // Speed: a ray slot's steps cost no SystemC event. The core runs the slot that is ready
-// earliest in a tight loop against the resource calendars of the units and caches, and yields
-// to the kernel only when its next step lies more than `quantum_cycles` ahead of simulated time
-// (temporal decoupling, as TLM-2.0's quantum keeper). A quantum of 0 keeps every core's requests
-// to shared levels in global time order, the exact reference.
+// earliest in a tight loop against the resource calendars of its units and L1. It yields to the
+// kernel only before work that touches shared state (taking a ray, an L1 miss) and lies more
+// than `quantum_cycles` ahead of simulated time (temporal decoupling, as TLM-2.0's quantum
+// keeper). A quantum of 0 keeps every core's shared requests in global time order: the exact
+// reference.
 #pragma once
 
 #include <string>

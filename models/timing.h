@@ -23,6 +23,10 @@ class MemoryPort {
   public:
     virtual ~MemoryPort() = default;
     virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) = 0;
+    // True if access() would be served entirely inside this block, touching no other block's
+    // state (a private cache's hit). A requester may then run it ahead of simulated time without
+    // synchronising; anything else may reach shared state and must wait for its cycle.
+    virtual bool served_locally(uint64_t /*addr*/, uint32_t /*size_bytes*/) const { return false; }
 };
 
 }  // namespace rtsim
