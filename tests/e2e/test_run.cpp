@@ -203,3 +203,39 @@ TEST(Run, ConfigCommandPrintsEffectiveConfig) {
     EXPECT_EQ(c["l1"]["ways"], 2);
     EXPECT_EQ(c["l2"]["ways"], 16);
 }
+
+namespace {
+
+// Leaf paths of a JSON document whose values differ, for a readable failure.
+void diff_json(const json& a, const json& b, const std::string& path, std::vector<std::string>& out) {
+    if (a.is_object() && b.is_object()) {
+        for (auto& [k, v] : a.items())
+            if (!b.contains(k))
+                out.push_back(path + "/" + k + " (only in run)");
+            else
+                diff_json(v, b[k], path + "/" + k, out);
+        for (auto& [k, v] : b.items())
+            if (!a.contains(k)) out.push_back(path + "/" + k + " (only in golden)");
+        return;
+    }
+    if (a != b) out.push_back(path + ": run " + a.dump() + ", golden " + b.dump());
+}
+
+}  // namespace
+
+// Simulated statistics of a small fixed run. A change here must be deliberate: regenerate with
+// scripts/update_golden.sh and explain in the commit why the numbers moved.
+TEST(Golden, CornellSmall) {
+    const fs::path out = work_dir() / "golden";
+    const Result r = rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" + out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    json s = stats_of(out);
+    s.erase("host");
+    s.erase("rtsim_version");
+    const json golden = json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / "tests/golden/cornell_small.json"));
+    std::vector<std::string> diffs;
+    diff_json(s, golden, "", diffs);
+    std::string report;
+    for (size_t i = 0; i < diffs.size() && i < 20; ++i) report += "\n  " + diffs[i];
+    EXPECT_TRUE(diffs.empty()) << diffs.size() << " differences from the golden stats:" << report;
+}

@@ -1,0 +1,58 @@
+#!/usr/bin/env python3
+"""Simulator speed vs. accuracy benchmark (not a test: machines are noisy, so it prints ratios
+within one run rather than asserting times).
+
+For each ray kind on a scene it runs `rtsim run` at several temporal-decoupling quanta and prints
+simulated rays per host second, the share of host time spent in functional tracing, and the error
+of total cycles and DRAM bytes against quantum 0 (the exact reference).
+
+    scripts/bench_sim.py [--rtsim build/rtsim] [--scene FILE] [--res 256x256] [--quanta 0,10,100,1000]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+
+def run(rtsim, args, out):
+    cmd = [rtsim, "run", "-q", "--out", out] + args
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"bench_sim: {' '.join(cmd)} failed: {r.stderr.strip()}")
+    with open(os.path.join(out, "stats.json")) as f:
+        return json.load(f)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--rtsim", default="build/rtsim")
+    p.add_argument("--scene", default="/usr/share/glmark2/models/bunny.obj")
+    p.add_argument("--config", default="configs/baseline.json")
+    p.add_argument("--res", default="256x256")
+    p.add_argument("--kinds", default="primary,shadow,ao")
+    p.add_argument("--quanta", default="0,10,100,1000")
+    a = p.parse_args()
+    quanta = [int(q) for q in a.quanta.split(",")]
+    print(f"scene {a.scene}, config {a.config}, {a.res}")
+    print(f"{'rays':8} {'quantum':>8} {'rays':>9} {'Mcycles':>9} {'cyc err':>8} {'DRAM err':>9} "
+          f"{'host s':>7} {'sim Mrays/host s':>17} {'speedup':>8} {'functional':>10}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in a.kinds.split(","):
+            ref = None
+            for q in quanta:
+                s = run(a.rtsim, ["--config", a.config, "--scene", a.scene, "--rays", kind, "--res", a.res,
+                                  "--set", f"sim.quantum_cycles={q}"], os.path.join(tmp, f"{kind}{q}"))
+                h = s["host"]
+                row = (s["total_cycles"], s["bandwidth"]["dram"]["bytes"], h["simulation_s"])
+                ref = ref or row
+                cyc_err = (row[0] - ref[0]) / ref[0] * 100
+                dram_err = (row[1] - ref[1]) / max(ref[1], 1) * 100
+                print(f"{kind:8} {q:8d} {s['rays']['total']:9d} {row[0] / 1e6:9.3f} {cyc_err:+7.2f}% "
+                      f"{dram_err:+8.2f}% {row[2]:7.3f} {h['simulated_rays_per_host_second'] / 1e6:17.3f} "
+                      f"{ref[2] / row[2]:7.2f}x {h['functional_trace_s'] / row[2] * 100:9.0f}%")
+
+
+if __name__ == "__main__":
+    main()

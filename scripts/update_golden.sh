@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Regenerates the golden stats that tests/e2e compare against. Run it only for a deliberate
+# change of simulated behaviour, and say in the commit message why the numbers moved.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+rtsim="${1:-build/rtsim}"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+# Keep these arguments in sync with Golden.CornellSmall in tests/e2e/test_run.cpp.
+"$rtsim" run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out "$tmp"
+python3 - "$tmp/stats.json" tests/golden/cornell_small.json <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+for k in ("host", "rtsim_version"):
+    s.pop(k, None)
+json.dump(s, open(sys.argv[2], "w"), indent=1, sort_keys=True)
+open(sys.argv[2], "a").write("\n")
+PY
+echo "updated tests/golden/cornell_small.json"
