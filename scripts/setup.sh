@@ -12,15 +12,20 @@ build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
           libassimp-dev libembree-dev libcli11-dev glmark2-data)
+sudo_cmd=""
+[ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
+apt_updated=0
+apt_update_once() {
+    [ "$apt_updated" -eq 1 ] || { $sudo_cmd apt-get update -qq; apt_updated=1; }
+}
+
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
 if [ ${#missing[@]} -gt 0 ]; then
     echo "[setup] installing: ${missing[*]}"
-    sudo_cmd=""
-    [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
-    $sudo_cmd apt-get update -qq
+    apt_update_once
     DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 
@@ -30,8 +35,10 @@ mesh_dir=".cache/meshes/cgal"
 if [ ! -f "$mesh_dir/.done" ]; then
     echo "[setup] fetching libcgal-demo meshes into $mesh_dir"
     tmp="$(mktemp -d)"
-    (cd "$tmp" && apt-get download libcgal-demo >/dev/null 2>&1) || {
-        echo "[setup] apt-get download libcgal-demo failed; run 'apt-get update' and retry" >&2; exit 1; }
+    # Package lists may be missing on a machine that had everything else installed.
+    (cd "$tmp" && apt-get download libcgal-demo >/dev/null 2>&1) ||
+        { apt_update_once && (cd "$tmp" && apt-get download libcgal-demo >/dev/null 2>&1); } || {
+        echo "[setup] cannot download libcgal-demo (needed for the mesh tests)" >&2; exit 1; }
     dpkg -x "$tmp"/libcgal-demo_*.deb "$tmp/x"
     mkdir -p "$mesh_dir"
     tar -xzf "$tmp/x/usr/share/doc/libcgal-dev/data.tar.gz" -C "$tmp" data/meshes
