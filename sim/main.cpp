@@ -10,36 +10,19 @@
 
 namespace {
 
-// Scene and ray options, shared by every command that makes rays.
-void add_workload_options(CLI::App* cmd, rtsim::WorkloadOptions& w, std::string& res) {
-    cmd->add_option("--scene", w.scene,
-                    "Mesh file (OBJ, PLY, OFF, STL, ...) or builtin:NAME (cornell, sphere)")
-        ->capture_default_str();
-    cmd->add_option("--rays", w.rays, "Comma list of ray kinds: primary, shadow, ao")
-        ->capture_default_str();
-    cmd->add_option("--res", res, "Image resolution WIDTHxHEIGHT")->capture_default_str();
-    cmd->add_option("--seed", w.seed, "Seed for sampled rays (AO directions)")
-        ->capture_default_str();
-    cmd->add_option("--ao-samples", w.ao_samples, "AO rays per primary hit")->capture_default_str();
-    cmd->add_option("--ao-length", w.ao_length_fraction,
-                    "AO ray length as a fraction of the scene diagonal")
-        ->capture_default_str();
-}
-
 int main_impl(int argc, char** argv) {
     CLI::App app{"RTSim: a cycle-approximate ray-tracing hardware simulator"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("rtsim ") + RTSIM_VERSION);
 
     rtsim::RunOptions run;
-    std::string run_res = "128x128";
     CLI::App* run_cmd = app.add_subcommand(
         "run", "Simulate a frame's rays on an architecture config; writes stats.json");
     run_cmd->add_option("--config", run.config_path,
                         "Architecture config JSON (default: built-in defaults)");
     run_cmd->add_option("--set", run.sets,
                         "Override a config field, KEY=VALUE (e.g. l1.size_kib=64); repeatable");
-    add_workload_options(run_cmd, run.workload, run_res);
+    rtsim::add_workload_options(run_cmd, run.workload);
     run_cmd->add_option("--out,-o", run.out_dir,
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
@@ -62,7 +45,7 @@ int main_impl(int argc, char** argv) {
 
     try {
         if (*run_cmd) {
-            rtsim::parse_resolution(run_res, "--res", run.workload.width, run.workload.height);
+            run.workload.resolve();
             return rtsim::run_command(run);
         }
         if (*cfg_cmd) {

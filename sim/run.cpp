@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
 #include <ctime>
@@ -41,15 +42,47 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
     height = h;
 }
 
+void WorkloadOptions::resolve() {
+    parse_resolution(res, "--res", gen.width, gen.height);
+    gen.kinds = parse_ray_kinds(rays, "--rays");
+    gen.light = parse_light_kind(light, "--light");
+    gen.validate();
+}
+
+void add_workload_options(CLI::App* cmd, WorkloadOptions& w) {
+    cmd->add_option("--scene", w.scene,
+                    "Mesh file (OBJ, PLY, OFF, STL, ...) or builtin:NAME (cornell, sphere)")
+        ->capture_default_str();
+    cmd->add_option("--rays", w.rays,
+                    "Comma list of ray kinds: primary, shadow, ao, diffuse, reflection")
+        ->capture_default_str();
+    cmd->add_option("--res", w.res, "Image resolution WIDTHxHEIGHT")->capture_default_str();
+    cmd->add_option("--spp", w.gen.spp, "Primary samples per pixel (jittered when more than 1)")
+        ->capture_default_str();
+    cmd->add_option("--seed", w.gen.seed, "Seed for sampled rays")->capture_default_str();
+    cmd->add_option("--light", w.light, "Light for shadow rays: point or area")
+        ->capture_default_str();
+    cmd->add_option("--ao-samples", w.gen.ao_samples, "AO rays per primary hit")
+        ->capture_default_str();
+    cmd->add_option("--ao-length", w.gen.ao_length_fraction,
+                    "AO ray length as a fraction of the scene diagonal")
+        ->capture_default_str();
+    cmd->add_option("--diffuse-depth", w.gen.diffuse_depth, "Diffuse bounces per primary hit")
+        ->capture_default_str();
+}
+
 namespace {
 
 // The chip's shared work queue, filled tile by tile from the ray generator. Each ray is traced
 // functionally when a core takes it, so only the rays in flight hold step streams.
 class GeneratedWorkSource : public RayWorkSource {
   public:
-    GeneratedWorkSource(const Scene& scene, const Bvh& bvh, RayGenerator& gen, int total_tiles,
-                        bool progress)
-        : scene_(scene), bvh_(bvh), gen_(gen), total_tiles_(total_tiles), progress_(progress) {}
+    GeneratedWorkSource(const Scene& scene, const Bvh& bvh, RayGenerator& gen, bool progress)
+        : scene_(scene),
+          bvh_(bvh),
+          gen_(gen),
+          total_tiles_(gen.tile_count()),
+          progress_(progress) {}
 
     bool next(RayWork& work) override {
         if (pending_.empty()) {
@@ -130,20 +163,7 @@ int run_command(const RunOptions& opt) {
     const auto host_start = Clock::now();
     const Config cfg = load_config(opt.config_path, opt.sets);
 
-    RayGenOptions rg;
-    rg.width = opt.workload.width;
-    rg.height = opt.workload.height;
-    rg.kinds = parse_ray_kinds(opt.workload.rays, "--rays");
-    rg.seed = opt.workload.seed;
-    rg.ao_samples = opt.workload.ao_samples;
-    rg.ao_length_fraction = opt.workload.ao_length_fraction;
-    if (rg.ao_samples < 1 || rg.ao_samples > 1024)
-        throw InputError(fmt::format("--ao-samples: expected 1..1024, got {}", rg.ao_samples));
-    if (!(rg.ao_length_fraction > 0.0f) || !std::isfinite(rg.ao_length_fraction))
-        throw InputError(
-            fmt::format("--ao-length: expected a positive fraction of the scene diagonal, got {}",
-                        rg.ao_length_fraction));
-
+    const RayGenOptions& rg = opt.workload.gen;
     // Checked before the long work, so a bad --out fails fast and nothing is half-written.
     const std::string out_dir = opt.out_dir.empty() ? fresh_out_dir() : opt.out_dir;
     std::error_code ec;
@@ -165,10 +185,8 @@ int run_command(const RunOptions& opt) {
     const Bvh bvh = build_bvh_sah(scene, bo, layout);
 
     RayGenerator gen(scene, bvh, rg);
-    const int tiles = ((rg.width + rg.tile_size - 1) / rg.tile_size) *
-                      ((rg.height + rg.tile_size - 1) / rg.tile_size);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
-    GeneratedWorkSource source(scene, bvh, gen, tiles, progress);
+    GeneratedWorkSource source(scene, bvh, gen, progress);
 
     Chip chip(cfg, &source);
     const auto t_sim = Clock::now();
@@ -227,6 +245,9 @@ int run_command(const RunOptions& opt) {
     out["workload"] = {{"rays", ray_kinds_to_string(rg.kinds)},
                        {"resolution", fmt::format("{}x{}", rg.width, rg.height)},
                        {"seed", rg.seed},
+                       {"spp", rg.spp},
+                       {"light", light_kind_name(rg.light)},
+                       {"diffuse_depth", rg.diffuse_depth},
                        {"ao_samples", rg.ao_samples},
                        {"ao_length_fraction", rg.ao_length_fraction},
                        {"ao_length", gen.ao_length()},

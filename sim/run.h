@@ -6,16 +6,24 @@
 #include <string>
 #include <vector>
 
+#include "workloads/raygen.h"
+
+namespace CLI {
+class App;
+}
+
 namespace rtsim {
 
-// Scene and ray options shared by every command that produces rays (run, and later trace).
+// Scene and ray options shared by every command that produces rays (run, trace).
 struct WorkloadOptions {
     std::string scene = "builtin:cornell";
-    std::string rays = "primary";
-    int width = 128, height = 128;
-    uint64_t seed = 1;
-    int ao_samples = 2;
-    float ao_length_fraction = 0.1f;
+    std::string rays = "primary";  // parsed into gen.kinds
+    std::string res = "128x128";   // parsed into gen.width, gen.height
+    std::string light = "point";   // parsed into gen.light
+    RayGenOptions gen;
+
+    // Parses the text options into `gen` and validates it. Throws InputError.
+    void resolve();
 };
 
 struct RunOptions {
@@ -31,5 +39,8 @@ int run_command(const RunOptions& options);
 
 // "WxH" -> width, height. Throws InputError naming `what`.
 void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);
+
+// Adds the scene and ray options (--scene, --rays, --res, ...) to a command.
+void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
 
 }  // namespace rtsim

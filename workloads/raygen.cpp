@@ -17,6 +17,10 @@ const char* ray_kind_name(RayKind k) {
             return "shadow";
         case RayKind::AO:
             return "ao";
+        case RayKind::Diffuse:
+            return "diffuse";
+        case RayKind::Reflection:
+            return "reflection";
     }
     return "unknown";
 }
@@ -34,10 +38,10 @@ std::array<bool, kRayKindCount> parse_ray_kinds(const std::string& list, const s
                 found = any = true;
             }
         if (!found)
-            throw InputError(
-                fmt::format("{}: unknown ray kind '{}' (expected a comma list of "
-                            "primary, shadow, ao)",
-                            what, item));
+            throw InputError(fmt::format(
+                "{}: unknown ray kind '{}' (expected a comma list of primary, shadow, ao, diffuse, "
+                "reflection)",
+                what, item));
     }
     if (!any) throw InputError(fmt::format("{}: no ray kind given", what));
     return kinds;
@@ -48,6 +52,34 @@ std::string ray_kinds_to_string(const std::array<bool, kRayKindCount>& kinds) {
     for (int k = 0; k < kRayKindCount; ++k)
         if (kinds[k]) s += (s.empty() ? "" : ",") + std::string(ray_kind_name(RayKind(k)));
     return s;
+}
+
+const char* light_kind_name(LightKind k) {
+    return k == LightKind::Point ? "point" : "area";
+}
+
+LightKind parse_light_kind(const std::string& text, const std::string& what) {
+    if (text == "point") return LightKind::Point;
+    if (text == "area") return LightKind::Area;
+    throw InputError(fmt::format("{}: unknown light '{}' (expected point or area)", what, text));
+}
+
+void RayGenOptions::validate() const {
+    if (width <= 0 || height <= 0 || width > 65536 || height > 65536)
+        throw InputError(
+            fmt::format("--res: expected 1..65536 per side, got {}x{}", width, height));
+    if (spp < 1 || spp > 4096)
+        throw InputError(fmt::format("--spp: expected 1..4096, got {}", spp));
+    if (ao_samples < 1 || ao_samples > 1024)
+        throw InputError(fmt::format("--ao-samples: expected 1..1024, got {}", ao_samples));
+    if (!(ao_length_fraction > 0.0f) || !std::isfinite(ao_length_fraction))
+        throw InputError(
+            fmt::format("--ao-length: expected a positive fraction of the scene diagonal, got {}",
+                        ao_length_fraction));
+    if (diffuse_depth < 1 || diffuse_depth > 64)
+        throw InputError(fmt::format("--diffuse-depth: expected 1..64, got {}", diffuse_depth));
+    if (tile_size < 1)
+        throw InputError(fmt::format("tile size must be positive, got {}", tile_size));
 }
 
 Camera Camera::frame(const AABB& bounds, int width, int height) {
@@ -90,16 +122,25 @@ Vec3 offset_ray_origin(Vec3 p, Vec3 n) {
 
 namespace {
 
-// Counter-based random numbers: the same (seed, ray, sample) always gives the same value,
-// whatever order or thread generates it.
+// Counter-based random numbers: the same (seed, stream, purpose, index) always gives the same
+// value, whatever order or thread generates it.
 uint64_t splitmix64(uint64_t x) {
     x += 0x9E3779B97F4A7C15ull;
     x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
     x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
     return x ^ (x >> 31);
 }
-float uniform01(uint64_t h) {
-    return float(h >> 40) * (1.0f / 16777216.0f);
+
+enum Purpose : uint64_t { kPixelJitter = 1, kAo = 2, kLight = 3, kDiffuse = 4 };
+
+struct Rng2 {
+    float u1, u2;
+};
+Rng2 random2(uint64_t seed, uint64_t stream, Purpose purpose, uint64_t index) {
+    const uint64_t h =
+        splitmix64(seed ^ splitmix64(stream ^ splitmix64((uint64_t(purpose) << 56) ^ index)));
+    const uint64_t h2 = splitmix64(h);
+    return {float(h >> 40) * (1.0f / 16777216.0f), float(h2 >> 40) * (1.0f / 16777216.0f)};
 }
 
 void orthonormal_basis(Vec3 n, Vec3& t, Vec3& b) {
@@ -111,21 +152,49 @@ void orthonormal_basis(Vec3 n, Vec3& t, Vec3& b) {
     b = Vec3(c, sign + n.y * n.y * a, -n.y);
 }
 
+// Cosine-weighted direction about n (Malley's method).
+Vec3 cosine_direction(Vec3 n, Rng2 r) {
+    Vec3 t, b;
+    orthonormal_basis(n, t, b);
+    const float radius = std::sqrt(r.u1), phi = 6.2831853f * r.u2;
+    const float lz = std::sqrt(std::max(0.0f, 1.0f - r.u1));
+    return normalize(t * (radius * std::cos(phi)) + b * (radius * std::sin(phi)) + n * lz);
+}
+
 }  // namespace
 
 RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options)
     : scene_(scene), bvh_(bvh), opt_(options) {
-    if (opt_.width <= 0 || opt_.height <= 0)
-        throw InputError(
-            fmt::format("--res: resolution must be positive, got {}x{}", opt_.width, opt_.height));
+    opt_.validate();
     const AABB b = bvh.bounds();
     camera_ = Camera::frame(b, opt_.width, opt_.height);
-    // A point light just under the top centre of the scene's bounds (inside a closed room).
+    // Lights just under the top of the scene's bounds (inside a closed room): a point at the
+    // centre, or a horizontal quad a quarter of the bounds' width and depth around it.
     const Vec3 c = b.center(), e = b.extent();
-    light_ = Vec3(c.x, b.hi.y - 0.05f * e.y, c.z);
+    const Vec3 top(c.x, b.hi.y - 0.05f * e.y, c.z);
+    if (opt_.light == LightKind::Point) {
+        light_ = top;
+    } else {
+        light_u_ = Vec3(0.25f * e.x, 0, 0);
+        light_v_ = Vec3(0, 0, 0.25f * e.z);
+        light_ = top - (light_u_ + light_v_) * 0.5f;
+    }
     ao_length_ = opt_.ao_length_fraction * length(e);
     tiles_x_ = (opt_.width + opt_.tile_size - 1) / opt_.tile_size;
     tiles_y_ = (opt_.height + opt_.tile_size - 1) / opt_.tile_size;
+}
+
+bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
+                                 SurfacePoint& out) const {
+    const Vec3 v0 = scene_.v(h.prim, 0), v1 = scene_.v(h.prim, 1), v2 = scene_.v(h.prim, 2);
+    Vec3 ng = cross(v1 - v0, v2 - v0);
+    const float len = length(ng);
+    if (!(len > 0.0f)) return false;  // degenerate triangle: no defined surface
+    ng = ng / len;
+    if (dot(ng, r.dir) > 0.0f) ng = -ng;
+    const Vec3 p = v0 * (1.0f - h.u - h.v) + v1 * h.u + v2 * h.v;
+    out = {offset_ray_origin(p, ng), ng, r.dir, stream};
+    return true;
 }
 
 bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
@@ -135,59 +204,80 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
     const int x0 = tx * opt_.tile_size, y0 = ty * opt_.tile_size;
     const int x1 = std::min(x0 + opt_.tile_size, opt_.width);
     const int y1 = std::min(y0 + opt_.tile_size, opt_.height);
-    const bool need_hits = opt_.wants(RayKind::Shadow) || opt_.wants(RayKind::AO);
-
-    struct SurfacePoint {
-        Vec3 p, n;  // n faces the camera
-        uint64_t pixel;
+    const bool need_hits = opt_.wants(RayKind::Shadow) || opt_.wants(RayKind::AO) ||
+                           opt_.wants(RayKind::Diffuse) || opt_.wants(RayKind::Reflection);
+    auto emit = [&](const Ray& r, RayKind kind, HitQuery q) {
+        out.push_back({r, next_id_++, kind, q});
     };
+
     std::vector<SurfacePoint> hits;
     for (int y = y0; y < y1; ++y)
-        for (int x = x0; x < x1; ++x) {
-            const Ray r = camera_.generate(x + 0.5f, y + 0.5f, opt_.width, opt_.height);
-            if (opt_.wants(RayKind::Primary))
-                out.push_back({r, next_id_++, RayKind::Primary, HitQuery::Closest});
-            if (!need_hits) continue;
-            const Hit h = trace_ray(scene_, bvh_, r, HitQuery::Closest);
-            if (!h.valid()) continue;
-            const Vec3 v0 = scene_.v(h.prim, 0), v1 = scene_.v(h.prim, 1), v2 = scene_.v(h.prim, 2);
-            Vec3 ng = cross(v1 - v0, v2 - v0);
-            const float len = length(ng);
-            if (!(len > 0.0f)) continue;  // degenerate triangle: no defined surface
-            ng = ng / len;
-            if (dot(ng, r.dir) > 0.0f) ng = -ng;
-            const Vec3 p = v0 * (1.0f - h.u - h.v) + v1 * h.u + v2 * h.v;
-            hits.push_back({offset_ray_origin(p, ng), ng, uint64_t(y) * opt_.width + x});
-        }
+        for (int x = x0; x < x1; ++x)
+            for (int s = 0; s < opt_.spp; ++s) {
+                const uint64_t stream = (uint64_t(y) * opt_.width + x) * uint64_t(opt_.spp) + s;
+                float jx = 0.5f, jy = 0.5f;
+                if (opt_.spp > 1) {
+                    const Rng2 j = random2(opt_.seed, stream, kPixelJitter, 0);
+                    jx = j.u1;
+                    jy = j.u2;
+                }
+                const Ray r = camera_.generate(x + jx, y + jy, opt_.width, opt_.height);
+                if (opt_.wants(RayKind::Primary)) emit(r, RayKind::Primary, HitQuery::Closest);
+                if (!need_hits) continue;
+                const Hit h = trace_ray(scene_, bvh_, r, HitQuery::Closest);
+                SurfacePoint sp;
+                if (h.valid() && surface_point(r, h, stream, sp)) hits.push_back(sp);
+            }
+
     if (opt_.wants(RayKind::Shadow))
         for (const SurfacePoint& s : hits) {
-            Vec3 to_light = light_ - s.p;
+            Vec3 target = light_;
+            if (opt_.light == LightKind::Area) {
+                const Rng2 u = random2(opt_.seed, s.stream, kLight, 0);
+                target = light_ + light_u_ * u.u1 + light_v_ * u.u2;
+            }
+            const Vec3 to_light = target - s.p;
             const float dist = length(to_light);
             if (!(dist > 0.0f) || dot(to_light, s.n) <= 0.0f) continue;  // light behind surface
             Ray r;
             r.org = s.p;
             r.dir = to_light / dist;
-            r.tmax = dist * (1.0f - 1e-4f);
-            out.push_back({r, next_id_++, RayKind::Shadow, HitQuery::Any});
+            r.tmax = dist * (1.0f - 1e-4f);  // stop short of the light itself
+            emit(r, RayKind::Shadow, HitQuery::Any);
         }
     if (opt_.wants(RayKind::AO))
-        for (const SurfacePoint& s : hits) {
-            Vec3 t, b;
-            orthonormal_basis(s.n, t, b);
+        for (const SurfacePoint& s : hits)
             for (int k = 0; k < opt_.ao_samples; ++k) {
-                const uint64_t h = splitmix64(opt_.seed ^ splitmix64(s.pixel * 64 + uint64_t(k)));
-                const float u1 = uniform01(h), u2 = uniform01(splitmix64(h));
-                // Cosine-weighted hemisphere (Malley's method).
-                const float r = std::sqrt(u1), phi = 6.2831853f * u2;
-                const float lx = r * std::cos(phi), ly = r * std::sin(phi);
-                const float lz = std::sqrt(std::max(0.0f, 1.0f - u1));
-                Ray ray;
-                ray.org = s.p;
-                ray.dir = normalize(t * lx + b * ly + s.n * lz);
-                ray.tmax = ao_length_;
-                out.push_back({ray, next_id_++, RayKind::AO, HitQuery::Any});
+                Ray r;
+                r.org = s.p;
+                r.dir = cosine_direction(s.n, random2(opt_.seed, s.stream, kAo, k));
+                r.tmax = ao_length_;
+                emit(r, RayKind::AO, HitQuery::Any);
             }
+    if (opt_.wants(RayKind::Reflection))
+        for (const SurfacePoint& s : hits) {
+            Ray r;
+            r.org = s.p;
+            r.dir = normalize(s.incoming - s.n * (2.0f * dot(s.incoming, s.n)));
+            emit(r, RayKind::Reflection, HitQuery::Closest);
         }
+    if (opt_.wants(RayKind::Diffuse)) {
+        std::vector<SurfacePoint> current = hits, next;
+        for (int depth = 0; depth < opt_.diffuse_depth && !current.empty(); ++depth) {
+            next.clear();
+            for (const SurfacePoint& s : current) {
+                Ray r;
+                r.org = s.p;
+                r.dir = cosine_direction(s.n, random2(opt_.seed, s.stream, kDiffuse, depth));
+                emit(r, RayKind::Diffuse, HitQuery::Closest);
+                if (depth + 1 == opt_.diffuse_depth) continue;  // the last bounce needs no hit
+                const Hit h = trace_ray(scene_, bvh_, r, HitQuery::Closest);
+                SurfacePoint sp;
+                if (h.valid() && surface_point(r, h, s.stream, sp)) next.push_back(sp);
+            }
+            current.swap(next);
+        }
+    }
     return true;
 }
 

@@ -1,4 +1,4 @@
-// Ray generation: an auto-framed pinhole camera and secondary rays from primary hits, streamed
+// Ray generation: an auto-framed pinhole camera and secondary rays from surface hits, streamed
 // tile by tile so memory stays bounded at any resolution.
 #pragma once
 
@@ -14,20 +14,29 @@
 
 namespace rtsim {
 
+enum class LightKind : uint8_t { Point, Area };
+
 struct RayGenOptions {
-    int width = 256, height = 256;
-    std::array<bool, kRayKindCount> kinds{{true, false, false}};  // indexed by RayKind
-    int ao_samples = 2;                                           // AO rays per primary hit
+    int width = 128, height = 128;
+    int spp = 1;  // primary samples per pixel: 1 is the pixel centre, more are jittered
+    std::array<bool, kRayKindCount> kinds{{true, false, false, false, false}};  // by RayKind
+    int ao_samples = 2;               // AO rays per primary hit
     float ao_length_fraction = 0.1f;  // AO ray length, as a fraction of the scene's diagonal
+    int diffuse_depth = 2;            // diffuse bounces per primary hit
+    LightKind light = LightKind::Point;
     uint64_t seed = 1;
     int tile_size = 8;  // pixels per tile edge; rays are emitted tile by tile
 
     bool wants(RayKind k) const { return kinds[static_cast<int>(k)]; }
+    // Throws InputError naming the command-line option of a bad value.
+    void validate() const;
 };
 
 // Parses "primary,ao,shadow". Throws InputError naming `what` (e.g. "--rays").
 std::array<bool, kRayKindCount> parse_ray_kinds(const std::string& list, const std::string& what);
 std::string ray_kinds_to_string(const std::array<bool, kRayKindCount>& kinds);
+LightKind parse_light_kind(const std::string& text, const std::string& what);
+const char* light_kind_name(LightKind k);
 
 struct Camera {
     Vec3 eye, forward, right, up;
@@ -50,21 +59,36 @@ struct GeneratedRay {
     HitQuery query;
 };
 
+// Emits, per tile: primary rays; then from their hits shadow rays (to a point light, or to a
+// random point of an area light), AO rays, a mirror reflection ray, and diffuse paths of
+// `diffuse_depth` bounces (all bounce-1 rays of the tile, then bounce 2, ...). Secondary rays
+// are generated whether or not primaries are requested, so `--rays ao` simulates AO alone.
 class RayGenerator {
   public:
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
-    // Appends the next tile's rays (primaries, then shadow, then AO) to out; false when done.
+    // Appends the next tile's rays to out; false when every tile is done.
     bool next_tile(std::vector<GeneratedRay>& out);
+    int tile_count() const { return tiles_x_ * tiles_y_; }
     const Camera& camera() const { return camera_; }
-    Vec3 light_position() const { return light_; }
     float ao_length() const { return ao_length_; }
+    // Point light position, or the area light's corner and edges.
+    Vec3 light_position() const { return light_; }
+    Vec3 light_edge_u() const { return light_u_; }
+    Vec3 light_edge_v() const { return light_v_; }
 
   private:
+    struct SurfacePoint {
+        Vec3 p, n;        // offset origin; normal facing the incoming ray
+        Vec3 incoming;    // direction of the ray that found it
+        uint64_t stream;  // random stream of this path (pixel and sample)
+    };
+    bool surface_point(const Ray& r, const Hit& h, uint64_t stream, SurfacePoint& out) const;
+
     const Scene& scene_;
     const Bvh& bvh_;
     RayGenOptions opt_;
     Camera camera_;
-    Vec3 light_;
+    Vec3 light_, light_u_, light_v_;
     float ao_length_;
     int tiles_x_, tiles_y_, next_tile_ = 0;
     uint32_t next_id_ = 0;

@@ -22,8 +22,8 @@ struct Step {
 };
 static_assert(sizeof(Step) == 16, "Step is streamed in bulk; keep it 16 bytes");
 
-enum class RayKind : uint8_t { Primary = 0, Shadow = 1, AO = 2 };
-constexpr int kRayKindCount = 3;
+enum class RayKind : uint8_t { Primary = 0, Shadow = 1, AO = 2, Diffuse = 3, Reflection = 4 };
+constexpr int kRayKindCount = 5;
 const char* ray_kind_name(RayKind k);
 
 // One ray's work for the timing model.

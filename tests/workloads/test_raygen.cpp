@@ -21,7 +21,9 @@ TEST(RayGen, ParsesKinds) {
     EXPECT_FALSE(k[1]);
     EXPECT_TRUE(k[2]);
     EXPECT_EQ(ray_kinds_to_string(k), "primary,ao");
-    EXPECT_THROW(parse_ray_kinds("primary,diffuse", "--rays"), InputError);
+    EXPECT_THROW(parse_ray_kinds("primary,bogus", "--rays"), InputError);
+    EXPECT_EQ(ray_kinds_to_string(parse_ray_kinds("reflection,diffuse", "x")),
+              "diffuse,reflection");
     EXPECT_THROW(parse_ray_kinds("", "--rays"), InputError);
 }
 
@@ -106,4 +108,73 @@ TEST(RayGen, SeedChangesAoDirectionsDeterministically) {
         differ += a[i].ray.dir.x != c[i].ray.dir.x;
     }
     EXPECT_GT(differ, int(a.size()) / 2);
+}
+
+TEST(RayGen, DiffusePathsReflectionsAndSamplesPerPixel) {
+    Scene s = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    RayGenOptions o;
+    o.width = 24;
+    o.height = 16;
+    o.spp = 3;
+    o.diffuse_depth = 3;
+    o.kinds = parse_ray_kinds("primary,diffuse,reflection", "test");
+    auto rays = all_rays(s, bvh, o);
+    size_t prim = 0, hits = 0, refl = 0, diffuse = 0;
+    for (const auto& r : rays) {
+        if (r.kind == RayKind::Primary) {
+            ++prim;
+            hits += trace_ray(s, bvh, r.ray, HitQuery::Closest).valid();
+        }
+        refl += r.kind == RayKind::Reflection;
+        diffuse += r.kind == RayKind::Diffuse;
+        if (r.kind == RayKind::Diffuse || r.kind == RayKind::Reflection) {
+            EXPECT_EQ(r.query, HitQuery::Closest);
+            EXPECT_NEAR(length(r.ray.dir), 1.0f, 1e-5f);
+        }
+    }
+    EXPECT_EQ(prim, 24u * 16u * 3u);
+    EXPECT_EQ(refl, hits);  // one mirror ray per primary hit
+    // Bounce 1 leaves every primary hit; later bounces only from the hits of the one before.
+    EXPECT_GE(diffuse, hits);
+    EXPECT_LE(diffuse, 3 * hits);
+    // Inside a closed room most bounces hit again, so paths mostly continue.
+    EXPECT_GT(diffuse, 2 * hits);
+}
+
+TEST(RayGen, AreaLightSpreadsShadowRays) {
+    Scene s = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    RayGenOptions o;
+    o.width = o.height = 16;
+    o.kinds = parse_ray_kinds("shadow", "test");
+    o.light = LightKind::Area;
+    RayGenerator g(s, bvh, o);
+    std::vector<GeneratedRay> rays;
+    while (g.next_tile(rays)) {
+    }
+    ASSERT_GT(rays.size(), 50u);
+    float min_x = 1e30f, max_x = -1e30f;
+    for (const auto& r : rays) {
+        ASSERT_EQ(r.kind, RayKind::Shadow);
+        const Vec3 end = r.ray.org + r.ray.dir * (r.ray.tmax / (1.0f - 1e-4f));
+        // Every shadow ray ends on the light quad.
+        EXPECT_NEAR(end.y, g.light_position().y, 1e-3f);
+        min_x = std::min(min_x, end.x);
+        max_x = std::max(max_x, end.x);
+    }
+    EXPECT_GT(max_x - min_x, 0.5f * g.light_edge_u().x);
+}
+
+TEST(RayGen, BadOptionsAreInputErrors) {
+    RayGenOptions o;
+    o.spp = 0;
+    EXPECT_THROW(o.validate(), InputError);
+    o = RayGenOptions();
+    o.diffuse_depth = 0;
+    EXPECT_THROW(o.validate(), InputError);
+    o = RayGenOptions();
+    o.ao_length_fraction = -1;
+    EXPECT_THROW(o.validate(), InputError);
+    EXPECT_THROW(parse_light_kind("sun", "--light"), InputError);
 }
