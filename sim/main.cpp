@@ -6,6 +6,7 @@
 
 #include "sim/config.h"
 #include "sim/run.h"
+#include "sim/trace_cmd.h"
 #include "workloads/error.h"
 
 namespace {
@@ -27,6 +28,11 @@ int main_impl(int argc, char** argv) {
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
 
+    rtsim::TraceOptions trace;
+    CLI::App* trace_cmd = app.add_subcommand(
+        "trace", "Run the functional tracer alone on generated or external rays; write hits");
+    rtsim::add_trace_options(trace_cmd, trace);
+
     std::string cfg_path;
     std::vector<std::string> cfg_sets;
     bool cfg_doc = false;
@@ -47,6 +53,10 @@ int main_impl(int argc, char** argv) {
         if (*run_cmd) {
             run.workload.resolve();
             return rtsim::run_command(run);
+        }
+        if (*trace_cmd) {
+            trace.workload.resolve();
+            return rtsim::trace_command(trace);
         }
         if (*cfg_cmd) {
             if (cfg_doc) {

@@ -14,6 +14,7 @@
 
 #include "sim/chip.h"
 #include "sim/config.h"
+#include "sim/output_file.h"
 #include "sim/stats_report.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
@@ -40,6 +41,16 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
             fmt::format("{}: expected WIDTHxHEIGHT with each in 1..65536, got '{}'", what, text));
     width = w;
     height = h;
+}
+
+Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
+    BvhBuildOptions bo;
+    bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
+    bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
+    BvhLayout layout;
+    layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
+    layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
+    return build_bvh_sah(scene, bo, layout);
 }
 
 void WorkloadOptions::resolve() {
@@ -176,13 +187,9 @@ int run_command(const RunOptions& opt) {
     const Scene scene = load_scene(opt.workload.scene);
     const double scene_seconds = std::chrono::duration<double>(Clock::now() - t_scene).count();
 
-    BvhBuildOptions bo;
-    bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
-    bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
-    BvhLayout layout;
-    layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
-    layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
-    const Bvh bvh = build_bvh_sah(scene, bo, layout);
+    const Bvh bvh = build_bvh_from_config(cfg, scene);
+    const BvhBuildOptions& bo = bvh.options;
+    const BvhLayout& layout = bvh.layout;
 
     RayGenerator gen(scene, bvh, rg);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);

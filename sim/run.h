@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/config.h"
+#include "workloads/bvh.h"
 #include "workloads/raygen.h"
 
 namespace CLI {
@@ -36,6 +38,9 @@ struct RunOptions {
 
 // Returns the process exit status. Throws InputError for bad input.
 int run_command(const RunOptions& options);
+
+// The BVH the config's "bvh" section asks for.
+Bvh build_bvh_from_config(const Config& cfg, const Scene& scene);
 
 // "WxH" -> width, height. Throws InputError naming `what`.
 void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);

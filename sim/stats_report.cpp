@@ -1,10 +1,6 @@
 #include "sim/stats_report.h"
 
 #include <fmt/format.h>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <stdexcept>
 
 namespace rtsim {
 
@@ -80,23 +76,6 @@ json timing_report(const ReportInputs& in) {
     for (const auto& e : s.entries()) counters[e.name] = *e.value;
     out["counters"] = counters;
     return out;
-}
-
-void write_file_atomically(const std::string& path, const std::string& text) {
-    const std::string tmp = path + ".tmp";
-    {
-        std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
-        if (!f) throw std::runtime_error(fmt::format("{}: cannot write", tmp));
-        f << text;
-        f.flush();
-        if (!f) throw std::runtime_error(fmt::format("{}: write failed", tmp));
-    }
-    std::error_code ec;
-    std::filesystem::rename(tmp, path, ec);
-    if (ec) {
-        std::filesystem::remove(tmp, ec);
-        throw std::runtime_error(fmt::format("{}: cannot move into place", path));
-    }
 }
 
 }  // namespace rtsim

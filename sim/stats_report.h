@@ -21,7 +21,4 @@ struct ReportInputs {
 // Sections "cycles", "units", "caches", "bandwidth", "counters" of stats.json.
 nlohmann::json timing_report(const ReportInputs& in);
 
-// Writes text to path through a temporary file and a rename: readers never see a partial file.
-void write_file_atomically(const std::string& path, const std::string& text);
-
 }  // namespace rtsim

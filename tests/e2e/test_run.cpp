@@ -207,7 +207,8 @@ TEST(Run, ConfigCommandPrintsEffectiveConfig) {
 namespace {
 
 // Leaf paths of a JSON document whose values differ, for a readable failure.
-void diff_json(const json& a, const json& b, const std::string& path, std::vector<std::string>& out) {
+void diff_json(const json& a, const json& b, const std::string& path,
+               std::vector<std::string>& out) {
     if (a.is_object() && b.is_object()) {
         for (auto& [k, v] : a.items())
             if (!b.contains(k))
@@ -227,15 +228,107 @@ void diff_json(const json& a, const json& b, const std::string& path, std::vecto
 // scripts/update_golden.sh and explain in the commit why the numbers moved.
 TEST(Golden, CornellSmall) {
     const fs::path out = work_dir() / "golden";
-    const Result r = rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" + out.string() + "'");
+    const Result r =
+        rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" +
+              out.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     json s = stats_of(out);
     s.erase("host");
     s.erase("rtsim_version");
-    const json golden = json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / "tests/golden/cornell_small.json"));
+    const json golden =
+        json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / "tests/golden/cornell_small.json"));
     std::vector<std::string> diffs;
     diff_json(s, golden, "", diffs);
     std::string report;
     for (size_t i = 0; i < diffs.size() && i < 20; ++i) report += "\n  " + diffs[i];
     EXPECT_TRUE(diffs.empty()) << diffs.size() << " differences from the golden stats:" << report;
+}
+
+namespace {
+
+std::string write_rays(const fs::path& p, const std::vector<std::array<float, 8>>& recs) {
+    std::ofstream f(p, std::ios::binary);
+    for (const auto& r : recs) f.write(reinterpret_cast<const char*>(r.data()), 32);
+    return p.string();
+}
+
+}  // namespace
+
+TEST(Trace, ExternalRaysHitPrimitivesInFileOrder) {
+    // Three unit quads side by side along x, as OBJ faces: a triangle, a quad (split into two
+    // triangles in file order), a triangle. Ids must follow the file: 0, then 1 and 2, then 3.
+    const fs::path obj = work_dir() / "strip.obj";
+    std::ofstream(obj) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nv 3 0 0\nv 3 1 0\n"
+                          "f 1 2 3\nf 2 4 5 6\nf 4 7 8\n";
+    const float inf = std::numeric_limits<float>::infinity();
+    const std::string rays = write_rays(work_dir() / "rays.bin",
+                                        {
+                                            {0.7f, 0.2f, 1, 0, 0, 0, -1, inf},  // tri 0
+                                            {1.7f, 0.2f, 1, 0, 0, 0, -1, inf},  // quad, first half
+                                            {1.2f, 0.8f, 1, 0, 0, 0, -1, inf},  // quad, second half
+                                            {2.7f, 0.2f, 1, 0, 0, 0, -1, inf},  // tri 3
+                                            {5.0f, 5.0f, 1, 0, 0, 0, -1, inf},  // miss
+                                            {0.7f, 0.2f, 1, 0, 0, 0, -1, 0.5f},  // too short
+                                        });
+    const fs::path csv = work_dir() / "hits.csv";
+    const Result r = rtsim(fmt::format("trace -q --scene '{}' --rays-file '{}' --hits '{}'",
+                                       obj.string(), rays, csv.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    std::istringstream in(slurp(csv));
+    std::string line;
+    std::getline(in, line);
+    EXPECT_EQ(line, "ray,t,prim,u,v");
+    std::vector<std::string> prims;
+    while (std::getline(in, line)) {
+        std::vector<std::string> cols;
+        std::stringstream ls(line);
+        std::string c;
+        while (std::getline(ls, c, ',')) cols.push_back(c);
+        ASSERT_EQ(cols.size(), 5u) << line;
+        EXPECT_EQ(cols[0], std::to_string(prims.size()));
+        prims.push_back(cols[2]);
+        if (cols[2] != "-1")
+            EXPECT_EQ(cols[1], "1") << line;  // every quad is at distance 1
+        else
+            EXPECT_EQ(cols[1], "inf");
+    }
+    EXPECT_EQ(prims, (std::vector<std::string>{"0", "1", "2", "3", "-1", "-1"}));
+}
+
+TEST(Trace, IdenticalOutputForAnyThreadCount) {
+    const fs::path a = work_dir() / "a.csv", b = work_dir() / "b.bin", c = work_dir() / "c.csv",
+                   d = work_dir() / "d.bin";
+    const std::string args = "trace -q --rays primary,ao,diffuse,reflection,shadow --res 64x64 ";
+    ASSERT_EQ(
+        rtsim(args + "-j 1 --hits '" + a.string() + "' --hits-bin '" + b.string() + "'").status, 0);
+    ASSERT_EQ(
+        rtsim(args + "-j 2 --hits '" + c.string() + "' --hits-bin '" + d.string() + "'").status, 0);
+    const std::string ca = slurp(a);
+    EXPECT_GT(std::count(ca.begin(), ca.end(), '\n'), 64 * 64);
+    EXPECT_EQ(ca, slurp(c));
+    EXPECT_EQ(slurp(b), slurp(d));
+}
+
+TEST(Trace, GeneratedRaysReplayFromFileGiveSameHits) {
+    const fs::path rays = work_dir() / "gen.bin", h1 = work_dir() / "h1.csv",
+                   h2 = work_dir() / "h2.csv";
+    ASSERT_EQ(rtsim("trace -q --rays primary,reflection --res 32x32 --write-rays '" +
+                    rays.string() + "' --hits '" + h1.string() + "'")
+                  .status,
+              0);
+    ASSERT_EQ(
+        rtsim("trace -q --rays-file '" + rays.string() + "' --hits '" + h2.string() + "'").status,
+        0);
+    EXPECT_EQ(slurp(h1), slurp(h2));  // all closest-hit queries, ids in emission order
+}
+
+TEST(Trace, BadRayFileExitsTwoAndWritesNothing) {
+    const float inf = std::numeric_limits<float>::infinity();
+    const std::string rays = write_rays(work_dir() / "bad.bin",
+                                        {{0, 0, 0, 0, 0, 0, 1, inf}, {0, 0, 0, 0, 0, 0, 0, inf}});
+    const fs::path csv = work_dir() / "never.csv";
+    const Result r = rtsim(fmt::format("trace --rays-file '{}' --hits '{}'", rays, csv.string()));
+    expect_one_line_error(r, "ray 1 (byte 32): zero direction");
+    EXPECT_FALSE(fs::exists(csv));
+    EXPECT_FALSE(fs::exists(csv.string() + ".tmp"));
 }

@@ -163,18 +163,18 @@ void report(const char* what, const Agreement& a) {
 
 }  // namespace
 
-TEST(EmbreeOracle, CornellPrimaryShadowAo) {
+TEST(EmbreeOracle, CornellAllRayKinds) {
     Scene s = load_scene("builtin:cornell");
-    Agreement a = compare(s, "primary,shadow,ao", 96);
+    Agreement a = compare(s, "primary,shadow,ao,diffuse,reflection", 96);
     report("cornell", a);
     EXPECT_GT(a.hits, 5000u);
     EXPECT_LE(a.ties + a.edge_cases, a.rays / 500);  // exceptions stay rare
 }
 
-TEST(EmbreeOracle, BunnyPrimaryShadowAo) {
+TEST(EmbreeOracle, BunnyAllRayKinds) {
     ASSERT_TRUE(std::filesystem::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
     Scene s = load_scene(RTSIM_BUNNY_OBJ);
-    Agreement a = compare(s, "primary,shadow,ao", 128);
+    Agreement a = compare(s, "primary,shadow,ao,diffuse,reflection", 128);
     report("bunny", a);
     EXPECT_GT(a.hits, 4000u);
     EXPECT_LE(a.ties + a.edge_cases, a.rays / 500);
@@ -185,7 +185,7 @@ TEST(EmbreeOracle, CgalMeshes) {
     ASSERT_TRUE(std::filesystem::is_directory(dir)) << "run scripts/setup.sh";
     for (const char* name : {"armadillo.off", "refined_elephant.off", "mech-holes-shark.off"}) {
         Scene s = load_scene((dir / name).string());
-        Agreement a = compare(s, "primary,ao", 64);
+        Agreement a = compare(s, "primary,ao,diffuse,reflection", 64);
         report(name, a);
         EXPECT_GT(a.hits, 400u) << name;
         EXPECT_LE(a.ties + a.edge_cases, a.rays / 500) << name;

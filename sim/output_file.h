@@ -1,0 +1,30 @@
+// Output files that appear whole or not at all: data goes to PATH.tmp, and commit() renames it
+// into place. A file never committed (an error part-way) is removed, so bad input never leaves
+// partial or corrupted output behind, and an existing file at PATH survives a failed run.
+#pragma once
+
+#include <cstdio>
+#include <string>
+
+namespace rtsim {
+
+class AtomicOutputFile {
+  public:
+    explicit AtomicOutputFile(std::string path);  // throws InputError if it cannot be created
+    ~AtomicOutputFile();
+    AtomicOutputFile(const AtomicOutputFile&) = delete;
+    AtomicOutputFile& operator=(const AtomicOutputFile&) = delete;
+
+    void write(const std::string& data);  // throws std::runtime_error on a write failure
+    void commit();
+    const std::string& path() const { return path_; }
+
+  private:
+    std::string path_, tmp_;
+    std::FILE* f_ = nullptr;
+};
+
+// Writes text to path atomically.
+void write_file_atomically(const std::string& path, const std::string& text);
+
+}  // namespace rtsim
