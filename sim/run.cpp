@@ -45,12 +45,14 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
 
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
     BvhBuildOptions bo;
+    bo.builder = parse_bvh_builder(cfg.string("bvh.builder"), "bvh.builder");
+    bo.width = int(cfg.integer("bvh.width"));
     bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
     bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
     BvhLayout layout;
     layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
     layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
-    return build_bvh_sah(scene, bo, layout);
+    return build_bvh(scene, bo, layout);
 }
 
 void WorkloadOptions::resolve() {
@@ -114,7 +116,7 @@ class GeneratedWorkSource : public RayWorkSource {
         work.kind = r.kind;
         work.steps.clear();
         const auto t0 = Clock::now();
-        const Hit h = trace_ray(scene_, bvh_, r.ray, r.query, &work.steps);
+        const Hit h = trace_ray(bvh_, r.ray, r.query, &work.steps);
         functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
         rays_by_kind[static_cast<int>(r.kind)]++;
         if (h.valid()) hits_by_kind[static_cast<int>(r.kind)]++;
@@ -234,8 +236,8 @@ int run_command(const RunOptions& opt) {
                     {"hash", fmt::format("{:016x}", scene.content_hash())},
                     {"bounds", aabb_json(scene.bounds())}};
     const BvhQuality& q = bvh.quality;
-    out["bvh"] = {{"builder", bvh.builder},
-                  {"width", 2},
+    out["bvh"] = {{"builder", bvh_builder_name(bo.builder)},
+                  {"width", bvh.width()},
                   {"sah_cost", q.sah_cost},
                   {"sah_traversal_cost", bo.traversal_cost},
                   {"sah_intersection_cost", bo.intersection_cost},
@@ -244,6 +246,7 @@ int run_command(const RunOptions& opt) {
                   {"leaves", q.leaf_count},
                   {"max_depth", q.max_depth},
                   {"mean_leaf_size", q.mean_leaf_size},
+                  {"mean_children", q.mean_children},
                   {"node_size_bytes", layout.node_size_bytes},
                   {"triangle_size_bytes", layout.tri_size_bytes},
                   {"node_base_addr", bvh.layout.node_base_addr},
@@ -288,8 +291,9 @@ int run_command(const RunOptions& opt) {
         fmt::print("rtsim run  config {} ({})  scene {} ({} triangles)\n", cfg.string("name"),
                    cfg.hash(), scene.name, scene.triangle_count());
         fmt::print(
-            "  bvh      {} BVH2: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
-            bvh.builder, q.node_count, q.leaf_count, q.max_depth, q.sah_cost, q.bytes / 1048576.0);
+            "  bvh      {} BVH{}: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
+            bvh_builder_name(bo.builder), bvh.width(), q.node_count, q.leaf_count, q.max_depth,
+            q.sah_cost, q.bytes / 1048576.0);
         fmt::print("  rays     {} ({}), {} steps\n", total_rays, kinds, source.steps);
         fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n", ri.total_cycles,
                    sim_s * 1e3, ri.clock_ghz, out["rays_per_second"].get<double>() / 1e6);

@@ -112,8 +112,7 @@ int trace_command(const TraceOptions& opt) {
         const auto ts = std::chrono::steady_clock::now();
         parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
             for (size_t i = b; i < e; ++i)
-                results[i] =
-                    trace_ray(scene, bvh, batch.rays[i], batch.queries[i], nullptr, &counters[i]);
+                results[i] = trace_ray(bvh, batch.rays[i], batch.queries[i], nullptr, &counters[i]);
         });
         trace_seconds +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
@@ -152,9 +151,9 @@ int trace_command(const TraceOptions& opt) {
                 kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ",
                                      ray_kind_name(RayKind(k)), by_kind[k]);
         fmt::print(
-            "rtsim trace  scene {} ({} triangles), {} BVH2, SAH cost {:.2f}, built in {:.3f} s\n",
-            scene.name, scene.triangle_count(), bvh.builder, bvh.quality.sah_cost,
-            bvh.quality.build_seconds);
+            "rtsim trace  scene {} ({} triangles), {} BVH{}, SAH cost {:.2f}, built in {:.3f} s\n",
+            scene.name, scene.triangle_count(), bvh_builder_name(bvh.options.builder), bvh.width(),
+            bvh.quality.sah_cost, bvh.quality.build_seconds);
         fmt::print("  rays     {} ({}) from {}\n", total, kinds.empty() ? "none" : kinds,
                    reader ? opt.rays_file : "the generator");
         fmt::print("  hits     {} ({:.1f}%)\n", hits, total ? 100.0 * hits / total : 0.0);

@@ -1,3 +1,4 @@
+// Collapsing binary trees to BVH2/4/8, the memory layout, and quality figures.
 #include "workloads/bvh.h"
 
 #include <fmt/format.h>
@@ -7,198 +8,205 @@
 #include "workloads/error.h"
 
 namespace rtsim {
+
+const char* bvh_builder_name(BvhBuilder b) {
+    return b == BvhBuilder::Sah ? "sah" : "lbvh";
+}
+
+BvhBuilder parse_bvh_builder(const std::string& name, const std::string& what) {
+    if (name == "sah") return BvhBuilder::Sah;
+    if (name == "lbvh") return BvhBuilder::Lbvh;
+    throw InputError(
+        fmt::format("{}: unknown BVH builder '{}' (expected sah or lbvh)", what, name));
+}
+
+uint32_t default_node_size_bytes(int width) {
+    const uint32_t raw = uint32_t(width) * (24 + 4);
+    uint32_t size = 64;
+    while (size < raw) size *= 2;
+    return size;
+}
+
+double binary_sah_cost(const BinaryBvh& bvh, const BvhBuildOptions& o) {
+    const double root_area = std::max(bvh.nodes[0].box.surface_area(), 1e-30f);
+    double cost = 0;
+    for (const BinaryNode& n : bvh.nodes) {
+        const double rel = n.box.surface_area() / root_area;
+        cost += n.is_leaf() ? rel * o.intersection_cost * n.prim_count : rel * o.traversal_cost;
+    }
+    return cost;
+}
+
 namespace {
 
-struct BuildPrim {
-    AABB box;
-    Vec3 centroid;
-    uint32_t id;
-};
-
-// Past this depth the builder splits by index, so depth <= kMaxSahDepth + log2(n) < kMaxBvhDepth.
-constexpr uint32_t kMaxSahDepth = 64;
-
-class SahBuilder {
+template <int W>
+class Collapser {
   public:
-    SahBuilder(const Scene& scene, const BvhBuildOptions& opt) : opt_(opt) {
-        prims_.resize(scene.triangle_count());
-        for (uint32_t i = 0; i < prims_.size(); ++i) {
-            prims_[i].box = scene.triangle_bounds(i);
-            prims_[i].centroid = prims_[i].box.center();
-            prims_[i].id = i;
-        }
-    }
+    Collapser(const BinaryBvh& in, std::vector<WideNode<W>>& out) : in_(in), out_(out) {}
 
-    void build(Bvh& bvh) {
-        bvh.nodes.clear();
-        bvh.nodes.reserve(2 * prims_.size());
-        bvh.nodes.emplace_back();
-        build_node(bvh, 0, 0, static_cast<uint32_t>(prims_.size()), 0);
-        bvh.prim_order.resize(prims_.size());
-        for (size_t i = 0; i < prims_.size(); ++i) bvh.prim_order[i] = prims_[i].id;
+    void run() {
+        out_.clear();
+        out_.reserve(in_.nodes.size() / (W - 1) + 1);
+        if (in_.nodes[0].is_leaf()) {
+            // A tree that is one leaf still gets a root record, so traversal always starts at one.
+            std::vector<uint32_t> only = {0};
+            emit(only);
+        } else {
+            emit_from(0);
+        }
     }
 
   private:
-    struct Bucket {
-        AABB box;
-        uint32_t count = 0;
-    };
-
-    void make_leaf(BvhNode& node, uint32_t begin, uint32_t end) {
-        node.a = begin;
-        node.prim_count = end - begin;
-    }
-
-    // Builds nodes[index] over prims_[begin, end); children are appended to bvh.nodes.
-    void build_node(Bvh& bvh, uint32_t index, uint32_t begin, uint32_t end, uint32_t depth) {
-        AABB box, cbox;
-        for (uint32_t i = begin; i < end; ++i) {
-            box.grow(prims_[i].box);
-            cbox.grow(prims_[i].centroid);
-        }
-        bvh.nodes[index].box = box;
-        const uint32_t n = end - begin;
-        if (n == 1) return make_leaf(bvh.nodes[index], begin, end);
-
-        uint32_t mid = begin;
-        const int axis = max_axis(cbox.extent());
-        const float lo = cbox.lo[axis], ext = cbox.extent()[axis];
-        if (!(ext > 0.0f) || depth >= kMaxSahDepth) {
-            // Centroids coincide (SAH cannot separate them) or the tree is pathologically deep:
-            // split by index, which bounds both leaf size and the traversal stack.
-            if (n <= uint32_t(opt_.max_leaf_size)) return make_leaf(bvh.nodes[index], begin, end);
-            mid = begin + n / 2;
-        } else {
-            const int nb = opt_.sah_buckets;
-            std::vector<Bucket> buckets(nb);
-            auto bucket_of = [&](const BuildPrim& p) {
-                int b = static_cast<int>(nb * ((p.centroid[axis] - lo) / ext));
-                return std::clamp(b, 0, nb - 1);
-            };
-            for (uint32_t i = begin; i < end; ++i) {
-                Bucket& bk = buckets[bucket_of(prims_[i])];
-                bk.count++;
-                bk.box.grow(prims_[i].box);
-            }
-            // Sweep from the right to get suffix areas, then from the left to evaluate B-1 planes.
-            std::vector<float> right_area(nb);
-            std::vector<uint32_t> right_count(nb);
-            AABB acc;
-            uint32_t cnt = 0;
-            for (int b = nb - 1; b > 0; --b) {
-                acc.grow(buckets[b].box);
-                cnt += buckets[b].count;
-                right_area[b] = acc.surface_area();
-                right_count[b] = cnt;
-            }
-            acc = AABB();
-            cnt = 0;
-            float best_cost = std::numeric_limits<float>::infinity();
-            int best_plane = -1;
-            const float inv_area = 1.0f / std::max(box.surface_area(), 1e-30f);
-            for (int b = 0; b < nb - 1; ++b) {
-                acc.grow(buckets[b].box);
-                cnt += buckets[b].count;
-                if (cnt == 0 || right_count[b + 1] == 0) continue;
-                float cost = opt_.traversal_cost + opt_.intersection_cost * inv_area *
-                                                       (acc.surface_area() * cnt +
-                                                        right_area[b + 1] * right_count[b + 1]);
-                if (cost < best_cost) {
-                    best_cost = cost;
-                    best_plane = b;
+    // Opens the binary node `b` into up to W children and emits the wide node; returns its index.
+    uint32_t emit_from(uint32_t b) {
+        std::vector<uint32_t> kids = {in_.nodes[b].a, in_.nodes[b].b};
+        while (kids.size() < size_t(W)) {
+            // Open the inner child of largest surface area: it is the most likely to be visited.
+            int best = -1;
+            float best_area = -1.0f;
+            for (size_t i = 0; i < kids.size(); ++i) {
+                const BinaryNode& k = in_.nodes[kids[i]];
+                if (!k.is_leaf() && k.box.surface_area() > best_area) {
+                    best_area = k.box.surface_area();
+                    best = int(i);
                 }
             }
-            const float leaf_cost = opt_.intersection_cost * n;
-            if (n <= uint32_t(opt_.max_leaf_size) && (best_plane < 0 || leaf_cost <= best_cost))
-                return make_leaf(bvh.nodes[index], begin, end);
-            if (best_plane < 0) {
-                mid = begin + n / 2;
-            } else {
-                auto it =
-                    std::partition(prims_.begin() + begin, prims_.begin() + end,
-                                   [&](const BuildPrim& p) { return bucket_of(p) <= best_plane; });
-                mid = static_cast<uint32_t>(it - prims_.begin());
-                if (mid == begin || mid == end) mid = begin + n / 2;
-            }
+            if (best < 0) break;
+            const BinaryNode& k = in_.nodes[kids[best]];
+            kids[best] = k.a;
+            kids.insert(kids.begin() + best + 1, k.b);  // keeps left-to-right (depth-first) order
         }
-        const auto left = static_cast<uint32_t>(bvh.nodes.size());
-        bvh.nodes.emplace_back();
-        bvh.nodes.emplace_back();
-        bvh.nodes[index].a = left;
-        bvh.nodes[index].b = left + 1;
-        build_node(bvh, left, begin, mid, depth + 1);
-        build_node(bvh, left + 1, mid, end, depth + 1);
+        return emit(kids);
     }
 
-    BvhBuildOptions opt_;
-    std::vector<BuildPrim> prims_;
+    uint32_t emit(const std::vector<uint32_t>& kids) {
+        const auto index = static_cast<uint32_t>(out_.size());
+        out_.emplace_back();
+        WideNode<W> node{};
+        for (int l = 0; l < W; ++l) {
+            node.lo_x[l] = node.lo_y[l] = node.lo_z[l] = std::numeric_limits<float>::infinity();
+            node.hi_x[l] = node.hi_y[l] = node.hi_z[l] = -std::numeric_limits<float>::infinity();
+        }
+        node.num = static_cast<uint8_t>(kids.size());
+        for (size_t l = 0; l < kids.size(); ++l) {
+            const BinaryNode& k = in_.nodes[kids[l]];
+            node.lo_x[l] = k.box.lo.x;
+            node.lo_y[l] = k.box.lo.y;
+            node.lo_z[l] = k.box.lo.z;
+            node.hi_x[l] = k.box.hi.x;
+            node.hi_y[l] = k.box.hi.y;
+            node.hi_z[l] = k.box.hi.z;
+            node.count[l] = static_cast<uint8_t>(k.prim_count);
+            node.child[l] = k.is_leaf() ? k.a : 0;
+        }
+        out_[index] = node;
+        // Children's records follow in depth-first order (emit_from may grow out_).
+        for (size_t l = 0; l < kids.size(); ++l)
+            if (!in_.nodes[kids[l]].is_leaf()) {
+                const uint32_t c = emit_from(kids[l]);
+                out_[index].child[l] = c;
+            }
+        return index;
+    }
+
+    const BinaryBvh& in_;
+    std::vector<WideNode<W>>& out_;
 };
 
-// Inner-node records in depth-first order: a parent's record sits near its left subtree's.
-void assign_layout(Bvh& bvh) {
-    uint32_t next = 0;
-    std::vector<uint32_t> stack = {0};
-    while (!stack.empty()) {
-        uint32_t i = stack.back();
-        stack.pop_back();
-        BvhNode& n = bvh.nodes[i];
-        if (n.is_leaf()) continue;
-        n.mem_index = next++;
-        stack.push_back(n.b);
-        stack.push_back(n.a);
-    }
-    BvhLayout& L = bvh.layout;
-    L.inner_node_count = next;
-    L.triangle_count = static_cast<uint32_t>(bvh.prim_order.size());
-    const uint64_t page = 4096;
-    L.tri_base_addr = (L.node_base_addr + L.node_bytes_total() + page - 1) / page * page;
-}
-
-}  // namespace
-
-BvhQuality measure_bvh(const Bvh& bvh) {
+template <int W>
+BvhQuality measure(const std::vector<WideNode<W>>& nodes, const AABB& root,
+                   const BvhBuildOptions& o) {
     BvhQuality q;
-    q.build_seconds = bvh.quality.build_seconds;
-    const double root_area = std::max(bvh.nodes[0].box.surface_area(), 1e-30f);
+    const double root_area = std::max(root.surface_area(), 1e-30f);
     struct Item {
         uint32_t node, depth;
     };
     std::vector<Item> stack = {{0, 0}};
     uint64_t leaf_prims = 0;
     while (!stack.empty()) {
-        Item it = stack.back();
+        const Item it = stack.back();
         stack.pop_back();
-        const BvhNode& n = bvh.nodes[it.node];
-        q.node_count++;
-        q.max_depth = std::max(q.max_depth, it.depth);
-        const double rel_area = n.box.surface_area() / root_area;
-        if (n.is_leaf()) {
-            q.leaf_count++;
-            leaf_prims += n.prim_count;
-            q.sah_cost += rel_area * bvh.options.intersection_cost * n.prim_count;
-        } else {
-            q.inner_count++;
-            q.sah_cost += rel_area * bvh.options.traversal_cost;
-            stack.push_back({n.a, it.depth + 1});
-            stack.push_back({n.b, it.depth + 1});
+        const WideNode<W>& n = nodes[it.node];
+        q.inner_count++;
+        AABB box;
+        for (int l = 0; l < n.num; ++l) box.grow(n.box(l));
+        q.sah_cost += box.surface_area() / root_area * o.traversal_cost;
+        for (int l = 0; l < n.num; ++l) {
+            if (n.count[l]) {
+                q.leaf_count++;
+                leaf_prims += n.count[l];
+                q.max_depth = std::max(q.max_depth, it.depth + 1);
+                q.sah_cost +=
+                    n.box(l).surface_area() / root_area * o.intersection_cost * n.count[l];
+            } else {
+                stack.push_back({n.child[l], it.depth + 1});
+            }
         }
     }
+    q.node_count = q.inner_count + q.leaf_count;
     q.mean_leaf_size = q.leaf_count ? double(leaf_prims) / q.leaf_count : 0.0;
-    q.bytes = bvh.layout.node_bytes_total() + bvh.layout.tri_bytes_total();
+    q.mean_children =
+        double(q.node_count - 1) / q.inner_count;  // every node but the root is a child
     return q;
 }
 
-Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options,
-                  const BvhLayout& layout_sizes) {
-    if (scene.triangles.empty())
-        throw InputError(fmt::format("{}: scene has no triangles", scene.name));
+}  // namespace
+
+BvhQuality measure_bvh(const Bvh& bvh) {
+    BvhQuality q;
+    switch (bvh.width()) {
+        case 2:
+            q = measure(bvh.nodes2, bvh.bounds(), bvh.options);
+            break;
+        case 4:
+            q = measure(bvh.nodes4, bvh.bounds(), bvh.options);
+            break;
+        default:
+            q = measure(bvh.nodes8, bvh.bounds(), bvh.options);
+            break;
+    }
+    q.bytes = bvh.layout.node_bytes_total() + bvh.layout.tri_bytes_total();
+    q.build_seconds = bvh.quality.build_seconds;
+    return q;
+}
+
+Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayout& layout_sizes) {
+    if (options.width != 2 && options.width != 4 && options.width != 8)
+        throw InputError(fmt::format("bvh.width: expected 2, 4 or 8, got {}", options.width));
+    if (options.max_leaf_size < 1 || options.max_leaf_size > 255)
+        throw InputError(
+            fmt::format("bvh.max_leaf_size: expected 1..255, got {}", options.max_leaf_size));
     const auto t0 = std::chrono::steady_clock::now();
+    const BinaryBvh bin = options.builder == BvhBuilder::Sah ? build_binary_sah(scene, options)
+                                                             : build_binary_lbvh(scene, options);
     Bvh bvh;
     bvh.options = options;
-    bvh.layout = layout_sizes;
-    SahBuilder builder(scene, options);
-    builder.build(bvh);
-    assign_layout(bvh);
+    bvh.bounds_box = bin.nodes[0].box;
+    switch (options.width) {
+        case 2:
+            Collapser<2>(bin, bvh.nodes2).run();
+            break;
+        case 4:
+            Collapser<4>(bin, bvh.nodes4).run();
+            break;
+        default:
+            Collapser<8>(bin, bvh.nodes8).run();
+            break;
+    }
+    bvh.prim_order = bin.prim_order;
+    bvh.tri_verts.resize(bin.prim_order.size());
+    for (size_t s = 0; s < bin.prim_order.size(); ++s)
+        for (int c = 0; c < 3; ++c) bvh.tri_verts[s][c] = scene.v(bin.prim_order[s], c);
+
+    BvhLayout& L = bvh.layout;
+    L = layout_sizes;
+    if (L.node_size_bytes == 0) L.node_size_bytes = default_node_size_bytes(options.width);
+    L.inner_node_count = static_cast<uint32_t>(options.width == 2   ? bvh.nodes2.size()
+                                               : options.width == 4 ? bvh.nodes4.size()
+                                                                    : bvh.nodes8.size());
+    L.triangle_count = static_cast<uint32_t>(bvh.prim_order.size());
+    const uint64_t page = 4096;
+    L.tri_base_addr = (L.node_base_addr + L.node_bytes_total() + page - 1) / page * page;
     bvh.quality.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     bvh.quality = measure_bvh(bvh);

@@ -1,6 +1,8 @@
-// BVH2 built with binned SAH, and the byte layout the timing model fetches from.
+// Bounding volume hierarchies: binary builds (binned SAH, LBVH), collapsed to the BVH2/4/8 the
+// tracer and the timing model use, and the byte layout the timing model fetches from.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -13,26 +15,39 @@ namespace rtsim {
 // Traversal stacks are sized by this bound, which the builders guarantee.
 constexpr uint32_t kMaxBvhDepth = 100;
 
+enum class BvhBuilder : uint8_t {
+    Sah,   // binned SAH, top-down (Wald 2007; pbrt's bucketed partition)
+    Lbvh,  // Morton codes, radix sort, split at the highest differing bit (Karras 2012)
+};
+const char* bvh_builder_name(BvhBuilder b);
+BvhBuilder parse_bvh_builder(const std::string& name, const std::string& what);  // InputError
+
 struct BvhBuildOptions {
+    BvhBuilder builder = BvhBuilder::Sah;
+    int width = 2;                // children per node after collapsing: 2, 4 or 8
     int sah_buckets = 12;         // centroid buckets per axis; B-1 candidate planes are evaluated
     int max_leaf_size = 4;        // a leaf never holds more triangles than this
     float traversal_cost = 1.0f;  // SAH cost of visiting an inner node, relative to...
     float intersection_cost = 1.0f;  // ...the cost of one ray-triangle test
 };
 
-// Byte layout of the BVH in simulated memory. An inner node record holds both children's boxes
-// and references (Aila & Laine 2009 style), so one fetch feeds one 2-wide box test; leaves live
-// in their parent's record, and triangles are stored in leaf order at tri_base_addr.
+// Stated record size of an uncompressed node of `width` children: per child a 24-byte box and a
+// 4-byte reference, rounded up to a power of two (64-byte cache-line multiples): 64, 128, 256.
+uint32_t default_node_size_bytes(int width);
+
+// Byte layout in simulated memory. An inner-node record holds all its children's boxes and
+// references (Aila & Laine 2009 style), so one fetch feeds one box test of all children; leaves
+// live in their parent's record, and triangles are stored in leaf order at tri_base_addr.
 struct BvhLayout {
     uint64_t node_base_addr = 0x10000000;
-    uint32_t node_size_bytes = 64;
+    uint32_t node_size_bytes = 0;  // 0: default_node_size_bytes(width)
     uint64_t tri_base_addr = 0;
     uint32_t tri_size_bytes = 48;
     uint32_t inner_node_count = 0;
     uint32_t triangle_count = 0;
 
-    uint64_t node_addr(uint32_t mem_index) const {
-        return node_base_addr + uint64_t(mem_index) * node_size_bytes;
+    uint64_t node_addr(uint32_t node) const {
+        return node_base_addr + uint64_t(node) * node_size_bytes;
     }
     uint64_t tri_addr(uint32_t slot) const {
         return tri_base_addr + uint64_t(slot) * tri_size_bytes;
@@ -41,39 +56,87 @@ struct BvhLayout {
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
 };
 
-struct BvhNode {
+// Binary tree, as builders produce it.
+struct BinaryNode {
     AABB box;
-    // Inner node: child indices into Bvh::nodes. Leaf: first slot into Bvh::prim_order, count.
-    uint32_t a = 0, b = 0;
+    uint32_t a = 0, b = 0;    // inner: child indices; leaf: first slot in prim_order, unused
     uint32_t prim_count = 0;  // 0 for inner nodes
-    uint32_t mem_index = 0;   // inner nodes: record index in the layout (depth-first order)
     bool is_leaf() const { return prim_count != 0; }
+};
+struct BinaryBvh {
+    std::vector<BinaryNode> nodes;     // nodes[0] is the root
+    std::vector<uint32_t> prim_order;  // leaf slot -> scene primitive id
+};
+BinaryBvh build_binary_sah(const Scene& scene, const BvhBuildOptions& options);
+BinaryBvh build_binary_lbvh(const Scene& scene, const BvhBuildOptions& options);
+
+// A node of W children, boxes in structure-of-arrays form so that one box test of all children
+// vectorises. Lanes [num, W) are empty (inverted boxes never hit).
+template <int W>
+struct WideNode {
+    float lo_x[W], lo_y[W], lo_z[W], hi_x[W], hi_y[W], hi_z[W];
+    uint32_t child[W];  // inner child: node index; leaf child: first triangle slot
+    uint8_t count[W];   // 0: inner child; otherwise the leaf's triangle count
+    uint8_t num;        // children in use
+
+    AABB box(int lane) const {
+        AABB b;
+        b.lo = Vec3(lo_x[lane], lo_y[lane], lo_z[lane]);
+        b.hi = Vec3(hi_x[lane], hi_y[lane], hi_z[lane]);
+        return b;
+    }
 };
 
 struct BvhQuality {
     double sah_cost = 0;  // with the traversal and intersection costs of BvhBuildOptions
     uint32_t node_count = 0, inner_count = 0, leaf_count = 0, max_depth = 0;
     double mean_leaf_size = 0;
-    uint64_t bytes = 0;  // nodes + triangles in the layout
-    double build_seconds = 0;
+    double mean_children = 0;  // children per inner node: how full the wide nodes are
+    uint64_t bytes = 0;        // nodes + triangles in the layout
+    double build_seconds = 0;  // binary build + collapse + layout
 };
 
 struct Bvh {
-    std::vector<BvhNode> nodes;        // nodes[0] is the root
-    std::vector<uint32_t> prim_order;  // leaf slot -> scene primitive id
-    BvhLayout layout;
     BvhBuildOptions options;
+    BvhLayout layout;
     BvhQuality quality;
-    std::string builder = "sah";
+    AABB bounds_box;
+    // Exactly one of these holds the tree, per options.width; node index = layout record index
+    // (depth-first order, root first).
+    std::vector<WideNode<2>> nodes2;
+    std::vector<WideNode<4>> nodes4;
+    std::vector<WideNode<8>> nodes8;
+    std::vector<uint32_t> prim_order;            // triangle slot -> scene primitive id
+    std::vector<std::array<Vec3, 3>> tri_verts;  // triangle slot -> vertices, for fast tests
 
-    const AABB& bounds() const { return nodes[0].box; }
+    int width() const { return options.width; }
+    const AABB& bounds() const { return bounds_box; }
+    template <int W>
+    const std::vector<WideNode<W>>& nodes() const;
+    size_t inner_node_count() const { return layout.inner_node_count; }
 };
 
-// Binned SAH BVH2 (Wald 2007 / pbrt's bucketed partition). Degenerate triangles are kept.
-Bvh build_bvh_sah(const Scene& scene, const BvhBuildOptions& options,
-                  const BvhLayout& layout_sizes);
+template <>
+inline const std::vector<WideNode<2>>& Bvh::nodes<2>() const {
+    return nodes2;
+}
+template <>
+inline const std::vector<WideNode<4>>& Bvh::nodes<4>() const {
+    return nodes4;
+}
+template <>
+inline const std::vector<WideNode<8>>& Bvh::nodes<8>() const {
+    return nodes8;
+}
 
-// Recomputes quality figures from the finished tree (also used by tests).
+// Builds the binary tree with options.builder, collapses it to options.width children per node
+// (greedily opening the child of largest surface area) and lays it out. `layout_sizes` gives
+// node and triangle record sizes. Throws InputError for an empty scene or a bad width.
+Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options,
+              const BvhLayout& layout_sizes = BvhLayout());
+
+// SAH cost and counts of the finished tree (also used by tests).
 BvhQuality measure_bvh(const Bvh& bvh);
+double binary_sah_cost(const BinaryBvh& bvh, const BvhBuildOptions& options);
 
 }  // namespace rtsim

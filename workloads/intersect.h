@@ -14,7 +14,12 @@ struct RayPrecomp {
     int kx, ky, kz;    // watertight test: kz is the dominant direction axis
     float sx, sy, sz;  // shear constants
     explicit RayPrecomp(const Ray& r) : org(r.org), dir(r.dir) {
-        inv_dir = Vec3(1.0f / r.dir.x, 1.0f / r.dir.y, 1.0f / r.dir.z);
+        // A zero component gets a huge reciprocal instead of inf, so the slab distances of an
+        // origin lying on a slab plane are 0, never 0 * inf = NaN (as Embree's rcp_safe).
+        for (int a = 0; a < 3; ++a) {
+            const float d = r.dir[a];
+            inv_dir[a] = 1.0f / (std::fabs(d) > 1e-18f ? d : std::copysign(1e-18f, d));
+        }
         kz = max_axis(vabs(r.dir));
         kx = (kz + 1) % 3;
         ky = (kx + 1) % 3;
@@ -30,8 +35,7 @@ constexpr float kSlabFarScale =
     1.0f + 2.0f * (3.0f * 0.5f * 1.1920929e-7f) / (1.0f - 3.0f * 0.5f * 1.1920929e-7f);
 
 // Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
-// An axis-parallel ray whose origin lies on a slab plane yields NaN there; the comparisons are
-// ordered so that NaN never narrows the interval.
+// Boxes are closed: a ray grazing a face or running inside a face's plane overlaps it.
 inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax,
                           float& tnear) {
     for (int a = 0; a < 3; ++a) {

@@ -224,7 +224,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
                 const Ray r = camera_.generate(x + jx, y + jy, opt_.width, opt_.height);
                 if (opt_.wants(RayKind::Primary)) emit(r, RayKind::Primary, HitQuery::Closest);
                 if (!need_hits) continue;
-                const Hit h = trace_ray(scene_, bvh_, r, HitQuery::Closest);
+                const Hit h = trace_ray(bvh_, r, HitQuery::Closest);
                 SurfacePoint sp;
                 if (h.valid() && surface_point(r, h, stream, sp)) hits.push_back(sp);
             }
@@ -271,7 +271,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
                 r.dir = cosine_direction(s.n, random2(opt_.seed, s.stream, kDiffuse, depth));
                 emit(r, RayKind::Diffuse, HitQuery::Closest);
                 if (depth + 1 == opt_.diffuse_depth) continue;  // the last bounce needs no hit
-                const Hit h = trace_ray(scene_, bvh_, r, HitQuery::Closest);
+                const Hit h = trace_ray(bvh_, r, HitQuery::Closest);
                 SurfacePoint sp;
                 if (h.valid() && surface_point(r, h, s.stream, sp)) next.push_back(sp);
             }

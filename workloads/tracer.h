@@ -24,7 +24,7 @@ struct TraceCounters {
 // Traces one ray. steps (optional) receives the ordered step stream; counters (optional) the
 // per-ray work. A ray that misses the root box costs one box test and records no step: the root
 // box is kept on chip.
-Hit trace_ray(const Scene& scene, const Bvh& bvh, const Ray& ray, HitQuery query,
-              std::vector<Step>* steps = nullptr, TraceCounters* counters = nullptr);
+Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>* steps = nullptr,
+              TraceCounters* counters = nullptr);
 
 }  // namespace rtsim

@@ -1,90 +1,148 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "workloads/bvh.h"
+#include "workloads/error.h"
 #include "workloads/scene.h"
 
 using namespace rtsim;
 
 namespace {
 
-// Checks the structural invariants every BVH must hold, returns the number of leaves seen.
-void check_invariants(const Scene& scene, const Bvh& bvh, const BvhBuildOptions& opt) {
-    std::vector<int> seen(scene.triangle_count(), 0);
-    std::vector<int> mem_seen(bvh.layout.inner_node_count, 0);
+// Every builder at every width.
+struct Variant {
+    BvhBuilder builder;
+    int width;
+};
+const Variant kVariants[] = {{BvhBuilder::Sah, 2},  {BvhBuilder::Sah, 4},  {BvhBuilder::Sah, 8},
+                             {BvhBuilder::Lbvh, 2}, {BvhBuilder::Lbvh, 4}, {BvhBuilder::Lbvh, 8}};
+
+BvhBuildOptions options(Variant v, int leaf = 4) {
+    BvhBuildOptions o;
+    o.builder = v.builder;
+    o.width = v.width;
+    o.max_leaf_size = leaf;
+    return o;
+}
+
+// The structural invariants every BVH must hold.
+template <int W>
+void check_wide(const Scene& scene, const Bvh& bvh) {
+    const auto& nodes = bvh.nodes<W>();
+    ASSERT_EQ(nodes.size(), bvh.layout.inner_node_count);
+    std::vector<int> seen(scene.triangle_count(), 0), reached(nodes.size(), 0);
     struct Item {
         uint32_t node, depth;
+        AABB parent_box;
     };
-    std::vector<Item> stack = {{0, 0}};
-    size_t visited = 0;
+    std::vector<Item> stack = {{0, 0, bvh.bounds()}};
     while (!stack.empty()) {
         const Item it = stack.back();
         stack.pop_back();
-        ASSERT_LT(it.node, bvh.nodes.size());
+        ASSERT_LT(it.node, nodes.size());
         ASSERT_LT(it.depth, kMaxBvhDepth);
-        const BvhNode& n = bvh.nodes[it.node];
-        ++visited;
-        if (n.is_leaf()) {
-            ASSERT_LE(n.prim_count, uint32_t(std::max(opt.max_leaf_size, 1)));
-            for (uint32_t i = 0; i < n.prim_count; ++i) {
-                const uint32_t prim = bvh.prim_order.at(n.a + i);
-                ASSERT_LT(prim, scene.triangle_count());
-                seen[prim]++;
-                ASSERT_TRUE(n.box.contains(scene.triangle_bounds(prim)))
-                    << "leaf box misses its triangle";
-            }
-        } else {
-            ASSERT_LT(n.mem_index, bvh.layout.inner_node_count);
-            mem_seen[n.mem_index]++;
-            for (uint32_t c : {n.a, n.b}) {
-                ASSERT_TRUE(n.box.contains(bvh.nodes[c].box)) << "child box outside parent";
-                stack.push_back({c, it.depth + 1});
+        reached[it.node]++;
+        const WideNode<W>& n = nodes[it.node];
+        ASSERT_GE(n.num, it.node == 0 ? 1 : 2);
+        ASSERT_LE(n.num, W);
+        for (int l = 0; l < n.num; ++l) {
+            const AABB b = n.box(l);
+            ASSERT_TRUE(it.parent_box.contains(b)) << "child box outside parent, node " << it.node;
+            if (n.count[l]) {
+                ASSERT_LE(n.count[l], bvh.options.max_leaf_size);
+                for (uint32_t i = 0; i < n.count[l]; ++i) {
+                    const uint32_t slot = n.child[l] + i;
+                    const uint32_t prim = bvh.prim_order.at(slot);
+                    ASSERT_LT(prim, scene.triangle_count());
+                    seen[prim]++;
+                    ASSERT_TRUE(b.contains(scene.triangle_bounds(prim)))
+                        << "leaf box misses its triangle";
+                    for (int c = 0; c < 3; ++c)
+                        ASSERT_EQ(bvh.tri_verts[slot][c].x, scene.v(prim, c).x);
+                }
+            } else {
+                ASSERT_GT(n.child[l], it.node) << "records are in depth-first order";
+                stack.push_back({n.child[l], it.depth + 1, b});
             }
         }
     }
-    EXPECT_EQ(visited, bvh.nodes.size()) << "unreachable nodes";
     for (size_t i = 0; i < seen.size(); ++i) ASSERT_EQ(seen[i], 1) << "primitive " << i;
-    for (size_t i = 0; i < mem_seen.size(); ++i) ASSERT_EQ(mem_seen[i], 1) << "layout record " << i;
+    for (size_t i = 0; i < reached.size(); ++i) ASSERT_EQ(reached[i], 1) << "record " << i;
     // Layout: triangles start after the node records, page-aligned.
+    EXPECT_EQ(bvh.layout.node_size_bytes, default_node_size_bytes(W));
     EXPECT_GE(bvh.layout.tri_base_addr, bvh.layout.node_base_addr + bvh.layout.node_bytes_total());
     EXPECT_EQ(bvh.layout.tri_base_addr % 4096, 0u);
 }
 
+void check_invariants(const Scene& scene, const Bvh& bvh) {
+    switch (bvh.width()) {
+        case 2:
+            return check_wide<2>(scene, bvh);
+        case 4:
+            return check_wide<4>(scene, bvh);
+        default:
+            return check_wide<8>(scene, bvh);
+    }
+}
+
+std::string name(Variant v) {
+    return std::string(bvh_builder_name(v.builder)) + " BVH" + std::to_string(v.width);
+}
+
 }  // namespace
 
-TEST(Bvh, InvariantsOnBuiltinScenes) {
-    for (const std::string& name : builtin_scene_names()) {
-        Scene s = load_scene("builtin:" + name);
-        for (int leaf : {1, 4, 8}) {
-            BvhBuildOptions opt;
-            opt.max_leaf_size = leaf;
-            Bvh bvh = build_bvh_sah(s, opt, BvhLayout());
-            SCOPED_TRACE(name + " leaf " + std::to_string(leaf));
-            check_invariants(s, bvh, opt);
-        }
+TEST(Bvh, InvariantsOnBuiltinScenesForEveryBuilderAndWidth) {
+    for (const std::string& scene_name : builtin_scene_names()) {
+        Scene s = load_scene("builtin:" + scene_name);
+        for (Variant v : kVariants)
+            for (int leaf : {1, 4, 8}) {
+                SCOPED_TRACE(scene_name + " " + name(v) + " leaf " + std::to_string(leaf));
+                check_invariants(s, build_bvh(s, options(v, leaf)));
+            }
     }
 }
 
 TEST(Bvh, InvariantsOnBunny) {
     ASSERT_TRUE(std::filesystem::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
     Scene s = load_scene(RTSIM_BUNNY_OBJ);
-    BvhBuildOptions opt;
-    Bvh bvh = build_bvh_sah(s, opt, BvhLayout());
-    check_invariants(s, bvh, opt);
-    // SAH cost of a sane BVH over ~70k triangles is tens, not thousands.
-    EXPECT_LT(bvh.quality.sah_cost, 100.0);
-    EXPECT_GT(bvh.quality.sah_cost, 1.0);
+    for (Variant v : kVariants) {
+        SCOPED_TRACE(name(v));
+        Bvh bvh = build_bvh(s, options(v));
+        check_invariants(s, bvh);
+        // SAH cost of a sane BVH over ~70k triangles is tens, not thousands.
+        EXPECT_LT(bvh.quality.sah_cost, 100.0);
+        EXPECT_GT(bvh.quality.sah_cost, 1.0);
+    }
 }
 
 TEST(Bvh, CoincidentTrianglesStillGiveBoundedLeaves) {
     Scene s;
     s.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
     for (int i = 0; i < 1000; ++i) s.triangles.push_back({0, 1, 2});
-    BvhBuildOptions opt;
-    Bvh bvh = build_bvh_sah(s, opt, BvhLayout());
-    check_invariants(s, bvh, opt);
+    for (Variant v : kVariants) {
+        SCOPED_TRACE(name(v));
+        check_invariants(s, build_bvh(s, options(v)));
+    }
+}
+
+TEST(Bvh, SingleTriangleAndTinyScenes) {
+    Scene s;
+    s.vertices = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {2, 2, 2}};
+    s.triangles = {{0, 1, 2}};
+    for (Variant v : kVariants) {
+        Bvh one = build_bvh(s, options(v));
+        check_invariants(s, one);
+        EXPECT_EQ(one.layout.inner_node_count, 1u);  // a root record holding the single leaf
+    }
+    s.triangles.push_back({1, 2, 3});
+    for (Variant v : kVariants) check_invariants(s, build_bvh(s, options(v, 1)));
+    EXPECT_THROW(build_bvh(Scene(), BvhBuildOptions()), InputError);
+    BvhBuildOptions bad;
+    bad.width = 3;
+    EXPECT_THROW(build_bvh(s, bad), InputError);
 }
 
 TEST(Bvh, PathologicalSpacingStaysWithinDepthBound) {
@@ -96,21 +154,56 @@ TEST(Bvh, PathologicalSpacingStaysWithinDepthBound) {
         s.vertices.insert(s.vertices.end(), {{x, 0, 0}, {x * 1.01f, 0, 0}, {x, x * 0.01f, 0}});
         s.triangles.push_back({b, b + 1, b + 2});
     }
-    BvhBuildOptions opt;
-    Bvh bvh = build_bvh_sah(s, opt, BvhLayout());
-    check_invariants(s, bvh, opt);
-    EXPECT_LT(bvh.quality.max_depth, kMaxBvhDepth);
+    for (Variant v : kVariants) {
+        SCOPED_TRACE(name(v));
+        Bvh bvh = build_bvh(s, options(v));
+        check_invariants(s, bvh);
+        EXPECT_LT(bvh.quality.max_depth, kMaxBvhDepth);
+    }
 }
 
 TEST(Bvh, QualityReportIsConsistent) {
     Scene s = load_scene("builtin:sphere");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
-    const BvhQuality& q = bvh.quality;
-    EXPECT_EQ(q.node_count, bvh.nodes.size());
-    EXPECT_EQ(q.inner_count + q.leaf_count, q.node_count);
-    EXPECT_EQ(q.leaf_count, q.inner_count + 1);  // a full binary tree
-    EXPECT_NEAR(q.mean_leaf_size * q.leaf_count, double(s.triangle_count()), 1e-6);
-    EXPECT_EQ(q.bytes, uint64_t(q.inner_count) * 64 + uint64_t(s.triangle_count()) * 48);
+    for (Variant v : kVariants) {
+        SCOPED_TRACE(name(v));
+        Bvh bvh = build_bvh(s, options(v));
+        const BvhQuality& q = bvh.quality;
+        EXPECT_EQ(q.inner_count, bvh.layout.inner_node_count);
+        EXPECT_EQ(q.inner_count + q.leaf_count, q.node_count);
+        if (v.width == 2) {
+            EXPECT_EQ(q.leaf_count, q.inner_count + 1);  // a full binary tree
+        }
+        EXPECT_NEAR(q.mean_leaf_size * q.leaf_count, double(s.triangle_count()), 1e-6);
+        EXPECT_EQ(q.bytes, uint64_t(q.inner_count) * default_node_size_bytes(v.width) +
+                               uint64_t(s.triangle_count()) * 48);
+        EXPECT_GT(q.build_seconds, 0.0);
+    }
+}
+
+TEST(Bvh, WiderTreesHaveFewerNodesAndLowerTraversalCost) {
+    Scene s = load_scene("builtin:cornell");
+    const Bvh b2 = build_bvh(s, options({BvhBuilder::Sah, 2}));
+    const Bvh b4 = build_bvh(s, options({BvhBuilder::Sah, 4}));
+    const Bvh b8 = build_bvh(s, options({BvhBuilder::Sah, 8}));
+    // Collapsing keeps the leaves and removes inner nodes. Greedy collapsing cannot open leaves,
+    // so a binary node over two leaves stays a 2-child node and BVH8 nodes are not all full.
+    EXPECT_EQ(b2.quality.leaf_count, b4.quality.leaf_count);
+    EXPECT_EQ(b2.quality.leaf_count, b8.quality.leaf_count);
+    EXPECT_LT(b4.quality.inner_count * 2, b2.quality.inner_count);
+    EXPECT_LT(b8.quality.inner_count, b4.quality.inner_count);
+    EXPECT_DOUBLE_EQ(b2.quality.mean_children, 2.0);
+    EXPECT_GT(b4.quality.mean_children, 3.0);
+    EXPECT_GT(b8.quality.mean_children, b4.quality.mean_children);
+    EXPECT_LT(b4.quality.sah_cost, b2.quality.sah_cost);
+    EXPECT_LT(b8.quality.sah_cost, b4.quality.sah_cost);
+    EXPECT_LT(b8.quality.max_depth, b2.quality.max_depth);
+}
+
+TEST(Bvh, MortonBuildIsWorseThanSah) {
+    Scene s = load_scene("builtin:cornell");
+    const Bvh sah = build_bvh(s, options({BvhBuilder::Sah, 2}));
+    const Bvh lbvh = build_bvh(s, options({BvhBuilder::Lbvh, 2}));
+    EXPECT_GT(lbvh.quality.sah_cost, sah.quality.sah_cost * 1.05);
 }
 
 TEST(Bvh, MoreBucketsNeverMuchWorse) {
@@ -119,7 +212,16 @@ TEST(Bvh, MoreBucketsNeverMuchWorse) {
     BvhBuildOptions few, many;
     few.sah_buckets = 4;
     many.sah_buckets = 32;
-    const double c_few = build_bvh_sah(s, few, BvhLayout()).quality.sah_cost;
-    const double c_many = build_bvh_sah(s, many, BvhLayout()).quality.sah_cost;
-    EXPECT_LT(c_many, c_few * 1.02);
+    EXPECT_LT(build_bvh(s, many).quality.sah_cost, build_bvh(s, few).quality.sah_cost * 1.02);
+}
+
+TEST(Bvh, BinarySahCostMatchesCollapsedBvh2) {
+    Scene s = load_scene("builtin:cornell");
+    BvhBuildOptions o;
+    EXPECT_NEAR(binary_sah_cost(build_binary_sah(s, o), o), build_bvh(s, o).quality.sah_cost, 1e-6);
+}
+
+TEST(Bvh, BuilderNames) {
+    EXPECT_EQ(parse_bvh_builder("lbvh", "x"), BvhBuilder::Lbvh);
+    EXPECT_THROW(parse_bvh_builder("median", "x"), InputError);
 }

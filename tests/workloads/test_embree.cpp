@@ -99,9 +99,9 @@ struct Agreement {
 //  - hit vs. miss, or a farther Embree hit, only where our hit lies within 1e-4 (barycentric) of
 //    an edge: the crack between neighbours that Embree's non-watertight test can let a ray
 //    through, and that the watertight test closes.
-Agreement compare(const Scene& s, const std::string& kinds, int res) {
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
-    EmbreeScene e(s);
+Agreement compare(const Scene& s, EmbreeScene& e, const BvhBuildOptions& bo,
+                  const std::string& kinds, int res) {
+    Bvh bvh = build_bvh(s, bo);
     RayGenOptions o;
     o.width = o.height = res;
     o.kinds = parse_ray_kinds(kinds, "test");
@@ -111,7 +111,7 @@ Agreement compare(const Scene& s, const std::string& kinds, int res) {
     while (gen.next_tile(rays)) {
         for (const GeneratedRay& g : rays) {
             ++a.rays;
-            const Hit ours = trace_ray(s, bvh, g.ray, g.query);
+            const Hit ours = trace_ray(bvh, g.ray, g.query);
             if (g.query == HitQuery::Any) {
                 const bool theirs = e.occluded(g.ray);
                 if (ours.valid() != theirs) {
@@ -161,33 +161,40 @@ void report(const char* what, const Agreement& a) {
                 a.rays, a.hits, a.same_prim, a.ties, a.edge_cases);
 }
 
-}  // namespace
-
-TEST(EmbreeOracle, CornellAllRayKinds) {
-    Scene s = load_scene("builtin:cornell");
-    Agreement a = compare(s, "primary,shadow,ao,diffuse,reflection", 96);
-    report("cornell", a);
-    EXPECT_GT(a.hits, 5000u);
-    EXPECT_LE(a.ties + a.edge_cases, a.rays / 500);  // exceptions stay rare
+// Every builder at every width, every ray kind.
+void compare_all_variants(const Scene& s, const std::string& label, const std::string& kinds,
+                          int res, size_t min_hits) {
+    EmbreeScene e(s);
+    for (BvhBuilder b : {BvhBuilder::Sah, BvhBuilder::Lbvh})
+        for (int w : {2, 4, 8}) {
+            BvhBuildOptions bo;
+            bo.builder = b;
+            bo.width = w;
+            const std::string what = label + " " + bvh_builder_name(b) + " BVH" + std::to_string(w);
+            SCOPED_TRACE(what);
+            const Agreement a = compare(s, e, bo, kinds, res);
+            report(what.c_str(), a);
+            EXPECT_GT(a.hits, min_hits);
+            EXPECT_LE(a.ties + a.edge_cases, a.rays / 500);  // exceptions stay rare
+        }
 }
 
-TEST(EmbreeOracle, BunnyAllRayKinds) {
+const char* kAllKinds = "primary,shadow,ao,diffuse,reflection";
+
+}  // namespace
+
+TEST(EmbreeOracle, Cornell) {
+    compare_all_variants(load_scene("builtin:cornell"), "cornell", kAllKinds, 96, 5000);
+}
+
+TEST(EmbreeOracle, Bunny) {
     ASSERT_TRUE(std::filesystem::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
-    Scene s = load_scene(RTSIM_BUNNY_OBJ);
-    Agreement a = compare(s, "primary,shadow,ao,diffuse,reflection", 128);
-    report("bunny", a);
-    EXPECT_GT(a.hits, 4000u);
-    EXPECT_LE(a.ties + a.edge_cases, a.rays / 500);
+    compare_all_variants(load_scene(RTSIM_BUNNY_OBJ), "bunny", kAllKinds, 128, 4000);
 }
 
 TEST(EmbreeOracle, CgalMeshes) {
     const std::filesystem::path dir = RTSIM_CGAL_MESH_DIR;
     ASSERT_TRUE(std::filesystem::is_directory(dir)) << "run scripts/setup.sh";
-    for (const char* name : {"armadillo.off", "refined_elephant.off", "mech-holes-shark.off"}) {
-        Scene s = load_scene((dir / name).string());
-        Agreement a = compare(s, "primary,ao,diffuse,reflection", 64);
-        report(name, a);
-        EXPECT_GT(a.hits, 400u) << name;
-        EXPECT_LE(a.ties + a.edge_cases, a.rays / 500) << name;
-    }
+    for (const char* name : {"armadillo.off", "refined_elephant.off", "mech-holes-shark.off"})
+        compare_all_variants(load_scene((dir / name).string()), name, kAllKinds, 64, 400);
 }

@@ -46,7 +46,7 @@ TEST(RayGen, CameraFramesTheWholeScene) {
 
 TEST(RayGen, EmitsOnePrimaryPerPixelAndSecondariesFromHits) {
     Scene s = load_scene("builtin:cornell");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     RayGenOptions o;
     o.width = 37;  // not a multiple of the tile size
     o.height = 21;
@@ -58,7 +58,7 @@ TEST(RayGen, EmitsOnePrimaryPerPixelAndSecondariesFromHits) {
         EXPECT_EQ(rays[i].id, i);
         if (rays[i].kind == RayKind::Primary) {
             ++prim;
-            hits += trace_ray(s, bvh, rays[i].ray, HitQuery::Closest).valid();
+            hits += trace_ray(bvh, rays[i].ray, HitQuery::Closest).valid();
         }
         shadow += rays[i].kind == RayKind::Shadow;
         ao += rays[i].kind == RayKind::AO;
@@ -75,7 +75,7 @@ TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
     s.vertices = {{-10, 0, -10}, {10, 0, -10},  {10, 0, 10},  {-10, 0, 10},
                   {0, 5, 0},     {0.01f, 5, 0}, {0, 5, 0.01f}};
     s.triangles = {{0, 2, 1}, {0, 3, 2}, {4, 5, 6}};  // the tiny triangle lifts the bounds
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     RayGenOptions o;
     o.width = o.height = 48;
     o.kinds = parse_ray_kinds("ao", "test");
@@ -83,7 +83,7 @@ TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
     o.ao_length_fraction = 0.05f;
     int checked = 0;
     for (const GeneratedRay& r : all_rays(s, bvh, o)) {
-        const Hit h = trace_ray(s, bvh, r.ray, HitQuery::Closest);
+        const Hit h = trace_ray(bvh, r.ray, HitQuery::Closest);
         EXPECT_FALSE(h.valid() && h.prim != 2)
             << "AO ray " << r.id << " re-hit the plane at t=" << h.t;
         ++checked;
@@ -93,7 +93,7 @@ TEST(RayGen, SecondaryOriginsDoNotSelfIntersect) {
 
 TEST(RayGen, SeedChangesAoDirectionsDeterministically) {
     Scene s = load_scene("builtin:sphere");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     RayGenOptions o;
     o.width = o.height = 16;
     o.kinds = parse_ray_kinds("ao", "test");
@@ -112,7 +112,7 @@ TEST(RayGen, SeedChangesAoDirectionsDeterministically) {
 
 TEST(RayGen, DiffusePathsReflectionsAndSamplesPerPixel) {
     Scene s = load_scene("builtin:cornell");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     RayGenOptions o;
     o.width = 24;
     o.height = 16;
@@ -124,7 +124,7 @@ TEST(RayGen, DiffusePathsReflectionsAndSamplesPerPixel) {
     for (const auto& r : rays) {
         if (r.kind == RayKind::Primary) {
             ++prim;
-            hits += trace_ray(s, bvh, r.ray, HitQuery::Closest).valid();
+            hits += trace_ray(bvh, r.ray, HitQuery::Closest).valid();
         }
         refl += r.kind == RayKind::Reflection;
         diffuse += r.kind == RayKind::Diffuse;
@@ -144,7 +144,7 @@ TEST(RayGen, DiffusePathsReflectionsAndSamplesPerPixel) {
 
 TEST(RayGen, AreaLightSpreadsShadowRays) {
     Scene s = load_scene("builtin:cornell");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     RayGenOptions o;
     o.width = o.height = 16;
     o.kinds = parse_ray_kinds("shadow", "test");

@@ -46,10 +46,10 @@ std::vector<Ray> random_rays(const AABB& b, int n, uint32_t seed) {
 
 TEST(Tracer, ClosestHitMatchesBruteForce) {
     Scene s = load_scene("builtin:cornell");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     int hits = 0;
     for (const Ray& r : random_rays(s.bounds(), 1000, 7)) {
-        const Hit a = trace_ray(s, bvh, r, HitQuery::Closest);
+        const Hit a = trace_ray(bvh, r, HitQuery::Closest);
         const Hit b = brute_force(s, r);
         ASSERT_EQ(a.valid(), b.valid());
         if (!a.valid()) continue;
@@ -69,10 +69,10 @@ TEST(Tracer, ClosestHitMatchesBruteForce) {
 
 TEST(Tracer, AnyHitAgreesWithClosestHitOnOcclusion) {
     Scene s = load_scene("builtin:sphere");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     for (const Ray& r : random_rays(s.bounds(), 500, 3)) {
-        const Hit a = trace_ray(s, bvh, r, HitQuery::Any);
-        const Hit c = trace_ray(s, bvh, r, HitQuery::Closest);
+        const Hit a = trace_ray(bvh, r, HitQuery::Any);
+        const Hit c = trace_ray(bvh, r, HitQuery::Closest);
         ASSERT_EQ(a.valid(), c.valid());
         if (a.valid()) {
             EXPECT_GE(a.t, c.t);
@@ -82,13 +82,13 @@ TEST(Tracer, AnyHitAgreesWithClosestHitOnOcclusion) {
 
 TEST(Tracer, StepStreamMatchesCountersAndLayout) {
     Scene s = load_scene("builtin:cornell");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     const BvhLayout& L = bvh.layout;
     for (const Ray& r : random_rays(s.bounds(), 200, 5)) {
         std::vector<Step> steps;
         TraceCounters c;
-        const Hit with = trace_ray(s, bvh, r, HitQuery::Closest, &steps, &c);
-        const Hit without = trace_ray(s, bvh, r, HitQuery::Closest);
+        const Hit with = trace_ray(bvh, r, HitQuery::Closest, &steps, &c);
+        const Hit without = trace_ray(bvh, r, HitQuery::Closest);
         ASSERT_EQ(with.prim, without.prim);
         uint32_t nodes = 0, tris = 0;
         for (const Step& st : steps) {
@@ -117,12 +117,12 @@ TEST(Tracer, StepStreamMatchesCountersAndLayout) {
 
 TEST(Tracer, RayMissingRootBoxCostsNoStep) {
     Scene s = load_scene("builtin:sphere");
-    Bvh bvh = build_bvh_sah(s, BvhBuildOptions(), BvhLayout());
+    Bvh bvh = build_bvh(s, BvhBuildOptions());
     Ray r;
     r.org = Vec3(10, 10, 10);
     r.dir = normalize(Vec3(1, 1, 1));
     std::vector<Step> steps;
-    const Hit h = trace_ray(s, bvh, r, HitQuery::Closest, &steps);
+    const Hit h = trace_ray(bvh, r, HitQuery::Closest, &steps);
     EXPECT_FALSE(h.valid());
     EXPECT_TRUE(steps.empty());
 }
