@@ -73,7 +73,7 @@ BinaryBvh build_binary_lbvh(const Scene& scene, const BvhBuildOptions& options);
 // A node of W children, boxes in structure-of-arrays form so that one box test of all children
 // vectorises. Lanes [num, W) are empty (inverted boxes never hit).
 template <int W>
-struct WideNode {
+struct alignas(64) WideNode {
     float lo_x[W], lo_y[W], lo_z[W], hi_x[W], hi_y[W], hi_z[W];
     uint32_t child[W];  // inner child: node index; leaf child: first triangle slot
     uint8_t count[W];   // 0: inner child; otherwise the leaf's triangle count

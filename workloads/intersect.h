@@ -12,6 +12,7 @@ namespace rtsim {
 struct RayPrecomp {
     Vec3 org, dir, inv_dir;
     int kx, ky, kz;    // watertight test: kz is the dominant direction axis
+    int perm;          // 2 * kz + (kx and ky swapped): selects the specialised test
     float sx, sy, sz;  // shear constants
     explicit RayPrecomp(const Ray& r) : org(r.org), dir(r.dir) {
         // A zero component gets a huge reciprocal instead of inf, so the slab distances of an
@@ -23,7 +24,9 @@ struct RayPrecomp {
         kz = max_axis(vabs(r.dir));
         kx = (kz + 1) % 3;
         ky = (kx + 1) % 3;
-        if (r.dir[kz] < 0.0f) std::swap(kx, ky);  // keep winding, so the sign test stays valid
+        const bool swapped = r.dir[kz] < 0.0f;
+        if (swapped) std::swap(kx, ky);  // keep winding, so the sign test stays valid
+        perm = 2 * kz + (swapped ? 1 : 0);
         sx = r.dir[kx] / r.dir[kz];
         sy = r.dir[ky] / r.dir[kz];
         sz = 1.0f / r.dir[kz];
@@ -51,15 +54,15 @@ inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float 
     return true;
 }
 
-// Watertight test. On a hit with t in [tmin, hit.t) updates hit (t, u, v; u and v weight
-// vertices 1 and 2, as in Embree) and returns true. Edges shared by two triangles are never
-// both missed: a ray through an edge or vertex hits at least one of its triangles.
-inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& v1, const Vec3& v2,
-                               float tmin, Hit& hit) {
+// Watertight test with the axis permutation as template arguments, so that every component
+// access is a fixed field rather than a run-time index.
+template <int KX, int KY, int KZ>
+inline bool intersect_triangle_perm(const RayPrecomp& r, const Vec3& v0, const Vec3& v1,
+                                    const Vec3& v2, float tmin, Hit& hit) {
     const Vec3 A = v0 - r.org, B = v1 - r.org, C = v2 - r.org;
-    const float ax = A[r.kx] - r.sx * A[r.kz], ay = A[r.ky] - r.sy * A[r.kz];
-    const float bx = B[r.kx] - r.sx * B[r.kz], by = B[r.ky] - r.sy * B[r.kz];
-    const float cx = C[r.kx] - r.sx * C[r.kz], cy = C[r.ky] - r.sy * C[r.kz];
+    const float ax = A[KX] - r.sx * A[KZ], ay = A[KY] - r.sy * A[KZ];
+    const float bx = B[KX] - r.sx * B[KZ], by = B[KY] - r.sy * B[KZ];
+    const float cx = C[KX] - r.sx * C[KZ], cy = C[KY] - r.sy * C[KZ];
     float U = cx * by - cy * bx;
     float V = ax * cy - ay * cx;
     float W = bx * ay - by * ax;
@@ -72,8 +75,7 @@ inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& 
     if ((U < 0.0f || V < 0.0f || W < 0.0f) && (U > 0.0f || V > 0.0f || W > 0.0f)) return false;
     const float det = U + V + W;
     if (det == 0.0f) return false;
-    const float az = r.sz * A[r.kz], bz = r.sz * B[r.kz], cz = r.sz * C[r.kz];
-    const float T = U * az + V * bz + W * cz;
+    const float T = U * (r.sz * A[KZ]) + V * (r.sz * B[KZ]) + W * (r.sz * C[KZ]);
     // Decide on the divided t alone: a pre-division test in scaled space rounds differently and
     // would make the nearer of two almost-equal hits depend on the order they are tested in.
     const float inv = 1.0f / det;
@@ -83,6 +85,27 @@ inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& 
     hit.u = V * inv;
     hit.v = W * inv;
     return true;
+}
+
+// Watertight test. On a hit with t in [tmin, hit.t) updates hit (t, u, v; u and v weight
+// vertices 1 and 2, as in Embree) and returns true. Edges shared by two triangles are never
+// both missed: a ray through an edge or vertex hits at least one of its triangles.
+inline bool intersect_triangle(const RayPrecomp& r, const Vec3& v0, const Vec3& v1, const Vec3& v2,
+                               float tmin, Hit& hit) {
+    switch (r.perm) {  // the same branch for every triangle of a ray: predicted
+        case 0:
+            return intersect_triangle_perm<1, 2, 0>(r, v0, v1, v2, tmin, hit);
+        case 1:
+            return intersect_triangle_perm<2, 1, 0>(r, v0, v1, v2, tmin, hit);
+        case 2:
+            return intersect_triangle_perm<2, 0, 1>(r, v0, v1, v2, tmin, hit);
+        case 3:
+            return intersect_triangle_perm<0, 2, 1>(r, v0, v1, v2, tmin, hit);
+        case 4:
+            return intersect_triangle_perm<0, 1, 2>(r, v0, v1, v2, tmin, hit);
+        default:
+            return intersect_triangle_perm<1, 0, 2>(r, v0, v1, v2, tmin, hit);
+    }
 }
 
 }  // namespace rtsim

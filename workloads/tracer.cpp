@@ -1,6 +1,12 @@
 #include "workloads/tracer.h"
 
+#include <cstddef>
+
 #include "workloads/intersect.h"
+
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace rtsim {
 namespace {
@@ -32,31 +38,78 @@ struct Entry {
     float tnear;
 };
 
-// Tests the ray against all W child boxes of a node at once (a loop the compiler vectorises);
-// writes the entry distance of each child hit and returns the hit lanes as a bit mask.
+// Per-ray constants of the wide box test: for each axis, which of a node's lo/hi arrays holds
+// the near plane (by the sign of the direction), so no min/max is needed to order them, and an
+// inverted (empty) lane can never be hit.
 template <int W>
-inline unsigned box_test(const WideNode<W>& n, const RayPrecomp& r, float tmin, float tmax,
+struct BoxRay {
+    float org[3], inv[3];
+    size_t near_off[3], far_off[3];  // byte offsets of the near/far arrays in WideNode<W>
+    explicit BoxRay(const RayPrecomp& r) {
+        const size_t lo[3] = {offsetof(WideNode<W>, lo_x), offsetof(WideNode<W>, lo_y),
+                              offsetof(WideNode<W>, lo_z)};
+        const size_t hi[3] = {offsetof(WideNode<W>, hi_x), offsetof(WideNode<W>, hi_y),
+                              offsetof(WideNode<W>, hi_z)};
+        for (int a = 0; a < 3; ++a) {
+            org[a] = r.org[a];
+            inv[a] = r.inv_dir[a];
+            near_off[a] = r.inv_dir[a] >= 0.0f ? lo[a] : hi[a];
+            far_off[a] = r.inv_dir[a] >= 0.0f ? hi[a] : lo[a];
+        }
+    }
+    const float* plane(const WideNode<W>& n, size_t off) const {
+        return reinterpret_cast<const float*>(reinterpret_cast<const char*>(&n) + off);
+    }
+};
+
+// Tests the ray against all W child boxes of a node; writes each lane's entry distance and
+// returns the hit lanes as a bit mask. The far distance is scaled by kSlabFarScale (Ize 2013).
+template <int W>
+inline unsigned box_test(const WideNode<W>& n, const BoxRay<W>& r, float tmin, float tmax,
                          float* tnear) {
+#if defined(__SSE2__)
+    if constexpr (W % 4 == 0) {
+        unsigned mask = 0;
+        const __m128 scale = _mm_set1_ps(kSlabFarScale);
+        for (int k = 0; k < W; k += 4) {
+            __m128 tn = _mm_set1_ps(tmin), tf = _mm_set1_ps(tmax);
+            for (int a = 0; a < 3; ++a) {
+                const __m128 o = _mm_set1_ps(r.org[a]), inv = _mm_set1_ps(r.inv[a]);
+                const __m128 t0 =
+                    _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(r.plane(n, r.near_off[a]) + k), o), inv);
+                const __m128 t1 =
+                    _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(r.plane(n, r.far_off[a]) + k), o), inv);
+                tn = _mm_max_ps(tn, t0);
+                tf = _mm_min_ps(tf, _mm_mul_ps(t1, scale));
+            }
+            _mm_storeu_ps(tnear + k, tn);
+            mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << k;
+        }
+        return mask;
+    }
+#endif
     unsigned mask = 0;
     for (int l = 0; l < W; ++l) {
-        const float x0 = (n.lo_x[l] - r.org.x) * r.inv_dir.x,
-                    x1 = (n.hi_x[l] - r.org.x) * r.inv_dir.x;
-        const float y0 = (n.lo_y[l] - r.org.y) * r.inv_dir.y,
-                    y1 = (n.hi_y[l] - r.org.y) * r.inv_dir.y;
-        const float z0 = (n.lo_z[l] - r.org.z) * r.inv_dir.z,
-                    z1 = (n.hi_z[l] - r.org.z) * r.inv_dir.z;
-        const float tn = std::max(std::max(std::min(x0, x1), std::min(y0, y1)),
-                                  std::max(std::min(z0, z1), tmin));
-        const float tf = std::min(std::min(std::max(x0, x1), std::max(y0, y1)) * kSlabFarScale,
-                                  std::min(std::max(z0, z1) * kSlabFarScale, tmax));
+        float tn = tmin, tf = tmax;
+        for (int a = 0; a < 3; ++a) {
+            const float t0 = (r.plane(n, r.near_off[a])[l] - r.org[a]) * r.inv[a];
+            const float t1 = (r.plane(n, r.far_off[a])[l] - r.org[a]) * r.inv[a] * kSlabFarScale;
+            tn = t0 > tn ? t0 : tn;
+            tf = t1 < tf ? t1 : tf;
+        }
         tnear[l] = tn;
         mask |= unsigned(tn <= tf) << l;
     }
     return mask;
 }
 
-template <int W, class Sink>
-Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, TraceCounters& c) {
+// Counting is compiled out of the fastest path (no counters requested).
+struct NoCounters {
+    uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0;  // never read: optimised away
+};
+
+template <int W, class Sink, class Counters>
+Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, Counters& c) {
     Hit hit;
     hit.t = ray.tmax;
     const RayPrecomp rp(ray);
@@ -66,57 +119,68 @@ Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, TraceCo
         return hit;
     }
     const std::vector<WideNode<W>>& nodes = bvh.nodes<W>();
-    // Each pop pushes at most W-1 entries more than it removes, per level of depth.
+    const BoxRay<W> box_ray(rp);
+    const bool any = query == HitQuery::Any;
+    // Each node visit pushes at most W-1 entries, once per level of depth.
     Entry stack[(W - 1) * kMaxBvhDepth + 2];
     int sp = 0;
-    stack[sp++] = {0, 0, root_t};
     uint32_t depth_max = 1;
-    const bool any = query == HitQuery::Any;
-    while (sp > 0) {
-        const Entry e = stack[--sp];
-        if (e.tnear > hit.t * kCullScale) continue;  // a closer hit was found after the push
-        if (e.count) {
-            for (uint32_t i = 0; i < e.count; ++i) {
-                const uint32_t slot = e.child + i;
+    Entry cur = {0, 0, root_t};
+    for (;;) {
+        if (cur.count) {
+            for (uint32_t i = 0; i < cur.count; ++i) {
+                const uint32_t slot = cur.child + i;
                 const auto& v = bvh.tri_verts[slot];
                 sink.tri(bvh.layout, slot);
                 c.tri_tests++;
                 if (intersect_triangle(rp, v[0], v[1], v[2], ray.tmin, hit)) {
                     hit.prim = bvh.prim_order[slot];
-                    if (any) return hit;
+                    if (any) {
+                        c.max_stack = depth_max;
+                        return hit;
+                    }
                 }
             }
-            continue;
-        }
-        const WideNode<W>& n = nodes[e.child];
-        sink.node(bvh.layout, e.child, n.num);
-        c.nodes++;
-        c.box_tests += n.num;
-        float tn[W];
-        unsigned mask = box_test<W>(n, rp, ray.tmin, hit.t * kCullScale, tn) &
-                        ((1u << n.num) - 1);  // empty lanes off
-        // Push hit children far to near, so the nearest is popped first.
-        int order[W], k = 0;
-        for (; mask; mask &= mask - 1) {
-            const int l = __builtin_ctz(mask);
-            int j = k++;
-            while (j > 0 && tn[order[j - 1]] <= tn[l]) {  // ties: lower lane popped first
-                order[j] = order[j - 1];
-                --j;
+        } else {
+            const WideNode<W>& n = nodes[cur.child];
+            sink.node(bvh.layout, cur.child, n.num);
+            c.nodes++;
+            c.box_tests += n.num;
+            float tn[W];
+            unsigned mask = box_test<W>(n, box_ray, ray.tmin, hit.t * kCullScale, tn);
+            if (mask) {
+                // Sort hit children far to near; go on with the nearest, push the others.
+                int order[W], k = 0;
+                for (; mask; mask &= mask - 1) {
+                    const int l = __builtin_ctz(mask);
+                    int j = k++;
+                    while (j > 0 && tn[order[j - 1]] <= tn[l]) {  // ties: lower lane first
+                        order[j] = order[j - 1];
+                        --j;
+                    }
+                    order[j] = l;
+                }
+                for (int i = 0; i < k - 1; ++i)
+                    stack[sp++] = {n.child[order[i]], n.count[order[i]], tn[order[i]]};
+                depth_max = std::max<uint32_t>(depth_max, sp + 1);
+                cur = {n.child[order[k - 1]], n.count[order[k - 1]], tn[order[k - 1]]};
+                continue;
             }
-            order[j] = l;
         }
-        for (int i = 0; i < k; ++i)
-            stack[sp++] = {n.child[order[i]], n.count[order[i]], tn[order[i]]};
-        depth_max = std::max<uint32_t>(depth_max, sp);
+        // Pop the next entry that a closer hit, found after its push, has not culled.
+        do {
+            if (sp == 0) {
+                c.max_stack = depth_max;
+                if (!hit.valid()) hit.t = std::numeric_limits<float>::infinity();
+                return hit;
+            }
+            cur = stack[--sp];
+        } while (cur.tnear > hit.t * kCullScale);
     }
-    c.max_stack = depth_max;
-    if (!hit.valid()) hit.t = std::numeric_limits<float>::infinity();
-    return hit;
 }
 
-template <class Sink>
-Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Sink& sink, TraceCounters& c) {
+template <class Sink, class Counters>
+Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Sink& sink, Counters& c) {
     switch (bvh.width()) {
         case 2:
             return traverse<2>(bvh, ray, q, sink, c);
@@ -131,14 +195,15 @@ Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Sink& sink, TraceCounte
 
 Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>* steps,
               TraceCounters* counters) {
-    TraceCounters local;
-    TraceCounters& c = counters ? *counters : local;
     if (steps) {
         VectorSink sink{steps};
-        return dispatch(bvh, ray, query, sink, c);
+        TraceCounters local;
+        return dispatch(bvh, ray, query, sink, counters ? *counters : local);
     }
     NullSink sink;
-    return dispatch(bvh, ray, query, sink, c);
+    if (counters) return dispatch(bvh, ray, query, sink, *counters);
+    NoCounters none;
+    return dispatch(bvh, ray, query, sink, none);
 }
 
 }  // namespace rtsim
