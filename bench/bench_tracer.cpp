@@ -192,13 +192,21 @@ int main(int argc, char** argv) {
             Bvh bvh;
         };
         std::vector<Built> bvhs;
-        for (BvhBuilder b : {BvhBuilder::Sah, BvhBuilder::Lbvh})
+        struct Build {
+            BvhBuilder builder;
+            int restructure_passes;
+        };
+        for (Build b :
+             {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0}, Build{BvhBuilder::Lbvh, 3}})
             for (int wd : {2, 4, 8}) {
                 BvhBuildOptions o;
-                o.builder = b;
+                o.builder = b.builder;
+                o.restructure_passes = b.restructure_passes;
                 o.width = wd;
                 o.max_leaf_size = leaf;
-                bvhs.push_back({fmt::format("{} BVH{}", bvh_builder_name(b), wd), build_bvh(s, o)});
+                bvhs.push_back({fmt::format("{}{} BVH{}", bvh_builder_name(b.builder),
+                                            b.restructure_passes ? "+tr" : "", wd),
+                                build_bvh(s, o)});
             }
         fmt::print("build (1 thread): Embree {:.3f} s", es1.build_seconds);
         for (const Built& b : bvhs)

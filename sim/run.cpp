@@ -47,6 +47,7 @@ Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
     BvhBuildOptions bo;
     bo.builder = parse_bvh_builder(cfg.string("bvh.builder"), "bvh.builder");
     bo.width = int(cfg.integer("bvh.width"));
+    bo.restructure_passes = int(cfg.integer("bvh.restructure_passes"));
     bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
     bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
     BvhLayout layout;
@@ -237,6 +238,7 @@ int run_command(const RunOptions& opt) {
                     {"bounds", aabb_json(scene.bounds())}};
     const BvhQuality& q = bvh.quality;
     out["bvh"] = {{"builder", bvh_builder_name(bo.builder)},
+                  {"restructure_passes", bo.restructure_passes},
                   {"width", bvh.width()},
                   {"sah_cost", q.sah_cost},
                   {"sah_traversal_cost", bo.traversal_cost},

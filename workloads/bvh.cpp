@@ -39,6 +39,22 @@ double binary_sah_cost(const BinaryBvh& bvh, const BvhBuildOptions& o) {
 
 namespace {
 
+uint32_t binary_depth(const BinaryBvh& bvh) {
+    uint32_t depth = 0;
+    std::vector<std::pair<uint32_t, uint32_t>> stack = {{0, 0}};
+    while (!stack.empty()) {
+        const auto [i, d] = stack.back();
+        stack.pop_back();
+        depth = std::max(depth, d);
+        const BinaryNode& n = bvh.nodes[i];
+        if (!n.is_leaf()) {
+            stack.push_back({n.a, d + 1});
+            stack.push_back({n.b, d + 1});
+        }
+    }
+    return depth;
+}
+
 template <int W>
 class Collapser {
   public:
@@ -177,8 +193,15 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
         throw InputError(
             fmt::format("bvh.max_leaf_size: expected 1..255, got {}", options.max_leaf_size));
     const auto t0 = std::chrono::steady_clock::now();
-    const BinaryBvh bin = options.builder == BvhBuilder::Sah ? build_binary_sah(scene, options)
-                                                             : build_binary_lbvh(scene, options);
+    BinaryBvh bin = options.builder == BvhBuilder::Sah ? build_binary_sah(scene, options)
+                                                       : build_binary_lbvh(scene, options);
+    if (options.restructure_passes > 0) {
+        // Restructuring may deepen the tree; traversal stacks are sized for kMaxBvhDepth, so a
+        // result that deep (only on pathological input) is dropped for the original.
+        BinaryBvh restructured = bin;
+        restructure_treelets(restructured, options, options.restructure_passes);
+        if (binary_depth(restructured) < kMaxBvhDepth - 1) bin = std::move(restructured);
+    }
     Bvh bvh;
     bvh.options = options;
     bvh.bounds_box = bin.nodes[0].box;

@@ -24,6 +24,7 @@ BvhBuilder parse_bvh_builder(const std::string& name, const std::string& what); 
 
 struct BvhBuildOptions {
     BvhBuilder builder = BvhBuilder::Sah;
+    int restructure_passes = 0;   // treelet restructuring sweeps after the build (0: none)
     int width = 2;                // children per node after collapsing: 2, 4 or 8
     int sah_buckets = 12;         // centroid buckets per axis; B-1 candidate planes are evaluated
     int max_leaf_size = 4;        // a leaf never holds more triangles than this
@@ -69,6 +70,9 @@ struct BinaryBvh {
 };
 BinaryBvh build_binary_sah(const Scene& scene, const BvhBuildOptions& options);
 BinaryBvh build_binary_lbvh(const Scene& scene, const BvhBuildOptions& options);
+// Treelet restructuring (Karras & Aila 2013), `passes` bottom-up sweeps; returns the number of
+// treelets rebuilt. Never increases the SAH cost.
+int restructure_treelets(BinaryBvh& bvh, const BvhBuildOptions& options, int passes);
 
 // A node of W children, boxes in structure-of-arrays form so that one box test of all children
 // vectorises. Lanes [num, W) are empty (inverted boxes never hit).

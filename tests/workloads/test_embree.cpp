@@ -165,12 +165,20 @@ void report(const char* what, const Agreement& a) {
 void compare_all_variants(const Scene& s, const std::string& label, const std::string& kinds,
                           int res, size_t min_hits) {
     EmbreeScene e(s);
-    for (BvhBuilder b : {BvhBuilder::Sah, BvhBuilder::Lbvh})
+    struct Build {
+        BvhBuilder builder;
+        int restructure_passes;
+    };
+    for (Build b :
+         {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0}, Build{BvhBuilder::Lbvh, 2}})
         for (int w : {2, 4, 8}) {
             BvhBuildOptions bo;
-            bo.builder = b;
+            bo.builder = b.builder;
+            bo.restructure_passes = b.restructure_passes;
             bo.width = w;
-            const std::string what = label + " " + bvh_builder_name(b) + " BVH" + std::to_string(w);
+            const std::string what = label + " " + bvh_builder_name(b.builder) +
+                                     (b.restructure_passes ? "+treelets" : "") + " BVH" +
+                                     std::to_string(w);
             SCOPED_TRACE(what);
             const Agreement a = compare(s, e, bo, kinds, res);
             report(what.c_str(), a);
