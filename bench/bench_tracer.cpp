@@ -195,17 +195,21 @@ int main(int argc, char** argv) {
         struct Build {
             BvhBuilder builder;
             int restructure_passes;
+            NodeFormat format = NodeFormat::Full;
         };
         for (Build b :
-             {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0}, Build{BvhBuilder::Lbvh, 3}})
+             {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0}, Build{BvhBuilder::Lbvh, 3},
+              Build{BvhBuilder::Sah, 0, NodeFormat::Compressed}})
             for (int wd : {2, 4, 8}) {
                 BvhBuildOptions o;
                 o.builder = b.builder;
                 o.restructure_passes = b.restructure_passes;
+                o.node_format = b.format;
                 o.width = wd;
                 o.max_leaf_size = leaf;
-                bvhs.push_back({fmt::format("{}{} BVH{}", bvh_builder_name(b.builder),
-                                            b.restructure_passes ? "+tr" : "", wd),
+                bvhs.push_back({fmt::format("{}{}{} BVH{}", bvh_builder_name(b.builder),
+                                            b.restructure_passes ? "+tr" : "",
+                                            b.format == NodeFormat::Compressed ? "-q" : "", wd),
                                 build_bvh(s, o)});
             }
         fmt::print("build (1 thread): Embree {:.3f} s", es1.build_seconds);
@@ -249,7 +253,6 @@ int main(int argc, char** argv) {
         const RaySet primary = make_rays(s, ref, "primary", w / 2, h / 2);
         claims.push_back(fmt::format("{} ({} tris)", s.name, s.triangle_count()));
         for (const Built& b : bvhs) {
-            TraceCounters sum;
             uint64_t nodes = 0, boxes = 0, tris = 0;
             for (const RaySet* rs : {&primary, &diffuse})
                 for (const Ray& r : rs->rays) {
@@ -261,15 +264,18 @@ int main(int argc, char** argv) {
                 }
             const double n = double(primary.rays.size() + diffuse.rays.size());
             claims.push_back(fmt::format(
-                "  {:10} SAH cost {:7.2f}  build {:7.4f} s  nodes/ray {:6.2f}  box tests/ray "
-                "{:6.2f}  tri tests/ray {:5.2f}  children/node {:4.2f}",
+                "  {:13} SAH cost {:6.2f}  build {:6.4f} s  nodes/ray {:5.2f}  box tests/ray "
+                "{:5.2f}  "
+                "tri tests/ray {:4.2f}  children/node {:4.2f}  node bytes {:8}",
                 b.name, b.bvh.quality.sah_cost, b.bvh.quality.build_seconds, nodes / n, boxes / n,
-                tris / n, b.bvh.quality.mean_children));
+                tris / n, b.bvh.quality.mean_children, b.bvh.layout.node_bytes_total()));
         }
         fmt::print("\n");
     }
     fmt::print(
-        "Claims, measured (primary + diffuse rays, {}x{}; SAH costs with C_trav = C_isect = 1):\n",
+        "Claims, measured (primary + diffuse rays, {}x{}; SAH costs with C_trav = C_isect = 1;\n"
+        "+tr: 3 passes of treelet restructuring; -q: compressed nodes, 8-bit quantised child "
+        "boxes):\n",
         w / 2, h / 2);
     for (const std::string& c : claims) fmt::print("{}\n", c);
     return 0;

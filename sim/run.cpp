@@ -48,6 +48,7 @@ Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
     bo.builder = parse_bvh_builder(cfg.string("bvh.builder"), "bvh.builder");
     bo.width = int(cfg.integer("bvh.width"));
     bo.restructure_passes = int(cfg.integer("bvh.restructure_passes"));
+    bo.node_format = parse_node_format(cfg.string("bvh.node_format"), "bvh.node_format");
     bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
     bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
     BvhLayout layout;
@@ -240,6 +241,7 @@ int run_command(const RunOptions& opt) {
     out["bvh"] = {{"builder", bvh_builder_name(bo.builder)},
                   {"restructure_passes", bo.restructure_passes},
                   {"width", bvh.width()},
+                  {"node_format", node_format_name(bo.node_format)},
                   {"sah_cost", q.sah_cost},
                   {"sah_traversal_cost", bo.traversal_cost},
                   {"sah_intersection_cost", bo.intersection_cost},

@@ -4,6 +4,8 @@
 #include <fmt/format.h>
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <limits>
 
 #include "workloads/error.h"
 
@@ -18,6 +20,21 @@ BvhBuilder parse_bvh_builder(const std::string& name, const std::string& what) {
     if (name == "lbvh") return BvhBuilder::Lbvh;
     throw InputError(
         fmt::format("{}: unknown BVH builder '{}' (expected sah or lbvh)", what, name));
+}
+
+const char* node_format_name(NodeFormat f) {
+    return f == NodeFormat::Full ? "full" : "compressed";
+}
+
+NodeFormat parse_node_format(const std::string& name, const std::string& what) {
+    if (name == "full") return NodeFormat::Full;
+    if (name == "compressed") return NodeFormat::Compressed;
+    throw InputError(
+        fmt::format("{}: unknown node format '{}' (expected full or compressed)", what, name));
+}
+
+uint32_t compressed_node_size_bytes(int width) {
+    return (24 + 7 * uint32_t(width) + 15) / 16 * 16;
 }
 
 uint32_t default_node_size_bytes(int width) {
@@ -55,10 +72,44 @@ uint32_t binary_depth(const BinaryBvh& bvh) {
     return depth;
 }
 
+// Compressed wide nodes (Ylitie, Karras & Laine 2017): child boxes stored as 8-bit offsets on a
+// per-node grid with origin p (the node box's low corner) and a power-of-two step per axis.
+// The tracer then sees exactly the boxes the hardware decodes: each child box is rounded
+// outwards to the grid, so it still contains its child (conservative), at the price of some
+// extra box hits. The float decode p + q * 2^e is nudged outwards where it rounds inwards.
+template <int W>
+void quantize_boxes(WideNode<W>& node) {
+    float* lo[3] = {node.lo_x, node.lo_y, node.lo_z};
+    float* hi[3] = {node.hi_x, node.hi_y, node.hi_z};
+    const float inf = std::numeric_limits<float>::infinity();
+    for (int a = 0; a < 3; ++a) {
+        float p = inf, top = -inf;
+        for (int l = 0; l < node.num; ++l) {
+            p = std::min(p, lo[a][l]);
+            top = std::max(top, hi[a][l]);
+        }
+        const float extent = top - p;
+        int e = extent > 0.0f ? int(std::ceil(std::log2(extent / 255.0f))) : -126;
+        e = std::clamp(e, -126, 127);
+        while (e < 127 && std::ldexp(255.0f, e) < extent) ++e;  // guard log2 rounding
+        const float step = std::ldexp(1.0f, e);
+        for (int l = 0; l < node.num; ++l) {
+            const float qlo = std::clamp(std::floor((lo[a][l] - p) / step), 0.0f, 255.0f);
+            const float qhi = std::clamp(std::ceil((hi[a][l] - p) / step), 0.0f, 255.0f);
+            float dlo = p + qlo * step, dhi = p + qhi * step;
+            while (dlo > lo[a][l]) dlo = std::nextafter(dlo, -inf);
+            while (dhi < hi[a][l]) dhi = std::nextafter(dhi, inf);
+            lo[a][l] = dlo;
+            hi[a][l] = dhi;
+        }
+    }
+}
+
 template <int W>
 class Collapser {
   public:
-    Collapser(const BinaryBvh& in, std::vector<WideNode<W>>& out) : in_(in), out_(out) {}
+    Collapser(const BinaryBvh& in, std::vector<WideNode<W>>& out, bool quantize)
+        : in_(in), out_(out), quantize_(quantize) {}
 
     void run() {
         out_.clear();
@@ -115,6 +166,7 @@ class Collapser {
             node.count[l] = static_cast<uint8_t>(k.prim_count);
             node.child[l] = k.is_leaf() ? k.a : 0;
         }
+        if (quantize_) quantize_boxes(node);
         out_[index] = node;
         // Children's records follow in depth-first order (emit_from may grow out_).
         for (size_t l = 0; l < kids.size(); ++l)
@@ -127,6 +179,7 @@ class Collapser {
 
     const BinaryBvh& in_;
     std::vector<WideNode<W>>& out_;
+    bool quantize_;
 };
 
 template <int W>
@@ -205,15 +258,16 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
     Bvh bvh;
     bvh.options = options;
     bvh.bounds_box = bin.nodes[0].box;
+    const bool quantize = options.node_format == NodeFormat::Compressed;
     switch (options.width) {
         case 2:
-            Collapser<2>(bin, bvh.nodes2).run();
+            Collapser<2>(bin, bvh.nodes2, quantize).run();
             break;
         case 4:
-            Collapser<4>(bin, bvh.nodes4).run();
+            Collapser<4>(bin, bvh.nodes4, quantize).run();
             break;
         default:
-            Collapser<8>(bin, bvh.nodes8).run();
+            Collapser<8>(bin, bvh.nodes8, quantize).run();
             break;
     }
     bvh.prim_order = bin.prim_order;
@@ -223,7 +277,9 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
 
     BvhLayout& L = bvh.layout;
     L = layout_sizes;
-    if (L.node_size_bytes == 0) L.node_size_bytes = default_node_size_bytes(options.width);
+    if (L.node_size_bytes == 0)
+        L.node_size_bytes = quantize ? compressed_node_size_bytes(options.width)
+                                     : default_node_size_bytes(options.width);
     L.inner_node_count = static_cast<uint32_t>(options.width == 2   ? bvh.nodes2.size()
                                                : options.width == 4 ? bvh.nodes4.size()
                                                                     : bvh.nodes8.size());

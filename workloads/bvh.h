@@ -22,8 +22,17 @@ enum class BvhBuilder : uint8_t {
 const char* bvh_builder_name(BvhBuilder b);
 BvhBuilder parse_bvh_builder(const std::string& name, const std::string& what);  // InputError
 
+enum class NodeFormat : uint8_t {
+    Full,        // float child boxes
+    Compressed,  // child boxes quantised to 8 bits per plane on a per-node grid (Ylitie et al.
+                 // 2017)
+};
+const char* node_format_name(NodeFormat f);
+NodeFormat parse_node_format(const std::string& name, const std::string& what);  // InputError
+
 struct BvhBuildOptions {
     BvhBuilder builder = BvhBuilder::Sah;
+    NodeFormat node_format = NodeFormat::Full;
     int restructure_passes = 0;   // treelet restructuring sweeps after the build (0: none)
     int width = 2;                // children per node after collapsing: 2, 4 or 8
     int sah_buckets = 12;         // centroid buckets per axis; B-1 candidate planes are evaluated
@@ -35,6 +44,10 @@ struct BvhBuildOptions {
 // Stated record size of an uncompressed node of `width` children: per child a 24-byte box and a
 // 4-byte reference, rounded up to a power of two (64-byte cache-line multiples): 64, 128, 256.
 uint32_t default_node_size_bytes(int width);
+// Stated size of a compressed node: origin (12 bytes), 3 exponent bytes, an inner-child mask
+// byte, child and triangle base indices (8), and per child 6 quantised planes and a meta byte,
+// rounded up to 16 bytes: 48 (BVH2), 64 (BVH4), 80 (BVH8, as in Ylitie et al.).
+uint32_t compressed_node_size_bytes(int width);
 
 // Byte layout in simulated memory. An inner-node record holds all its children's boxes and
 // references (Aila & Laine 2009 style), so one fetch feeds one box test of all children; leaves

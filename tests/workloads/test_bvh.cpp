@@ -12,67 +12,87 @@ using namespace rtsim;
 
 namespace {
 
-// Every builder at every width.
+// Every builder at every width, and compressed nodes.
 struct Variant {
     BvhBuilder builder;
     int width;
+    NodeFormat format = NodeFormat::Full;
 };
-const Variant kVariants[] = {{BvhBuilder::Sah, 2},  {BvhBuilder::Sah, 4},  {BvhBuilder::Sah, 8},
-                             {BvhBuilder::Lbvh, 2}, {BvhBuilder::Lbvh, 4}, {BvhBuilder::Lbvh, 8}};
+const Variant kVariants[] = {{BvhBuilder::Sah, 2},
+                             {BvhBuilder::Sah, 4},
+                             {BvhBuilder::Sah, 8},
+                             {BvhBuilder::Lbvh, 2},
+                             {BvhBuilder::Lbvh, 4},
+                             {BvhBuilder::Lbvh, 8},
+                             {BvhBuilder::Sah, 2, NodeFormat::Compressed},
+                             {BvhBuilder::Sah, 4, NodeFormat::Compressed},
+                             {BvhBuilder::Sah, 8, NodeFormat::Compressed}};
 
 BvhBuildOptions options(Variant v, int leaf = 4) {
     BvhBuildOptions o;
     o.builder = v.builder;
     o.width = v.width;
+    o.node_format = v.format;
     o.max_leaf_size = leaf;
     return o;
 }
 
-// The structural invariants every BVH must hold.
+// The structural invariants every BVH must hold. Returns the bounds of the geometry below
+// `node`; every child box must contain the geometry below it. Full-precision boxes also nest
+// (a child box inside its parent's); compressed boxes are rounded outwards on each node's own
+// grid, so they need not.
+template <int W>
+AABB check_node(const Scene& scene, const Bvh& bvh, uint32_t node, uint32_t depth,
+                const AABB& parent_box, std::vector<int>& seen, std::vector<int>& reached) {
+    const auto& nodes = bvh.nodes<W>();
+    AABB content;
+    EXPECT_LT(node, nodes.size());
+    EXPECT_LT(depth, kMaxBvhDepth);
+    if (node >= nodes.size() || depth >= kMaxBvhDepth) return content;
+    reached[node]++;
+    const WideNode<W>& n = nodes[node];
+    EXPECT_GE(n.num, node == 0 ? 1 : 2);
+    EXPECT_LE(n.num, W);
+    const bool full = bvh.options.node_format == NodeFormat::Full;
+    for (int l = 0; l < n.num; ++l) {
+        const AABB b = n.box(l);
+        if (full) {
+            EXPECT_TRUE(parent_box.contains(b)) << "child box outside parent, node " << node;
+        }
+        AABB below;
+        if (n.count[l]) {
+            EXPECT_LE(n.count[l], bvh.options.max_leaf_size);
+            for (uint32_t i = 0; i < n.count[l]; ++i) {
+                const uint32_t slot = n.child[l] + i;
+                const uint32_t prim = bvh.prim_order.at(slot);
+                EXPECT_LT(prim, scene.triangle_count());
+                if (prim >= scene.triangle_count()) continue;
+                seen[prim]++;
+                below.grow(scene.triangle_bounds(prim));
+                for (int c = 0; c < 3; ++c) EXPECT_EQ(bvh.tri_verts[slot][c].x, scene.v(prim, c).x);
+            }
+        } else {
+            EXPECT_GT(n.child[l], node) << "records are in depth-first order";
+            below = check_node<W>(scene, bvh, n.child[l], depth + 1, b, seen, reached);
+        }
+        EXPECT_TRUE(b.contains(below)) << "child box misses geometry below it, node " << node;
+        content.grow(below);
+    }
+    return content;
+}
+
 template <int W>
 void check_wide(const Scene& scene, const Bvh& bvh) {
-    const auto& nodes = bvh.nodes<W>();
-    ASSERT_EQ(nodes.size(), bvh.layout.inner_node_count);
-    std::vector<int> seen(scene.triangle_count(), 0), reached(nodes.size(), 0);
-    struct Item {
-        uint32_t node, depth;
-        AABB parent_box;
-    };
-    std::vector<Item> stack = {{0, 0, bvh.bounds()}};
-    while (!stack.empty()) {
-        const Item it = stack.back();
-        stack.pop_back();
-        ASSERT_LT(it.node, nodes.size());
-        ASSERT_LT(it.depth, kMaxBvhDepth);
-        reached[it.node]++;
-        const WideNode<W>& n = nodes[it.node];
-        ASSERT_GE(n.num, it.node == 0 ? 1 : 2);
-        ASSERT_LE(n.num, W);
-        for (int l = 0; l < n.num; ++l) {
-            const AABB b = n.box(l);
-            ASSERT_TRUE(it.parent_box.contains(b)) << "child box outside parent, node " << it.node;
-            if (n.count[l]) {
-                ASSERT_LE(n.count[l], bvh.options.max_leaf_size);
-                for (uint32_t i = 0; i < n.count[l]; ++i) {
-                    const uint32_t slot = n.child[l] + i;
-                    const uint32_t prim = bvh.prim_order.at(slot);
-                    ASSERT_LT(prim, scene.triangle_count());
-                    seen[prim]++;
-                    ASSERT_TRUE(b.contains(scene.triangle_bounds(prim)))
-                        << "leaf box misses its triangle";
-                    for (int c = 0; c < 3; ++c)
-                        ASSERT_EQ(bvh.tri_verts[slot][c].x, scene.v(prim, c).x);
-                }
-            } else {
-                ASSERT_GT(n.child[l], it.node) << "records are in depth-first order";
-                stack.push_back({n.child[l], it.depth + 1, b});
-            }
-        }
-    }
+    ASSERT_EQ(bvh.nodes<W>().size(), bvh.layout.inner_node_count);
+    std::vector<int> seen(scene.triangle_count(), 0), reached(bvh.nodes<W>().size(), 0);
+    const AABB content = check_node<W>(scene, bvh, 0, 0, bvh.bounds(), seen, reached);
+    EXPECT_TRUE(bvh.bounds().contains(content));
     for (size_t i = 0; i < seen.size(); ++i) ASSERT_EQ(seen[i], 1) << "primitive " << i;
     for (size_t i = 0; i < reached.size(); ++i) ASSERT_EQ(reached[i], 1) << "record " << i;
-    // Layout: triangles start after the node records, page-aligned.
-    EXPECT_EQ(bvh.layout.node_size_bytes, default_node_size_bytes(W));
+    // Layout: stated node size; triangles start after the node records, page-aligned.
+    EXPECT_EQ(bvh.layout.node_size_bytes, bvh.options.node_format == NodeFormat::Full
+                                              ? default_node_size_bytes(W)
+                                              : compressed_node_size_bytes(W));
     EXPECT_GE(bvh.layout.tri_base_addr, bvh.layout.node_base_addr + bvh.layout.node_bytes_total());
     EXPECT_EQ(bvh.layout.tri_base_addr % 4096, 0u);
 }
@@ -174,7 +194,7 @@ TEST(Bvh, QualityReportIsConsistent) {
             EXPECT_EQ(q.leaf_count, q.inner_count + 1);  // a full binary tree
         }
         EXPECT_NEAR(q.mean_leaf_size * q.leaf_count, double(s.triangle_count()), 1e-6);
-        EXPECT_EQ(q.bytes, uint64_t(q.inner_count) * default_node_size_bytes(v.width) +
+        EXPECT_EQ(q.bytes, uint64_t(q.inner_count) * bvh.layout.node_size_bytes +
                                uint64_t(s.triangle_count()) * 48);
         EXPECT_GT(q.build_seconds, 0.0);
     }
@@ -262,4 +282,20 @@ TEST(Bvh, RestructuringClosesMostOfTheMortonGap) {
     std::printf("SAH %.2f, LBVH %.2f, LBVH + 3 restructuring passes %.2f\n", sah, lbvh, fixed);
     EXPECT_GT(lbvh, sah);
     EXPECT_LT(fixed - sah, 0.5 * (lbvh - sah));  // at least half of the gap closed
+}
+
+TEST(Bvh, CompressedNodesAreSmallerAndConservative) {
+    EXPECT_EQ(compressed_node_size_bytes(8), 80u);  // Ylitie et al.'s 80-byte BVH8 node
+    EXPECT_EQ(compressed_node_size_bytes(4), 64u);
+    EXPECT_EQ(default_node_size_bytes(8), 256u);
+    Scene s = load_scene("builtin:cornell");
+    BvhBuildOptions full, comp;
+    full.width = comp.width = 8;
+    comp.node_format = NodeFormat::Compressed;
+    const Bvh a = build_bvh(s, full), b = build_bvh(s, comp);
+    EXPECT_EQ(a.quality.inner_count, b.quality.inner_count);  // same topology
+    EXPECT_LT(b.layout.node_bytes_total() * 3, a.layout.node_bytes_total());
+    // Quantised boxes only grow, so the SAH cost can only rise, and not by much.
+    EXPECT_GE(b.quality.sah_cost, a.quality.sah_cost);
+    EXPECT_LT(b.quality.sah_cost, a.quality.sah_cost * 1.15);
 }

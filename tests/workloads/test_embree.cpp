@@ -168,17 +168,19 @@ void compare_all_variants(const Scene& s, const std::string& label, const std::s
     struct Build {
         BvhBuilder builder;
         int restructure_passes;
+        NodeFormat format = NodeFormat::Full;
     };
-    for (Build b :
-         {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0}, Build{BvhBuilder::Lbvh, 2}})
+    for (Build b : {Build{BvhBuilder::Sah, 0}, Build{BvhBuilder::Lbvh, 0},
+                    Build{BvhBuilder::Lbvh, 2}, Build{BvhBuilder::Sah, 0, NodeFormat::Compressed}})
         for (int w : {2, 4, 8}) {
             BvhBuildOptions bo;
             bo.builder = b.builder;
             bo.restructure_passes = b.restructure_passes;
+            bo.node_format = b.format;
             bo.width = w;
             const std::string what = label + " " + bvh_builder_name(b.builder) +
                                      (b.restructure_passes ? "+treelets" : "") + " BVH" +
-                                     std::to_string(w);
+                                     std::to_string(w) + " " + node_format_name(b.format);
             SCOPED_TRACE(what);
             const Agreement a = compare(s, e, bo, kinds, res);
             report(what.c_str(), a);
