@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "workloads/bvh.h"
+#include "workloads/packet.h"
 #include "workloads/parallel.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
@@ -269,6 +270,25 @@ int main(int argc, char** argv) {
                 "tri tests/ray {:4.2f}  children/node {:4.2f}  node bytes {:8}",
                 b.name, b.bvh.quality.sah_cost, b.bvh.quality.build_seconds, nodes / n, boxes / n,
                 tris / n, b.bvh.quality.mean_children, b.bvh.layout.node_bytes_total()));
+        }
+        // Packets: lane utilisation of consecutive-ray packets (8x2-pixel strips for 16 primary
+        // rays, a whole 8x8 tile for 64), on coherent primary and incoherent diffuse rays.
+        for (const Built& b : bvhs) {
+            if (b.name.rfind("sah BVH", 0) != 0) continue;
+            std::string row = fmt::format("  {:13} packet lane utilisation:", b.name);
+            for (int size : {16, 64})
+                for (const RaySet* rs : {&primary, &diffuse}) {
+                    PacketOptions po;
+                    po.size = size;
+                    PacketStats st;
+                    std::vector<Hit> hits(size);
+                    for (size_t i = 0; i < rs->rays.size(); i += size)
+                        trace_packet(b.bvh, &rs->rays[i],
+                                     int(std::min<size_t>(size, rs->rays.size() - i)), rs->query,
+                                     hits.data(), po, st);
+                    row += fmt::format("  {} x{} {:5.1f}%", rs->kind, size, 100 * st.utilization());
+                }
+            claims.push_back(row);
         }
         fmt::print("\n");
     }

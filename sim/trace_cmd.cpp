@@ -7,6 +7,7 @@
 
 #include "sim/output_file.h"
 #include "workloads/error.h"
+#include "workloads/packet.h"
 #include "workloads/parallel.h"
 #include "workloads/ray_file.h"
 #include "workloads/tracer.h"
@@ -29,6 +30,15 @@ void add_trace_options(CLI::App* cmd, TraceOptions& t) {
         "Write hits as binary records: uint32 ray, float t, int32 prim, float u, float v");
     cmd->add_option("--write-rays", t.write_rays, "Write the traced rays in the ray-file format");
     cmd->add_option("--threads,-j", t.threads, "Host threads (0: all)")->capture_default_str();
+    cmd->add_option(
+           "--packet", t.packet,
+           "Trace consecutive rays of one kind in packets of this many (8..64); 0: single rays")
+        ->capture_default_str();
+    cmd->add_option(
+           "--packet-switch", t.packet_switch,
+           "With --packet: finish a subtree ray by ray once fewer than this fraction of lanes "
+           "are active (0: never)")
+        ->capture_default_str();
     cmd->add_flag("--quiet,-q", t.quiet, "No summary");
 }
 
@@ -52,6 +62,12 @@ struct Batch {
 int trace_command(const TraceOptions& opt) {
     if (opt.threads < 0)
         throw InputError(fmt::format("--threads: expected 0 or more, got {}", opt.threads));
+    if (opt.packet != 0 && (opt.packet < 1 || opt.packet > kMaxPacketSize))
+        throw InputError(
+            fmt::format("--packet: expected 0 or 1..{}, got {}", kMaxPacketSize, opt.packet));
+    if (!(opt.packet_switch >= 0.0f && opt.packet_switch <= 1.0f))
+        throw InputError(fmt::format("--packet-switch: expected a fraction from 0 to 1, got {}",
+                                     opt.packet_switch));
     const Config cfg = load_config(opt.config_path, opt.sets);
     std::unique_ptr<RayFileReader> reader;
     if (!opt.rays_file.empty()) reader = std::make_unique<RayFileReader>(opt.rays_file);
@@ -80,6 +96,9 @@ int trace_command(const TraceOptions& opt) {
     std::vector<GeneratedRay> generated;
     std::vector<Hit> results;
     std::vector<TraceCounters> counters;
+    std::vector<std::pair<size_t, size_t>> packets;
+    std::vector<PacketStats> packet_stats;
+    std::array<PacketStats, kRayKindCount> packet_by_kind;
     std::string text;
     constexpr size_t kBatchRays = 1 << 16;
     for (;;) {
@@ -110,10 +129,38 @@ int trace_command(const TraceOptions& opt) {
         results.assign(n, Hit());
         counters.assign(n, TraceCounters());
         const auto ts = std::chrono::steady_clock::now();
-        parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
-            for (size_t i = b; i < e; ++i)
-                results[i] = trace_ray(bvh, batch.rays[i], batch.queries[i], nullptr, &counters[i]);
-        });
+        if (opt.packet > 0) {
+            // Packets: runs of consecutive rays of one kind, at most opt.packet long.
+            packets.clear();
+            for (size_t i = 0; i < n;) {
+                size_t e = i + 1;
+                while (e < n && e - i < size_t(opt.packet) && batch.kinds[e] == batch.kinds[i]) ++e;
+                packets.push_back({i, e});
+                i = e;
+            }
+            packet_stats.assign(packets.size(), PacketStats());
+            PacketOptions po;
+            po.size = opt.packet;
+            po.switch_threshold = opt.packet_switch;
+            parallel_blocks(packets.size(), 16, threads, [&](size_t b, size_t e) {
+                for (size_t p = b; p < e; ++p) {
+                    const auto [first, last] = packets[p];
+                    trace_packet(bvh, &batch.rays[first], int(last - first), batch.queries[first],
+                                 &results[first], po, packet_stats[p]);
+                }
+            });
+            for (size_t p = 0; p < packets.size(); ++p) {
+                packet_by_kind[int(batch.kinds[packets[p].first])].add(packet_stats[p]);
+                nodes += packet_stats[p].node_visits + packet_stats[p].single_ray_nodes;
+                tris += packet_stats[p].tri_tests;
+            }
+        } else {
+            parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
+                for (size_t i = b; i < e; ++i)
+                    results[i] =
+                        trace_ray(bvh, batch.rays[i], batch.queries[i], nullptr, &counters[i]);
+            });
+        }
         trace_seconds +=
             std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
         for (size_t i = 0; i < n; ++i) {
@@ -157,6 +204,17 @@ int trace_command(const TraceOptions& opt) {
         fmt::print("  rays     {} ({}) from {}\n", total, kinds.empty() ? "none" : kinds,
                    reader ? opt.rays_file : "the generator");
         fmt::print("  hits     {} ({:.1f}%)\n", hits, total ? 100.0 * hits / total : 0.0);
+        if (opt.packet > 0)
+            for (int k = 0; k < kRayKindCount; ++k) {
+                const PacketStats& p = packet_by_kind[k];
+                if (!p.packets) continue;
+                fmt::print(
+                    "  packets  {:10} {} packets of up to {}: lane utilisation {:.1f}%, {} packet "
+                    "node visits, "
+                    "{} switches to single rays ({} single-ray node visits)\n",
+                    ray_kind_name(RayKind(k)), p.packets, opt.packet, 100 * p.utilization(),
+                    p.node_visits, p.switches, p.single_ray_nodes);
+            }
         fmt::print("  work     {:.2f} nodes, {:.2f} triangle tests per ray\n",
                    total ? double(nodes) / total : 0.0, total ? double(tris) / total : 0.0);
         fmt::print("  speed    {:.2f} Mrays/s tracing on {} thread{} ({:.3f} s; {:.3f} s in all)\n",

@@ -108,16 +108,10 @@ struct NoCounters {
     uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0;  // never read: optimised away
 };
 
+// Traverses from `start` (the root record, or any subtree) with `hit` holding the best hit so far.
 template <int W, class Sink, class Counters>
-Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, Counters& c) {
-    Hit hit;
-    hit.t = ray.tmax;
-    const RayPrecomp rp(ray);
-    float root_t;
-    if (!intersect_box(rp, bvh.bounds(), ray.tmin, ray.tmax, root_t)) {
-        hit.t = std::numeric_limits<float>::infinity();
-        return hit;
-    }
+Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery query, Entry start,
+             Hit hit, Sink& sink, Counters& c) {
     const std::vector<WideNode<W>>& nodes = bvh.nodes<W>();
     const BoxRay<W> box_ray(rp);
     const bool any = query == HitQuery::Any;
@@ -125,7 +119,7 @@ Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, Counter
     Entry stack[(W - 1) * kMaxBvhDepth + 2];
     int sp = 0;
     uint32_t depth_max = 1;
-    Entry cur = {0, 0, root_t};
+    Entry cur = start;
     for (;;) {
         if (cur.count) {
             for (uint32_t i = 0; i < cur.count; ++i) {
@@ -171,8 +165,7 @@ Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, Counter
         do {
             if (sp == 0) {
                 c.max_stack = depth_max;
-                if (!hit.valid()) hit.t = std::numeric_limits<float>::infinity();
-                return hit;
+                return hit;  // a miss keeps t = the ray's bound; callers report it as inf
             }
             cur = stack[--sp];
         } while (cur.tnear > hit.t * kCullScale);
@@ -180,14 +173,16 @@ Hit traverse(const Bvh& bvh, const Ray& ray, HitQuery query, Sink& sink, Counter
 }
 
 template <class Sink, class Counters>
-Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Sink& sink, Counters& c) {
+Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Entry start, Hit hit, Sink& sink,
+             Counters& c) {
+    const RayPrecomp rp(ray);
     switch (bvh.width()) {
         case 2:
-            return traverse<2>(bvh, ray, q, sink, c);
+            return traverse<2>(bvh, ray, rp, q, start, hit, sink, c);
         case 4:
-            return traverse<4>(bvh, ray, q, sink, c);
+            return traverse<4>(bvh, ray, rp, q, start, hit, sink, c);
         default:
-            return traverse<8>(bvh, ray, q, sink, c);
+            return traverse<8>(bvh, ray, rp, q, start, hit, sink, c);
     }
 }
 
@@ -195,15 +190,38 @@ Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Sink& sink, Counters& c
 
 Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>* steps,
               TraceCounters* counters) {
+    Hit hit;
+    hit.t = ray.tmax;
+    float root_t;
+    if (!intersect_box(RayPrecomp(ray), bvh.bounds(), ray.tmin, ray.tmax, root_t)) {
+        hit.t = std::numeric_limits<float>::infinity();
+        return hit;
+    }
+    const Entry root = {0, 0, root_t};
     if (steps) {
         VectorSink sink{steps};
         TraceCounters local;
-        return dispatch(bvh, ray, query, sink, counters ? *counters : local);
+        hit = dispatch(bvh, ray, query, root, hit, sink, counters ? *counters : local);
+    } else if (counters) {
+        NullSink sink;
+        hit = dispatch(bvh, ray, query, root, hit, sink, *counters);
+    } else {
+        NullSink sink;
+        NoCounters none;
+        hit = dispatch(bvh, ray, query, root, hit, sink, none);
     }
+    if (!hit.valid()) hit.t = std::numeric_limits<float>::infinity();
+    return hit;
+}
+
+void trace_subtree(const Bvh& bvh, const Ray& ray, HitQuery query, uint32_t child, uint32_t count,
+                   Hit& hit, TraceCounters& counters) {
     NullSink sink;
-    if (counters) return dispatch(bvh, ray, query, sink, *counters);
-    NoCounters none;
-    return dispatch(bvh, ray, query, sink, none);
+    TraceCounters c;
+    hit = dispatch(bvh, ray, query, Entry{child, count, ray.tmin}, hit, sink, c);
+    counters.nodes += c.nodes;
+    counters.box_tests += c.box_tests;
+    counters.tri_tests += c.tri_tests;
 }
 
 }  // namespace rtsim

@@ -1,5 +1,5 @@
-// Functional BVH2 traversal: what each ray does (which nodes and triangles, in which order, what
-// it hits). The timing model decides when; this file never knows about cycles.
+// Functional BVH2/4/8 traversal: what each ray does (which nodes and triangles, in which order,
+// what it hits). The timing model decides when; this file never knows about cycles.
 #pragma once
 
 #include <cstdint>
@@ -26,5 +26,12 @@ struct TraceCounters {
 // box is kept on chip.
 Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>* steps = nullptr,
               TraceCounters* counters = nullptr);
+
+// Continues one ray's traversal inside the subtree below a child reference (a wide node's
+// child[l] and count[l]), keeping the better of `hit` and what it finds there. Packet traversal
+// uses it to finish rays one by one: `hit.t` must be the ray's current bound (tmax, or the best
+// hit's t), and stays so if nothing nearer is found. Adds the work to `counters`.
+void trace_subtree(const Bvh& bvh, const Ray& ray, HitQuery query, uint32_t child, uint32_t count,
+                   Hit& hit, TraceCounters& counters);
 
 }  // namespace rtsim

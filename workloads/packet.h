@@ -1,0 +1,43 @@
+// Ray packets: up to 64 rays traverse the BVH together, a node visited when any active ray hits
+// it, with an active mask per visit. Lane utilisation (active rays / packet size per node visit)
+// is what decides whether packets pay: high on coherent primary rays, low on incoherent ones.
+// Optionally a packet falls back to single rays for a subtree once its utilisation drops under
+// a threshold (Benthin, Wald, Woop, Ernst & Mark 2011, "Combining single and packet-ray tracing").
+#pragma once
+
+#include <cstdint>
+
+#include "workloads/bvh.h"
+#include "workloads/tracer.h"
+
+namespace rtsim {
+
+constexpr int kMaxPacketSize = 64;
+
+struct PacketOptions {
+    int size = 16;                  // rays per packet, 1..64
+    float switch_threshold = 0.0f;  // go single-ray below this active fraction; 0: never
+};
+
+struct PacketStats {
+    uint64_t packets = 0;
+    uint64_t node_visits = 0;       // inner-node visits by packets
+    uint64_t active_lanes = 0;      // active rays summed over those visits
+    uint64_t lane_slots = 0;        // packet size summed over those visits
+    uint64_t box_tests = 0;         // ray-box tests of active rays (packet and single-ray parts)
+    uint64_t tri_tests = 0;         // ray-triangle tests of active rays
+    uint64_t switches = 0;          // subtrees finished ray by ray after a switch
+    uint64_t single_ray_nodes = 0;  // node visits made by single rays after a switch
+
+    double utilization() const {
+        return lane_slots ? double(active_lanes) / double(lane_slots) : 0.0;
+    }
+    void add(const PacketStats& o);
+};
+
+// Traces rays[0, n) (n <= 64) as one packet; all share `query`. hits[i] gets what trace_ray
+// would return for rays[i] (the same t; on an exact tie possibly another primitive).
+void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* hits,
+                  const PacketOptions& options, PacketStats& stats);
+
+}  // namespace rtsim
