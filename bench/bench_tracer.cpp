@@ -170,6 +170,7 @@ int main(int argc, char** argv) {
             meshes.push_back(a);
     }
     if (meshes.empty()) {
+        meshes.push_back("builtin:cornell");
         meshes.push_back("/usr/share/glmark2/models/bunny.obj");
         for (const char* m : {"refined_elephant.off", "bunny00.off", "armadillo.off"})
             meshes.push_back(std::string(RTSIM_SOURCE_DIR) + "/.cache/meshes/cgal/" + m);
@@ -181,7 +182,7 @@ int main(int argc, char** argv) {
 
     std::vector<std::string> claims;
     for (const std::string& path : meshes) {
-        if (!std::filesystem::exists(path)) {
+        if (path.rfind("builtin:", 0) != 0 && !std::filesystem::exists(path)) {
             fmt::print("skipping {}: not found (run scripts/setup.sh)\n", path);
             continue;
         }
@@ -272,12 +273,15 @@ int main(int argc, char** argv) {
                 tris / n, b.bvh.quality.mean_children, b.bvh.layout.node_bytes_total()));
         }
         // Packets: lane utilisation of consecutive-ray packets (8x2-pixel strips for 16 primary
-        // rays, a whole 8x8 tile for 64), on coherent primary and incoherent diffuse rays.
+        // rays, a whole 8x8 tile for 64), on coherent primary and incoherent diffuse rays, at the
+        // full resolution. Rays that miss the scene count as idle lanes.
+        const RaySet primary_full = make_rays(s, ref, "primary", w, h);
+        const RaySet diffuse_full = make_rays(s, ref, "diffuse", w, h);
         for (const Built& b : bvhs) {
             if (b.name.rfind("sah BVH", 0) != 0) continue;
             std::string row = fmt::format("  {:13} packet lane utilisation:", b.name);
             for (int size : {16, 64})
-                for (const RaySet* rs : {&primary, &diffuse}) {
+                for (const RaySet* rs : {&primary_full, &diffuse_full}) {
                     PacketOptions po;
                     po.size = size;
                     PacketStats st;

@@ -7,6 +7,7 @@
 #include "sim/config.h"
 #include "sim/run.h"
 #include "sim/trace_cmd.h"
+#include "sim/trace_info.h"
 #include "workloads/error.h"
 
 namespace {
@@ -24,6 +25,8 @@ int main_impl(int argc, char** argv) {
     run_cmd->add_option("--set", run.sets,
                         "Override a config field, KEY=VALUE (e.g. l1.size_kib=64); repeatable");
     rtsim::add_workload_options(run_cmd, run.workload);
+    run_cmd->add_option("--trace", run.trace_path,
+                        "Replay a trace file (from rtsim trace -o) instead of generating rays");
     run_cmd->add_option("--out,-o", run.out_dir,
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
@@ -32,6 +35,13 @@ int main_impl(int argc, char** argv) {
     CLI::App* trace_cmd = app.add_subcommand(
         "trace", "Run the functional tracer alone on generated or external rays; write hits");
     rtsim::add_trace_options(trace_cmd, trace);
+
+    std::string info_path;
+    bool info_json = false;
+    CLI::App* info_cmd = app.add_subcommand(
+        "trace-info", "Print a trace file's header, counts and per-kind histograms");
+    info_cmd->add_option("file", info_path, "Trace file (.rtt)")->required();
+    info_cmd->add_flag("--json", info_json, "Print the summary as JSON");
 
     std::string cfg_path;
     std::vector<std::string> cfg_sets;
@@ -51,6 +61,14 @@ int main_impl(int argc, char** argv) {
 
     try {
         if (*run_cmd) {
+            if (!run.trace_path.empty())
+                for (const char* o : {"--scene", "--rays", "--res", "--spp", "--seed", "--light",
+                                      "--ao-samples", "--ao-length", "--diffuse-depth"})
+                    if (run_cmd->count(o))
+                        throw rtsim::InputError(
+                            fmt::format("{}: cannot be combined with --trace (the trace fixes the "
+                                        "scene and rays)",
+                                        o));
             run.workload.resolve();
             return rtsim::run_command(run);
         }
@@ -58,6 +76,7 @@ int main_impl(int argc, char** argv) {
             trace.workload.resolve();
             return rtsim::trace_command(trace);
         }
+        if (*info_cmd) return rtsim::trace_info_command(info_path, info_json);
         if (*cfg_cmd) {
             if (cfg_doc) {
                 fmt::print("{}", rtsim::config_reference_markdown());

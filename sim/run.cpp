@@ -1,5 +1,6 @@
 #include "sim/run.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -14,17 +15,14 @@
 
 #include "sim/chip.h"
 #include "sim/config.h"
-#include "sim/output_file.h"
 #include "sim/stats_report.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
+#include "workloads/output_file.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
+#include "workloads/trace_file.h"
 #include "workloads/tracer.h"
-
-#ifndef RTSIM_VERSION
-#define RTSIM_VERSION "dev"
-#endif
 
 namespace rtsim {
 
@@ -55,6 +53,12 @@ Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
     layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
     layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
     return build_bvh(scene, bo, layout);
+}
+
+double peak_rss_mib() {
+    rusage ru{};
+    getrusage(RUSAGE_SELF, &ru);
+    return double(ru.ru_maxrss) / 1024.0;  // Linux reports KiB
 }
 
 void WorkloadOptions::resolve() {
@@ -88,54 +92,36 @@ void add_workload_options(CLI::App* cmd, WorkloadOptions& w) {
 
 namespace {
 
-// The chip's shared work queue, filled tile by tile from the ray generator. Each ray is traced
-// functionally when a core takes it, so only the rays in flight hold step streams.
-class GeneratedWorkSource : public RayWorkSource {
+// The chip's shared work queue. Counts what it hands out and shows progress on a terminal;
+// subclasses produce the rays.
+class CountingSource : public RayWorkSource {
   public:
-    GeneratedWorkSource(const Scene& scene, const Bvh& bvh, RayGenerator& gen, bool progress)
-        : scene_(scene),
-          bvh_(bvh),
-          gen_(gen),
-          total_tiles_(gen.tile_count()),
-          progress_(progress) {}
+    explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work) override {
-        if (pending_.empty()) {
-            std::vector<GeneratedRay> tile;
-            while (tile.empty()) {
-                const auto t0 = Clock::now();
-                const bool more = gen_.next_tile(tile);
-                functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-                if (!more) return false;
-                ++tiles_done_;
-                report_progress();
-            }
-            pending_.assign(tile.begin(), tile.end());
-        }
-        const GeneratedRay r = pending_.front();
-        pending_.pop_front();
-        work.ray_id = r.id;
-        work.kind = r.kind;
-        work.steps.clear();
         const auto t0 = Clock::now();
-        const Hit h = trace_ray(bvh_, r.ray, r.query, &work.steps);
+        bool hit = false;
+        const bool more = produce(work, hit);
         functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-        rays_by_kind[static_cast<int>(r.kind)]++;
-        if (h.valid()) hits_by_kind[static_cast<int>(r.kind)]++;
+        if (!more) return false;
+        rays_by_kind[static_cast<int>(work.kind)]++;
+        if (hit) hits_by_kind[static_cast<int>(work.kind)]++;
         steps += work.steps.size();
         return true;
     }
 
     void finish_progress() {
-        if (progress_ && printed_) std::fprintf(stderr, "\r%60s\r", "");
+        if (progress_ && printed_) std::fprintf(stderr, "\r%70s\r", "");
     }
 
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
     uint64_t steps = 0;
-    double functional_seconds = 0;
+    double functional_seconds = 0;  // tracing rays, or reading and decoding the trace
 
-  private:
-    void report_progress() {
+  protected:
+    virtual bool produce(RayWork& work, bool& hit) = 0;
+
+    void report_progress(double fraction, const char* what) {
         if (!progress_) return;
         const auto now = Clock::now();
         if (printed_ && now - last_print_ < std::chrono::milliseconds(250)) return;
@@ -143,19 +129,75 @@ class GeneratedWorkSource : public RayWorkSource {
         printed_ = true;
         uint64_t rays = 0;
         for (uint64_t r : rays_by_kind) rays += r;
-        std::fprintf(stderr, "\r[rtsim] %5.1f%% of tiles, %llu rays, %.4g simulated us   ",
-                     100.0 * tiles_done_ / std::max(1, total_tiles_), (unsigned long long)rays,
+        std::fprintf(stderr, "\r[rtsim] %5.1f%% of %s, %llu rays, %.4g simulated us   ",
+                     100.0 * fraction, what, (unsigned long long)rays,
                      sc_core::sc_time_stamp().to_seconds() * 1e6);
         std::fflush(stderr);
     }
 
-    const Scene& scene_;
+  private:
+    bool progress_, printed_ = false;
+    Clock::time_point last_print_;
+};
+
+// Rays from the generator, tile by tile, each traced when a core takes it: only the rays in
+// flight hold step streams.
+class GeneratedWorkSource : public CountingSource {
+  public:
+    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress)
+        : CountingSource(progress), bvh_(bvh), gen_(gen) {}
+
+  protected:
+    bool produce(RayWork& work, bool& hit) override {
+        while (pending_.empty()) {
+            std::vector<GeneratedRay> tile;
+            if (!gen_.next_tile(tile)) return false;
+            ++tiles_done_;
+            report_progress(double(tiles_done_) / std::max(1, gen_.tile_count()), "tiles");
+            pending_.assign(tile.begin(), tile.end());
+        }
+        const GeneratedRay r = pending_.front();
+        pending_.pop_front();
+        work.ray_id = r.id;
+        work.kind = r.kind;
+        work.steps.clear();
+        hit = trace_ray(bvh_, r.ray, r.query, &work.steps).valid();
+        return true;
+    }
+
+  private:
     const Bvh& bvh_;
     RayGenerator& gen_;
     std::deque<GeneratedRay> pending_;
-    int total_tiles_, tiles_done_ = 0;
-    bool progress_, printed_ = false;
-    Clock::time_point last_print_;
+    int tiles_done_ = 0;
+};
+
+// Rays replayed from a trace file, chunk by chunk.
+class TraceWorkSource : public CountingSource {
+  public:
+    TraceWorkSource(TraceReader& reader, bool progress)
+        : CountingSource(progress), reader_(reader) {}
+
+  protected:
+    bool produce(RayWork& work, bool& hit) override {
+        while (pos_ == chunk_.size()) {
+            if (next_chunk_ == reader_.chunk_count()) return false;
+            reader_.read_chunk(next_chunk_++, chunk_);
+            pos_ = 0;
+            report_progress(double(next_chunk_) / double(reader_.chunk_count()), "chunks");
+        }
+        TraceRecord& r = chunk_[pos_++];
+        work.ray_id = r.ray_id;
+        work.kind = r.kind;
+        work.steps.swap(r.steps);
+        hit = r.prim != kInvalidPrim;
+        return true;
+    }
+
+  private:
+    TraceReader& reader_;
+    std::vector<TraceRecord> chunk_;
+    size_t pos_ = 0, next_chunk_ = 0;
 };
 
 std::string fresh_out_dir() {
@@ -174,6 +216,95 @@ json aabb_json(const AABB& b) {
 
 }  // namespace
 
+json scene_summary(const Scene& scene) {
+    return {{"name", scene.name},
+            {"source", scene.source},
+            {"triangles", scene.triangle_count()},
+            {"vertices", scene.vertices.size()},
+            {"hash", fmt::format("{:016x}", scene.content_hash())},
+            {"bounds", aabb_json(scene.bounds())}};
+}
+
+json bvh_summary(const Bvh& bvh) {
+    const BvhQuality& q = bvh.quality;
+    const BvhBuildOptions& bo = bvh.options;
+    const BvhLayout& L = bvh.layout;
+    return {{"builder", bvh_builder_name(bo.builder)},
+            {"restructure_passes", bo.restructure_passes},
+            {"width", bvh.width()},
+            {"node_format", node_format_name(bo.node_format)},
+            {"sah_cost", q.sah_cost},
+            {"sah_traversal_cost", bo.traversal_cost},
+            {"sah_intersection_cost", bo.intersection_cost},
+            {"nodes", q.node_count},
+            {"inner_nodes", q.inner_count},
+            {"leaves", q.leaf_count},
+            {"max_depth", q.max_depth},
+            {"mean_leaf_size", q.mean_leaf_size},
+            {"mean_children", q.mean_children},
+            {"bytes", q.bytes},
+            {"layout",
+             {{"node_base_addr", L.node_base_addr},
+              {"node_size_bytes", L.node_size_bytes},
+              {"inner_node_count", L.inner_node_count},
+              {"triangle_base_addr", L.tri_base_addr},
+              {"triangle_size_bytes", L.tri_size_bytes},
+              {"triangle_count", L.triangle_count}}}};
+}
+
+json workload_summary(const RayGenOptions& rg, float ao_length) {
+    return {{"rays", ray_kinds_to_string(rg.kinds)},
+            {"resolution", fmt::format("{}x{}", rg.width, rg.height)},
+            {"seed", rg.seed},
+            {"spp", rg.spp},
+            {"light", light_kind_name(rg.light)},
+            {"diffuse_depth", rg.diffuse_depth},
+            {"ao_samples", rg.ao_samples},
+            {"ao_length_fraction", rg.ao_length_fraction},
+            {"ao_length", ao_length},
+            {"tile_size", rg.tile_size}};
+}
+
+BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
+    try {
+        const json& l = bvh.at("layout");
+        BvhLayout L;
+        L.node_base_addr = l.at("node_base_addr").get<uint64_t>();
+        L.node_size_bytes = l.at("node_size_bytes").get<uint32_t>();
+        L.inner_node_count = l.at("inner_node_count").get<uint32_t>();
+        L.tri_base_addr = l.at("triangle_base_addr").get<uint64_t>();
+        L.tri_size_bytes = l.at("triangle_size_bytes").get<uint32_t>();
+        L.triangle_count = l.at("triangle_count").get<uint32_t>();
+        return L;
+    } catch (const json::exception& e) {
+        throw InputError(
+            fmt::format("{}: header metadata has no valid bvh.layout ({})", where, e.what()));
+    }
+}
+
+void check_trace_matches_config(const json& bvh, const Config& cfg, const std::string& where) {
+    auto refuse = [&](const std::string& field, const std::string& recorded,
+                      const std::string& wanted) {
+        throw InputError(fmt::format(
+            "{}: recorded with {}={}, but the config asks for {}; record the trace again "
+            "or use a config with the same BVH layout",
+            where, field, recorded, wanted));
+    };
+    const int width = bvh.value("width", 0);
+    if (width != cfg.integer("bvh.width"))
+        refuse("bvh.width", std::to_string(width), std::to_string(cfg.integer("bvh.width")));
+    const std::string format = bvh.value("node_format", std::string("?"));
+    if (format != cfg.string("bvh.node_format"))
+        refuse("bvh.node_format", format, cfg.string("bvh.node_format"));
+    const BvhLayout L = layout_from_summary(bvh, where);
+    const int64_t node_size = cfg.integer("bvh.node_size_bytes");
+    if (node_size != 0 && uint32_t(node_size) != L.node_size_bytes)
+        refuse("bvh.node_size_bytes", std::to_string(L.node_size_bytes), std::to_string(node_size));
+    if (uint32_t(cfg.integer("bvh.triangle_size_bytes")) != L.tri_size_bytes)
+        refuse("bvh.triangle_size_bytes", std::to_string(L.tri_size_bytes),
+               std::to_string(cfg.integer("bvh.triangle_size_bytes")));
+}
+
 int run_command(const RunOptions& opt) {
     const auto host_start = Clock::now();
     const Config cfg = load_config(opt.config_path, opt.sets);
@@ -187,17 +318,35 @@ int run_command(const RunOptions& opt) {
         throw InputError(
             fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
 
-    const auto t_scene = Clock::now();
-    const Scene scene = load_scene(opt.workload.scene);
-    const double scene_seconds = std::chrono::duration<double>(Clock::now() - t_scene).count();
-
-    const Bvh bvh = build_bvh_from_config(cfg, scene);
-    const BvhBuildOptions& bo = bvh.options;
-    const BvhLayout& layout = bvh.layout;
-
-    RayGenerator gen(scene, bvh, rg);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
-    GeneratedWorkSource source(scene, bvh, gen, progress);
+    const auto t_prepare = Clock::now();
+    json meta;  // scene, bvh and workload sections of stats.json
+    std::unique_ptr<Scene> scene;
+    std::unique_ptr<Bvh> bvh;
+    std::unique_ptr<RayGenerator> gen;
+    std::unique_ptr<TraceReader> reader;
+    std::unique_ptr<CountingSource> source_ptr;
+    if (opt.trace_path.empty()) {
+        scene = std::make_unique<Scene>(load_scene(opt.workload.scene));
+        bvh = std::make_unique<Bvh>(build_bvh_from_config(cfg, *scene));
+        gen = std::make_unique<RayGenerator>(*scene, *bvh, rg);
+        meta = {{"scene", scene_summary(*scene)},
+                {"bvh", bvh_summary(*bvh)},
+                {"workload", workload_summary(rg, gen->ao_length())}};
+        source_ptr = std::make_unique<GeneratedWorkSource>(*bvh, *gen, progress);
+    } else {
+        reader = std::make_unique<TraceReader>(opt.trace_path);
+        meta = json::parse(reader->metadata_json(), nullptr, false);
+        if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh") ||
+            !meta.contains("scene"))
+            throw InputError(fmt::format(
+                "{}: header metadata is not the JSON an RTSim trace carries", opt.trace_path));
+        check_trace_matches_config(meta["bvh"], cfg, opt.trace_path);
+        reader->set_layout(layout_from_summary(meta["bvh"], opt.trace_path));
+        source_ptr = std::make_unique<TraceWorkSource>(*reader, progress);
+    }
+    const double prepare_seconds = std::chrono::duration<double>(Clock::now() - t_prepare).count();
+    CountingSource& source = *source_ptr;
 
     Chip chip(cfg, &source);
     const auto t_sim = Clock::now();
@@ -214,10 +363,14 @@ int run_command(const RunOptions& opt) {
     ri.triangle_pipelines_per_core = int(cfg.integer("triangle_unit.count"));
     json timing = timing_report(ri);
 
+    // Ray kinds reported: those the workload asked for (or, for rays from a file, those seen).
+    std::array<bool, kRayKindCount> listed{};
+    const std::string kinds_text = meta["workload"].value("rays", std::string());
+    if (!kinds_text.empty()) listed = parse_ray_kinds(kinds_text, "workload.rays");
     uint64_t total_rays = 0;
     json rays = json::object(), hits = json::object();
     for (int k = 0; k < kRayKindCount; ++k) {
-        if (!rg.kinds[k]) continue;
+        if (!listed[k] && source.rays_by_kind[k] == 0) continue;
         rays[ray_kind_name(RayKind(k))] = source.rays_by_kind[k];
         hits[ray_kind_name(RayKind(k))] = source.hits_by_kind[k];
         total_rays += source.rays_by_kind[k];
@@ -231,41 +384,7 @@ int run_command(const RunOptions& opt) {
     out["config_hash"] = cfg.hash();
     out["config_files"] = cfg.files;
     out["config_overrides"] = cfg.overrides;
-    out["scene"] = {{"name", scene.name},
-                    {"source", scene.source},
-                    {"triangles", scene.triangle_count()},
-                    {"vertices", scene.vertices.size()},
-                    {"hash", fmt::format("{:016x}", scene.content_hash())},
-                    {"bounds", aabb_json(scene.bounds())}};
-    const BvhQuality& q = bvh.quality;
-    out["bvh"] = {{"builder", bvh_builder_name(bo.builder)},
-                  {"restructure_passes", bo.restructure_passes},
-                  {"width", bvh.width()},
-                  {"node_format", node_format_name(bo.node_format)},
-                  {"sah_cost", q.sah_cost},
-                  {"sah_traversal_cost", bo.traversal_cost},
-                  {"sah_intersection_cost", bo.intersection_cost},
-                  {"nodes", q.node_count},
-                  {"inner_nodes", q.inner_count},
-                  {"leaves", q.leaf_count},
-                  {"max_depth", q.max_depth},
-                  {"mean_leaf_size", q.mean_leaf_size},
-                  {"mean_children", q.mean_children},
-                  {"node_size_bytes", layout.node_size_bytes},
-                  {"triangle_size_bytes", layout.tri_size_bytes},
-                  {"node_base_addr", bvh.layout.node_base_addr},
-                  {"triangle_base_addr", bvh.layout.tri_base_addr},
-                  {"bytes", q.bytes}};
-    out["workload"] = {{"rays", ray_kinds_to_string(rg.kinds)},
-                       {"resolution", fmt::format("{}x{}", rg.width, rg.height)},
-                       {"seed", rg.seed},
-                       {"spp", rg.spp},
-                       {"light", light_kind_name(rg.light)},
-                       {"diffuse_depth", rg.diffuse_depth},
-                       {"ao_samples", rg.ao_samples},
-                       {"ao_length_fraction", rg.ao_length_fraction},
-                       {"ao_length", gen.ao_length()},
-                       {"tile_size", rg.tile_size}};
+    for (const char* k : {"scene", "bvh", "workload"}) out[k] = meta[k];
     out["rays"] = {
         {"total", total_rays}, {"by_kind", rays}, {"hits_by_kind", hits}, {"steps", source.steps}};
     out["total_cycles"] = timing["total_cycles"];
@@ -275,12 +394,14 @@ int run_command(const RunOptions& opt) {
     for (const char* k : {"units", "caches", "bandwidth", "counters"}) out[k] = timing[k];
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     out["host"] = {{"run_time_s", host_total},
-                   {"scene_load_s", scene_seconds},
-                   {"bvh_build_s", q.build_seconds},
+                   {"prepare_s", prepare_seconds},
                    {"simulation_s", sim_seconds},
-                   {"functional_trace_s", source.functional_seconds},
+                   {"functional_s", source.functional_seconds},
                    {"simulated_rays_per_host_second",
-                    sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0}};
+                    sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0},
+                   {"peak_rss_mib", peak_rss_mib()}};
+    if (bvh) out["host"]["bvh_build_s"] = bvh->quality.build_seconds;
+    if (reader) out["host"]["trace"] = opt.trace_path;
 
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
     write_file_atomically(stats_path, out.dump(2) + "\n");
@@ -292,12 +413,17 @@ int run_command(const RunOptions& opt) {
         std::string kinds;
         for (auto& [k, v] : rays.items())
             kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", k, v.get<uint64_t>());
-        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles)\n", cfg.string("name"),
-                   cfg.hash(), scene.name, scene.triangle_count());
+        const json& sc = meta["scene"];
+        const json& bv = meta["bvh"];
+        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles){}\n", cfg.string("name"),
+                   cfg.hash(), sc.value("name", std::string("?")), sc.value("triangles", 0),
+                   reader ? "  replayed from " + opt.trace_path : std::string());
         fmt::print(
-            "  bvh      {} BVH{}: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
-            bvh_builder_name(bo.builder), bvh.width(), q.node_count, q.leaf_count, q.max_depth,
-            q.sah_cost, q.bytes / 1048576.0);
+            "  bvh      {} BVH{} {}: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
+            bv.value("builder", std::string("?")), bv.value("width", 0),
+            bv.value("node_format", std::string("?")), bv.value("nodes", 0), bv.value("leaves", 0),
+            bv.value("max_depth", 0), bv.value("sah_cost", 0.0),
+            bv.value("bytes", 0.0) / 1048576.0);
         fmt::print("  rays     {} ({}), {} steps\n", total_rays, kinds, source.steps);
         fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n", ri.total_cycles,
                    sim_s * 1e3, ri.clock_ghz, out["rays_per_second"].get<double>() / 1e6);

@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "sim/config.h"
 #include "workloads/bvh.h"
 #include "workloads/raygen.h"
@@ -32,12 +34,22 @@ struct RunOptions {
     std::string config_path;  // empty: schema defaults
     std::vector<std::string> sets;
     WorkloadOptions workload;
-    std::string out_dir;  // empty: a fresh folder under out/
+    std::string trace_path;  // replay this trace instead of generating rays
+    std::string out_dir;     // empty: a fresh folder under out/
     bool quiet = false;
 };
 
 // Returns the process exit status. Throws InputError for bad input.
 int run_command(const RunOptions& options);
+
+// Sections of stats.json and of a trace's header metadata.
+nlohmann::json scene_summary(const Scene& scene);
+nlohmann::json bvh_summary(const Bvh& bvh);
+nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
+// The layout a bvh_summary describes; throws InputError naming `where` if it is incomplete.
+BvhLayout layout_from_summary(const nlohmann::json& bvh, const std::string& where);
+// Peak resident memory of this process so far.
+double peak_rss_mib();
 
 // The BVH the config's "bvh" section asks for.
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene);

@@ -5,11 +5,12 @@
 #include <chrono>
 #include <memory>
 
-#include "sim/output_file.h"
 #include "workloads/error.h"
+#include "workloads/output_file.h"
 #include "workloads/packet.h"
 #include "workloads/parallel.h"
 #include "workloads/ray_file.h"
+#include "workloads/trace_file.h"
 #include "workloads/tracer.h"
 
 namespace rtsim {
@@ -29,6 +30,11 @@ void add_trace_options(CLI::App* cmd, TraceOptions& t) {
         "--hits-bin", t.hits_bin,
         "Write hits as binary records: uint32 ray, float t, int32 prim, float u, float v");
     cmd->add_option("--write-rays", t.write_rays, "Write the traced rays in the ray-file format");
+    cmd->add_option(
+        "-o,--out", t.trace_out,
+        "Record a trace file (.rtt) of every ray's steps and hit, for rtsim run --trace");
+    cmd->add_option("--chunk-rays", t.trace_chunk_rays, "Rays per compressed trace chunk")
+        ->capture_default_str();
     cmd->add_option("--threads,-j", t.threads, "Host threads (0: all)")->capture_default_str();
     cmd->add_option(
            "--packet", t.packet,
@@ -85,9 +91,25 @@ int trace_command(const TraceOptions& opt) {
 
     std::unique_ptr<RayGenerator> gen;
     if (!reader) gen = std::make_unique<RayGenerator>(scene, bvh, opt.workload.gen);
+    std::unique_ptr<TraceWriter> trace_out;
+    if (!opt.trace_out.empty()) {
+        if (opt.packet > 0)
+            throw InputError(
+                "--packet: a trace records single-ray traversal; drop --packet with -o");
+        nlohmann::json meta = {{"rtsim_version", RTSIM_VERSION},
+                               {"scene", scene_summary(scene)},
+                               {"bvh", bvh_summary(bvh)}};
+        if (reader)
+            meta["workload"] = {{"rays_file", opt.rays_file},
+                                {"query", opt.any_hit ? "any" : "closest"}};
+        else
+            meta["workload"] = workload_summary(opt.workload.gen, gen->ao_length());
+        trace_out = std::make_unique<TraceWriter>(opt.trace_out, meta.dump(), opt.trace_chunk_rays);
+    }
     const int threads = resolve_threads(opt.threads);
     const auto t0 = std::chrono::steady_clock::now();
-    double trace_seconds = 0;
+    double trace_seconds = 0, write_seconds = 0;
+    std::vector<TraceRecord> records;
     uint64_t total = 0, hits = 0, nodes = 0, tris = 0;
     std::array<uint64_t, kRayKindCount> by_kind{};
 
@@ -154,6 +176,15 @@ int trace_command(const TraceOptions& opt) {
                 nodes += packet_stats[p].node_visits + packet_stats[p].single_ray_nodes;
                 tris += packet_stats[p].tri_tests;
             }
+        } else if (trace_out) {
+            records.resize(n);
+            parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
+                for (size_t i = b; i < e; ++i) {
+                    records[i].steps.clear();
+                    results[i] = trace_ray(bvh, batch.rays[i], batch.queries[i], &records[i].steps,
+                                           &counters[i]);
+                }
+            });
         } else {
             parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
                 for (size_t i = b; i < e; ++i)
@@ -170,6 +201,19 @@ int trace_command(const TraceOptions& opt) {
             by_kind[int(batch.kinds[i])]++;
         }
         total += n;
+        if (trace_out) {
+            const auto tw = std::chrono::steady_clock::now();
+            for (size_t i = 0; i < n; ++i) {
+                TraceRecord& r = records[i];
+                r.ray_id = batch.ids[i];
+                r.kind = batch.kinds[i];
+                r.prim = results[i].prim;
+                r.t = results[i].t;
+                trace_out->add(r);
+            }
+            write_seconds +=
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
+        }
         if (csv) {
             text.clear();
             for (size_t i = 0; i < n; ++i) append_hit_csv(batch.ids[i], results[i], text);
@@ -188,6 +232,12 @@ int trace_command(const TraceOptions& opt) {
     }
     for (auto* f : {csv.get(), bin.get(), rays_out.get()})
         if (f) f->commit();
+    if (trace_out) {
+        const auto tw = std::chrono::steady_clock::now();
+        trace_out->finish();
+        write_seconds +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
+    }
 
     if (!opt.quiet) {
         const double wall =
@@ -222,6 +272,19 @@ int trace_command(const TraceOptions& opt) {
                    threads == 1 ? "" : "s", trace_seconds, wall);
         for (auto* f : {csv.get(), bin.get(), rays_out.get()})
             if (f) fmt::print("  wrote    {}\n", f->path());
+        if (trace_out) {
+            const double mb = trace_out->file_bytes() / 1e6;
+            fmt::print(
+                "  trace    {}: {} rays, {} steps, {:.2f} MB ({:.2f} bytes/ray, {:.3f} bytes/step; "
+                "{:.1f}x smaller than raw), encoded at {:.1f} MB/s\n",
+                opt.trace_out, trace_out->rays(), trace_out->steps(), mb,
+                trace_out->rays() ? double(trace_out->file_bytes()) / trace_out->rays() : 0.0,
+                trace_out->steps() ? double(trace_out->file_bytes()) / trace_out->steps() : 0.0,
+                trace_out->file_bytes() ? double(trace_out->raw_bytes()) / trace_out->file_bytes()
+                                        : 0.0,
+                write_seconds > 0 ? mb / write_seconds : 0.0);
+        }
+        fmt::print("  memory   peak RSS {:.0f} MiB\n", peak_rss_mib());
     }
     return 0;
 }

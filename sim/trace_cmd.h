@@ -13,10 +13,12 @@ struct TraceOptions {
     std::string config_path;
     std::vector<std::string> sets;
     WorkloadOptions workload;
-    std::string rays_file;    // external rays; empty: rays from the generator
-    std::string hits_csv;     // CSV hits output
-    std::string hits_bin;     // binary hits output
-    std::string write_rays;   // write the rays traced, in the ray-file format
+    std::string rays_file;   // external rays; empty: rays from the generator
+    std::string hits_csv;    // CSV hits output
+    std::string hits_bin;    // binary hits output
+    std::string write_rays;  // write the rays traced, in the ray-file format
+    std::string trace_out;   // record a trace file (.rtt)
+    uint32_t trace_chunk_rays = 4096;
     bool any_hit = false;     // external rays: occlusion (any hit) instead of closest hit
     int threads = 0;          // 0: all hardware threads
     int packet = 0;           // rays per packet (consecutive rays of one kind); 0: single rays

@@ -1,0 +1,326 @@
+#include "workloads/trace_file.h"
+
+#include <zstd.h>
+
+#include <fmt/format.h>
+#include <array>
+#include <cstring>
+
+#include "workloads/error.h"
+
+namespace rtsim {
+
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "trace files are little-endian");
+
+namespace {
+
+constexpr char kHeaderMagic[8] = {'R', 'T', 'S', 'I', 'M', 'T', 'R', 'C'};
+constexpr char kFooterMagic[8] = {'R', 'T', 'S', 'I', 'M', 'E', 'N', 'D'};
+constexpr char kChunkMagic[4] = {'C', 'H', 'N', 'K'};
+constexpr char kIndexMagic[4] = {'I', 'N', 'D', 'X'};
+constexpr size_t kChunkHeaderBytes = 24;
+constexpr size_t kFooterBytes = 16;
+constexpr uint32_t kMaxStepsPerRay = 1u << 24;
+
+void put_u32(std::string& s, uint32_t v) {
+    s.append(reinterpret_cast<const char*>(&v), 4);
+}
+void put_u64(std::string& s, uint64_t v) {
+    s.append(reinterpret_cast<const char*>(&v), 8);
+}
+void put_varint(std::string& s, uint64_t v) {
+    while (v >= 0x80) {
+        s.push_back(char(uint8_t(v) | 0x80));
+        v >>= 7;
+    }
+    s.push_back(char(v));
+}
+uint64_t zigzag(int64_t v) {
+    return (uint64_t(v) << 1) ^ uint64_t(v >> 63);
+}
+int64_t unzigzag(uint64_t v) {
+    return int64_t(v >> 1) ^ -int64_t(v & 1);
+}
+
+template <class T>
+T get(const char* p) {
+    T v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+}  // namespace
+
+uint32_t crc32(const void* data, size_t size, uint32_t crc) {
+    static const std::array<uint32_t, 256> table = [] {
+        std::array<uint32_t, 256> t{};
+        for (uint32_t i = 0; i < 256; ++i) {
+            uint32_t c = i;
+            for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
+            t[i] = c;
+        }
+        return t;
+    }();
+    crc = ~crc;
+    const auto* p = static_cast<const uint8_t*>(data);
+    for (size_t i = 0; i < size; ++i) crc = table[(crc ^ p[i]) & 0xFF] ^ (crc >> 8);
+    return ~crc;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writer
+
+TraceWriter::TraceWriter(const std::string& path, const std::string& metadata_json,
+                         uint32_t rays_per_chunk, int zstd_level)
+    : out_(path), rays_per_chunk_(std::max(1u, rays_per_chunk)), level_(zstd_level) {
+    std::string h(kHeaderMagic, 8);
+    put_u32(h, kTraceVersion);
+    put_u32(h, 0);  // flags, none defined yet
+    put_u32(h, uint32_t(metadata_json.size()));
+    h += metadata_json;
+    put_u32(h, crc32(metadata_json.data(), metadata_json.size()));
+    write(h.data(), h.size());
+}
+
+void TraceWriter::write(const void* data, size_t size) {
+    out_.write(std::string(static_cast<const char*>(data), size));
+    offset_ += size;
+}
+
+void TraceWriter::add(const TraceRecord& r) {
+    put_varint(raw_, zigzag(int64_t(r.ray_id) - int64_t(last_ray_id_)));
+    last_ray_id_ = r.ray_id;
+    raw_.push_back(char(r.kind));
+    put_varint(raw_, r.steps.size());
+    int64_t prev[2] = {0, 0};  // per step kind, reset per ray: a ray starts at the root
+    for (const Step& s : r.steps) {
+        const int k = int(s.kind);
+        raw_.push_back(char(uint8_t(k) | uint8_t(s.count << 1)));
+        put_varint(raw_, zigzag(int64_t(s.id) - prev[k]));
+        prev[k] = s.id;
+    }
+    if (r.prim == kInvalidPrim) {
+        put_varint(raw_, 0);
+    } else {
+        put_varint(raw_, uint64_t(r.prim) + 1);
+        raw_.append(reinterpret_cast<const char*>(&r.t), 4);
+    }
+    total_steps_ += r.steps.size();
+    ++total_rays_;
+    if (++chunk_rays_ == rays_per_chunk_) flush_chunk();
+}
+
+void TraceWriter::flush_chunk() {
+    if (chunk_rays_ == 0) return;
+    std::string payload(ZSTD_compressBound(raw_.size()), '\0');
+    const size_t n =
+        ZSTD_compress(payload.data(), payload.size(), raw_.data(), raw_.size(), level_);
+    if (ZSTD_isError(n)) throw std::runtime_error(std::string("zstd: ") + ZSTD_getErrorName(n));
+    payload.resize(n);
+    std::string h(kChunkMagic, 4);
+    put_u32(h, uint32_t(index_.size()));
+    put_u32(h, chunk_rays_);
+    put_u32(h, uint32_t(raw_.size()));
+    put_u32(h, uint32_t(payload.size()));
+    put_u32(h, crc32(payload.data(), payload.size()));
+    index_.push_back({offset_, chunk_rays_});
+    write(h.data(), h.size());
+    write(payload.data(), payload.size());
+    raw_total_ += raw_.size();
+    raw_.clear();
+    chunk_rays_ = 0;
+    last_ray_id_ = 0;
+}
+
+void TraceWriter::finish() {
+    flush_chunk();
+    const uint64_t index_offset = offset_;
+    std::string body;
+    put_u32(body, uint32_t(index_.size()));
+    put_u64(body, total_rays_);
+    put_u64(body, total_steps_);
+    for (const IndexEntry& e : index_) {
+        put_u64(body, e.offset);
+        put_u32(body, e.rays);
+        put_u32(body, 0);
+    }
+    std::string idx(kIndexMagic, 4);
+    idx += body;
+    put_u32(idx, crc32(body.data(), body.size()));
+    put_u64(idx, index_offset);
+    idx.append(kFooterMagic, 8);
+    write(idx.data(), idx.size());
+    out_.commit();
+}
+
+// ---------------------------------------------------------------------------------------------
+// Reader
+
+void TraceReader::fail(uint64_t offset, const std::string& what) const {
+    throw InputError(fmt::format("{}: byte {}: {}", path_, offset, what));
+}
+
+void TraceReader::read_at(uint64_t offset, void* data, size_t size, const char* what) {
+    if (offset > file_size_ || size > file_size_ - offset)
+        fail(offset, fmt::format("{} runs past the end of the file ({} bytes)", what, file_size_));
+    if (std::fseek(f_, long(offset), SEEK_SET) != 0 || std::fread(data, 1, size, f_) != size)
+        fail(offset, fmt::format("cannot read {}", what));
+}
+
+TraceReader::TraceReader(const std::string& path) : path_(path) {
+    f_ = std::fopen(path.c_str(), "rb");
+    if (!f_) throw InputError(fmt::format("{}: cannot open trace file", path));
+    std::fseek(f_, 0, SEEK_END);
+    const long size = std::ftell(f_);
+    file_size_ = size < 0 ? 0 : uint64_t(size);
+
+    char head[20];
+    if (file_size_ < sizeof head)
+        fail(0, fmt::format("too short for a trace header ({} bytes)", file_size_));
+    read_at(0, head, sizeof head, "header");
+    if (std::memcmp(head, kHeaderMagic, 8) != 0) fail(0, "not an RTSim trace (wrong magic)");
+    version_ = get<uint32_t>(head + 8);
+    if (version_ != kTraceVersion)
+        fail(8, fmt::format("unknown trace format version {} (this build reads version {})",
+                            version_, kTraceVersion));
+    const uint32_t meta_len = get<uint32_t>(head + 16);
+    metadata_.resize(meta_len);
+    read_at(20, metadata_.data(), meta_len, "header metadata");
+    uint32_t meta_crc;
+    read_at(20 + uint64_t(meta_len), &meta_crc, 4, "header checksum");
+    if (crc32(metadata_.data(), metadata_.size()) != meta_crc)
+        fail(20, "header metadata checksum mismatch");
+    header_end_ = 24 + uint64_t(meta_len);
+
+    if (file_size_ < header_end_ + kFooterBytes)
+        fail(header_end_, "file ends before the footer (truncated)");
+    char foot[kFooterBytes];
+    read_at(file_size_ - kFooterBytes, foot, kFooterBytes, "footer");
+    if (std::memcmp(foot + 8, kFooterMagic, 8) != 0)
+        fail(file_size_ - kFooterBytes, "footer missing (truncated or damaged file)");
+    index_offset_ = get<uint64_t>(foot);
+    const uint64_t index_limit = file_size_ - kFooterBytes;
+    if (index_offset_ < header_end_ || index_offset_ + 28 > index_limit)
+        fail(file_size_ - kFooterBytes,
+             fmt::format("index offset {} past the end of the data", index_offset_));
+    char ih[24];
+    read_at(index_offset_, ih, sizeof ih, "index header");
+    if (std::memcmp(ih, kIndexMagic, 4) != 0) fail(index_offset_, "index missing (wrong magic)");
+    const uint32_t chunks = get<uint32_t>(ih + 4);
+    const uint64_t body_size = 20 + uint64_t(chunks) * 16;
+    if (index_offset_ + 4 + body_size + 4 != index_limit)
+        fail(index_offset_,
+             fmt::format("index of {} chunks does not fit before the footer", chunks));
+    std::vector<char> body(body_size);
+    read_at(index_offset_ + 4, body.data(), body.size(), "index");
+    uint32_t index_crc;
+    read_at(index_offset_ + 4 + body_size, &index_crc, 4, "index checksum");
+    if (crc32(body.data(), body.size()) != index_crc)
+        fail(index_offset_, "index checksum mismatch");
+    total_rays_ = get<uint64_t>(body.data() + 4);
+    total_steps_ = get<uint64_t>(body.data() + 12);
+    uint64_t rays = 0;
+    index_.resize(chunks);
+    for (uint32_t k = 0; k < chunks; ++k) {
+        const char* e = body.data() + 20 + 16 * size_t(k);
+        index_[k] = {get<uint64_t>(e), get<uint32_t>(e + 8)};
+        if (index_[k].offset < header_end_ || index_[k].offset + kChunkHeaderBytes > index_offset_)
+            fail(index_offset_,
+                 fmt::format("index entry {} points to byte {}, outside the chunk area", k,
+                             index_[k].offset));
+        rays += index_[k].rays;
+    }
+    if (rays != total_rays_)
+        fail(index_offset_,
+             fmt::format("index chunks hold {} rays, the total says {}", rays, total_rays_));
+}
+
+TraceReader::~TraceReader() {
+    if (f_) std::fclose(f_);
+}
+
+void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
+    out.clear();
+    if (k >= index_.size())
+        throw InputError(
+            fmt::format("{}: chunk {} past the last chunk ({})", path_, k, index_.size()));
+    const uint64_t at = index_[k].offset;
+    auto chunk_fail = [&](const std::string& what) {
+        throw InputError(fmt::format("{}: chunk {} (byte {}): {}", path_, k, at, what));
+    };
+    char h[kChunkHeaderBytes];
+    read_at(at, h, sizeof h, "chunk header");
+    if (std::memcmp(h, kChunkMagic, 4) != 0) chunk_fail("wrong chunk magic");
+    const uint32_t number = get<uint32_t>(h + 4), rays = get<uint32_t>(h + 8),
+                   raw_size = get<uint32_t>(h + 12), comp_size = get<uint32_t>(h + 16),
+                   crc = get<uint32_t>(h + 20);
+    if (number != k || rays != index_[k].rays) chunk_fail("chunk header disagrees with the index");
+    if (at + kChunkHeaderBytes + comp_size > index_offset_)
+        chunk_fail("compressed data runs into the index");
+    compressed_.resize(comp_size);
+    read_at(at + kChunkHeaderBytes, compressed_.data(), comp_size, "chunk data");
+    if (crc32(compressed_.data(), comp_size) != crc) chunk_fail("checksum mismatch (damaged data)");
+    raw_.resize(raw_size);
+    const size_t n = ZSTD_decompress(raw_.data(), raw_.size(), compressed_.data(), comp_size);
+    if (ZSTD_isError(n) || n != raw_size) chunk_fail("cannot decompress");
+
+    const char* p = raw_.data();
+    const char* const end = p + raw_size;
+    auto varint = [&]() -> uint64_t {
+        uint64_t v = 0;
+        for (int shift = 0; shift < 64; shift += 7) {
+            if (p == end) chunk_fail(fmt::format("record truncated at offset {}", p - raw_.data()));
+            const uint8_t b = uint8_t(*p++);
+            v |= uint64_t(b & 0x7F) << shift;
+            if (!(b & 0x80)) return v;
+        }
+        chunk_fail("bad varint");
+        return 0;  // not reached: chunk_fail throws
+    };
+    auto byte = [&]() -> uint8_t {
+        if (p == end) chunk_fail(fmt::format("record truncated at offset {}", p - raw_.data()));
+        return uint8_t(*p++);
+    };
+    int64_t last_id = 0;
+    out.resize(rays);
+    for (uint32_t r = 0; r < rays; ++r) {
+        TraceRecord& rec = out[r];
+        last_id += unzigzag(varint());
+        rec.ray_id = uint32_t(last_id);
+        const uint8_t kind = byte();
+        if (kind >= kRayKindCount) chunk_fail(fmt::format("ray {} has unknown kind {}", r, kind));
+        rec.kind = RayKind(kind);
+        const uint64_t count = varint();
+        if (count > kMaxStepsPerRay) chunk_fail(fmt::format("ray {} claims {} steps", r, count));
+        rec.steps.resize(count);
+        int64_t prev[2] = {0, 0};
+        for (uint64_t i = 0; i < count; ++i) {
+            const uint8_t b = byte();
+            const int sk = b & 1;
+            prev[sk] += unzigzag(varint());
+            Step& s = rec.steps[i];
+            s.kind = StepKind(sk);
+            s.count = uint8_t(b >> 1);
+            const uint64_t limit = sk == 0 ? layout_.inner_node_count : layout_.triangle_count;
+            if (prev[sk] < 0 || uint64_t(prev[sk]) >= limit)
+                chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
+                                       i, sk ? "triangle" : "node", prev[sk], limit));
+            s.id = uint32_t(prev[sk]);
+            s.addr = sk == 0 ? layout_.node_addr(s.id) : layout_.tri_addr(s.id);
+            s.size_bytes = uint16_t(sk == 0 ? layout_.node_size_bytes : layout_.tri_size_bytes);
+        }
+        const uint64_t prim = varint();
+        if (prim == 0) {
+            rec.prim = kInvalidPrim;
+            rec.t = std::numeric_limits<float>::infinity();
+        } else {
+            rec.prim = uint32_t(prim - 1);
+            if (end - p < 4) chunk_fail("record truncated in its hit");
+            std::memcpy(&rec.t, p, 4);
+            p += 4;
+        }
+    }
+    if (p != end) chunk_fail(fmt::format("{} bytes left after the last record", end - p));
+}
+
+}  // namespace rtsim

@@ -1,0 +1,106 @@
+// RTSim trace files (.rtt): the per-ray step streams of a frame, recorded once and replayed
+// against many architecture configs. Streamed in both directions (neither side holds the whole
+// trace), compressed with zstd per chunk, every part checksummed (CRC-32), and indexed, so a
+// reader can seek to chunk k for sampling or parallel reading. docs/trace-format.md specifies
+// the bytes; scripts/rtt_reader.py decodes them.
+#pragma once
+
+#include <cstdint>
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "workloads/bvh.h"
+#include "workloads/geometry.h"
+#include "workloads/output_file.h"
+#include "workloads/step.h"
+
+namespace rtsim {
+
+constexpr uint32_t kTraceVersion = 1;
+
+// One ray as recorded: what it did and what it hit.
+struct TraceRecord {
+    uint32_t ray_id = 0;
+    RayKind kind = RayKind::Primary;
+    std::vector<Step> steps;  // addresses and sizes come from the layout in the header
+    uint32_t prim = kInvalidPrim;
+    float t = 0.0f;
+};
+
+uint32_t crc32(const void* data, size_t size, uint32_t crc = 0);
+
+class TraceWriter {
+  public:
+    // metadata_json: the header's JSON (scene, BVH layout, ray settings). rays_per_chunk bounds
+    // the memory of a chunk. The file appears at `path` only when finish() succeeds.
+    TraceWriter(const std::string& path, const std::string& metadata_json,
+                uint32_t rays_per_chunk = 4096, int zstd_level = 3);
+    void add(const TraceRecord& record);
+    void finish();
+
+    uint64_t rays() const { return total_rays_; }
+    uint64_t steps() const { return total_steps_; }
+    uint64_t raw_bytes() const { return raw_total_; }
+    uint64_t file_bytes() const { return offset_; }
+
+  private:
+    void flush_chunk();
+    void write(const void* data, size_t size);
+
+    AtomicOutputFile out_;
+    uint32_t rays_per_chunk_;
+    int level_;
+    std::string raw_;  // encoded records of the open chunk
+    uint32_t chunk_rays_ = 0;
+    uint32_t last_ray_id_ = 0;
+    struct IndexEntry {
+        uint64_t offset;
+        uint32_t rays;
+    };
+    std::vector<IndexEntry> index_;
+    uint64_t offset_ = 0, total_rays_ = 0, total_steps_ = 0, raw_total_ = 0;
+};
+
+class TraceReader {
+  public:
+    // Opens and validates the header, footer and index. Throws InputError naming the file and
+    // the byte offset or chunk of any damage.
+    explicit TraceReader(const std::string& path);
+    ~TraceReader();
+    TraceReader(const TraceReader&) = delete;
+    TraceReader& operator=(const TraceReader&) = delete;
+
+    const std::string& metadata_json() const { return metadata_; }
+    uint32_t version() const { return version_; }
+    size_t chunk_count() const { return index_.size(); }
+    uint64_t rays() const { return total_rays_; }
+    uint64_t steps() const { return total_steps_; }
+    uint64_t file_bytes() const { return file_size_; }
+    // Step addresses and sizes are derived from this layout (set it from the metadata).
+    void set_layout(const BvhLayout& layout) { layout_ = layout; }
+
+    // Decodes chunk k into out (cleared first). Throws InputError on damage.
+    void read_chunk(size_t k, std::vector<TraceRecord>& out);
+
+  private:
+    [[noreturn]] void fail(uint64_t offset, const std::string& what) const;
+    void read_at(uint64_t offset, void* data, size_t size, const char* what);
+
+    std::string path_;
+    std::FILE* f_ = nullptr;
+    uint64_t file_size_ = 0, header_end_ = 0, index_offset_ = 0;
+    uint32_t version_ = 0;
+    std::string metadata_;
+    struct IndexEntry {
+        uint64_t offset;
+        uint32_t rays;
+    };
+    std::vector<IndexEntry> index_;
+    uint64_t total_rays_ = 0, total_steps_ = 0;
+    BvhLayout layout_;
+    std::vector<char> compressed_, raw_;
+};
+
+}  // namespace rtsim
