@@ -183,7 +183,11 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     if (version_ != kTraceVersion)
         fail(8, fmt::format("unknown trace format version {} (this build reads version {})",
                             version_, kTraceVersion));
+    if (get<uint32_t>(head + 12) != 0)
+        fail(12, fmt::format("unknown header flags {:#x} (this build knows none)", get<uint32_t>(head + 12)));
     const uint32_t meta_len = get<uint32_t>(head + 16);
+    if (24 + uint64_t(meta_len) > file_size_)
+        fail(16, fmt::format("header metadata of {} bytes runs past the end of the file", meta_len));
     metadata_.resize(meta_len);
     read_at(20, metadata_.data(), meta_len, "header metadata");
     uint32_t meta_crc;
@@ -260,6 +264,9 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
     compressed_.resize(comp_size);
     read_at(at + kChunkHeaderBytes, compressed_.data(), comp_size, "chunk data");
     if (crc32(compressed_.data(), comp_size) != crc) chunk_fail("checksum mismatch (damaged data)");
+    // The zstd frame states its content size; memory is allocated only for a size both agree on.
+    const unsigned long long frame_size = ZSTD_getFrameContentSize(compressed_.data(), comp_size);
+    if (frame_size != raw_size) chunk_fail("decompressed size disagrees with the chunk header");
     raw_.resize(raw_size);
     const size_t n = ZSTD_decompress(raw_.data(), raw_.size(), compressed_.data(), comp_size);
     if (ZSTD_isError(n) || n != raw_size) chunk_fail("cannot decompress");
@@ -281,6 +288,8 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
         if (p == end) chunk_fail(fmt::format("record truncated at offset {}", p - raw_.data()));
         return uint8_t(*p++);
     };
+    // Every ray takes at least 3 bytes and every step 2: no size claim can allocate beyond that.
+    if (uint64_t(rays) * 3 > raw_size) chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
     int64_t last_id = 0;
     out.resize(rays);
     for (uint32_t r = 0; r < rays; ++r) {
@@ -291,7 +300,8 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
         if (kind >= kRayKindCount) chunk_fail(fmt::format("ray {} has unknown kind {}", r, kind));
         rec.kind = RayKind(kind);
         const uint64_t count = varint();
-        if (count > kMaxStepsPerRay) chunk_fail(fmt::format("ray {} claims {} steps", r, count));
+        if (count > kMaxStepsPerRay || count * 2 > uint64_t(end - p))
+            chunk_fail(fmt::format("ray {} claims {} steps, more than its chunk holds", r, count));
         rec.steps.resize(count);
         int64_t prev[2] = {0, 0};
         for (uint64_t i = 0; i < count; ++i) {

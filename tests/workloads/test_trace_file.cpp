@@ -1,0 +1,227 @@
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+
+#include "workloads/error.h"
+#include "workloads/trace_file.h"
+
+using namespace rtsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+BvhLayout test_layout() {
+    BvhLayout L;
+    L.node_size_bytes = 64;
+    L.inner_node_count = 5000;
+    L.triangle_count = 9000;
+    L.tri_base_addr = 0x20000000;
+    return L;
+}
+
+std::vector<TraceRecord> random_records(int n, uint32_t seed) {
+    std::mt19937 rng(seed);
+    const BvhLayout L = test_layout();
+    std::vector<TraceRecord> out(n);
+    for (int i = 0; i < n; ++i) {
+        TraceRecord& r = out[i];
+        r.ray_id = uint32_t(i * 3 + (i % 5 == 0 ? 1000 : 0));  // gaps and jumps in ids
+        r.kind = RayKind(rng() % kRayKindCount);
+        const int steps = int(rng() % 40);
+        for (int k = 0; k < steps; ++k) {
+            Step s{};
+            s.kind = (rng() % 3 == 0) ? StepKind::Triangle : StepKind::Node;
+            s.id = s.kind == StepKind::Node ? rng() % L.inner_node_count : rng() % L.triangle_count;
+            s.count = s.kind == StepKind::Node ? uint8_t(2 + rng() % 7) : 1;
+            s.addr = s.kind == StepKind::Node ? L.node_addr(s.id) : L.tri_addr(s.id);
+            s.size_bytes = uint16_t(s.kind == StepKind::Node ? L.node_size_bytes : L.tri_size_bytes);
+            r.steps.push_back(s);
+        }
+        if (rng() % 2) {
+            r.prim = rng() % L.triangle_count;
+            r.t = float(rng() % 1000) / 7.0f;
+        }
+    }
+    return out;
+}
+
+std::string temp_path(const std::string& name) {
+    return (fs::temp_directory_path() / ("rtsim_trace_" + std::to_string(::getpid()) + "_" + name)).string();
+}
+
+std::string write_trace(const std::string& name, const std::vector<TraceRecord>& recs, uint32_t chunk_rays) {
+    const std::string path = temp_path(name);
+    TraceWriter w(path, R"({"test": true})", chunk_rays);
+    for (const auto& r : recs) w.add(r);
+    w.finish();
+    return path;
+}
+
+std::vector<TraceRecord> read_all(const std::string& path) {
+    TraceReader r(path);
+    r.set_layout(test_layout());
+    std::vector<TraceRecord> all, chunk;
+    for (size_t k = 0; k < r.chunk_count(); ++k) {
+        r.read_chunk(k, chunk);
+        all.insert(all.end(), chunk.begin(), chunk.end());
+    }
+    return all;
+}
+
+void expect_same(const std::vector<TraceRecord>& a, const std::vector<TraceRecord>& b) {
+    ASSERT_EQ(a.size(), b.size());
+    for (size_t i = 0; i < a.size(); ++i) {
+        ASSERT_EQ(a[i].ray_id, b[i].ray_id) << i;
+        ASSERT_EQ(a[i].kind, b[i].kind) << i;
+        ASSERT_EQ(a[i].prim, b[i].prim) << i;
+        if (a[i].prim != kInvalidPrim) {
+            ASSERT_EQ(a[i].t, b[i].t) << i;
+        }
+        ASSERT_EQ(a[i].steps.size(), b[i].steps.size()) << i;
+        for (size_t k = 0; k < a[i].steps.size(); ++k) {
+            const Step &x = a[i].steps[k], &y = b[i].steps[k];
+            ASSERT_EQ(x.kind, y.kind);
+            ASSERT_EQ(x.id, y.id);
+            ASSERT_EQ(x.count, y.count);
+            ASSERT_EQ(x.addr, y.addr);
+            ASSERT_EQ(x.size_bytes, y.size_bytes);
+        }
+    }
+}
+
+std::string slurp(const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+void spit(const std::string& p, const std::string& bytes) { std::ofstream(p, std::ios::binary) << bytes; }
+
+// Reading must fail with one line naming the file and containing `fragment`.
+void expect_damage(const std::string& path, const std::string& fragment) {
+    try {
+        read_all(path);
+        FAIL() << "accepted a damaged trace (" << fragment << ")";
+    } catch (const InputError& e) {
+        const std::string msg = e.what();
+        EXPECT_NE(msg.find(path), std::string::npos) << msg;
+        EXPECT_NE(msg.find(fragment), std::string::npos) << msg;
+        EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+    }
+}
+
+}  // namespace
+
+TEST(TraceFile, RoundTripAcrossChunks) {
+    const auto recs = random_records(1000, 1);
+    const std::string path = write_trace("rt.rtt", recs, 64);
+    TraceReader r(path);
+    EXPECT_EQ(r.chunk_count(), 16u);  // 1000 rays in chunks of 64
+    EXPECT_EQ(r.rays(), 1000u);
+    EXPECT_EQ(r.metadata_json(), R"({"test": true})");
+    uint64_t steps = 0;
+    for (const auto& x : recs) steps += x.steps.size();
+    EXPECT_EQ(r.steps(), steps);
+    expect_same(recs, read_all(path));
+}
+
+TEST(TraceFile, SeeksToAnyChunk) {
+    const auto recs = random_records(300, 2);
+    const std::string path = write_trace("seek.rtt", recs, 50);
+    TraceReader r(path);
+    r.set_layout(test_layout());
+    std::vector<TraceRecord> chunk;
+    for (size_t k : {5u, 0u, 3u}) {
+        r.read_chunk(k, chunk);
+        ASSERT_EQ(chunk.size(), 50u);
+        expect_same(std::vector<TraceRecord>(recs.begin() + 50 * k, recs.begin() + 50 * (k + 1)), chunk);
+    }
+    EXPECT_THROW(r.read_chunk(6, chunk), InputError);
+}
+
+TEST(TraceFile, EmptyTraceIsValid) {
+    const std::string path = write_trace("empty.rtt", {}, 16);
+    TraceReader r(path);
+    EXPECT_EQ(r.chunk_count(), 0u);
+    EXPECT_EQ(r.rays(), 0u);
+}
+
+TEST(TraceFile, NamedDamageIsRefused) {
+    const std::string good = write_trace("good.rtt", random_records(200, 3), 40);
+    const std::string bytes = slurp(good);
+    const std::string p = temp_path("bad.rtt");
+    auto with = [&](std::string b) {
+        spit(p, b);
+        return p;
+    };
+    expect_damage(with("NOTATRACE-------------------------"), "wrong magic");
+    std::string v = bytes;
+    v[8] = 99;
+    expect_damage(with(v), "unknown trace format version 99");
+    expect_damage(with(bytes.substr(0, bytes.size() / 2)), "footer missing");
+    expect_damage(with(bytes.substr(0, 10)), "too short");
+    std::string meta = bytes;
+    meta[22] ^= 0x10;
+    expect_damage(with(meta), "header metadata checksum");
+    // The first chunk's payload starts after the header (24 + metadata) and its 24-byte header.
+    std::string payload = bytes;
+    payload[24 + 14 + 24 + 5] ^= 0x01;
+    expect_damage(with(payload), "chunk 0");
+    std::string index = bytes;
+    const size_t footer = bytes.size() - 16;
+    uint64_t index_offset;
+    std::memcpy(&index_offset, bytes.data() + footer, 8);
+    index[index_offset + 10] ^= 0x40;
+    expect_damage(with(index), "index checksum mismatch");
+    std::string past = bytes;
+    const uint64_t far = bytes.size() * 4;
+    std::memcpy(past.data() + footer, &far, 8);
+    expect_damage(with(past), "past the end");
+    expect_damage(temp_path("missing.rtt"), "cannot open");
+}
+
+TEST(TraceFile, EverySingleByteCorruptionIsCaught) {
+    // Every byte is covered by a checksum, a magic number or a cross-check, so flipping any one
+    // byte must give an InputError: never a crash, a hang, or silently different data.
+    const std::string good = write_trace("flip.rtt", random_records(40, 4), 8);
+    const std::string bytes = slurp(good);
+    const std::string p = temp_path("flipped.rtt");
+    int caught = 0;
+    for (size_t i = 0; i < bytes.size(); ++i) {
+        std::string b = bytes;
+        b[i] = char(b[i] ^ 0x5A);
+        spit(p, b);
+        try {
+            read_all(p);
+            ADD_FAILURE() << "corruption at byte " << i << " of " << bytes.size() << " went unnoticed";
+        } catch (const InputError&) {
+            ++caught;
+        }
+    }
+    EXPECT_EQ(caught, int(bytes.size()));
+}
+
+TEST(TraceFile, StepsOutsideTheLayoutAreRefused) {
+    const std::string path = write_trace("layout.rtt", random_records(50, 5), 16);
+    TraceReader r(path);
+    BvhLayout small = test_layout();
+    small.inner_node_count = 10;  // far fewer nodes than the trace references
+    r.set_layout(small);
+    std::vector<TraceRecord> chunk;
+    try {
+        r.read_chunk(0, chunk);
+        FAIL() << "accepted node ids beyond the layout";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("outside the layout"), std::string::npos) << e.what();
+    }
+}
+
+TEST(TraceFile, Crc32MatchesTheStandardCheckValue) {
+    EXPECT_EQ(crc32("123456789", 9), 0xCBF43926u);  // CRC-32/ISO-HDLC check value, as zlib's
+}
