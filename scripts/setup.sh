@@ -11,7 +11,7 @@ mode="${1:-run}"
 build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
-          libassimp-dev libembree-dev libcli11-dev libzstd-dev glmark2-data)
+          libassimp-dev libembree-dev libcli11-dev libzstd-dev zstd glmark2-data)
 sudo_cmd=""
 [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
 apt_updated=0
@@ -23,6 +23,8 @@ missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
+# The trace tests run scripts/rtt_reader.py: any python3 on PATH will do.
+command -v python3 >/dev/null 2>&1 || missing+=(python3)
 if [ ${#missing[@]} -gt 0 ]; then
     echo "[setup] installing: ${missing[*]}"
     apt_update_once

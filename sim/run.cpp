@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <ctime>
 #include <deque>
+#include <exception>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <systemc>
@@ -101,7 +102,16 @@ class CountingSource : public RayWorkSource {
     bool next(RayWork& work) override {
         const auto t0 = Clock::now();
         bool hit = false;
-        const bool more = produce(work, hit);
+        bool more = false;
+        try {
+            more = produce(work, hit);
+        } catch (...) {
+            // Bad input found mid-run (a damaged trace chunk): stop the simulation and let
+            // run_command report it, rather than let SystemC wrap it as a kernel error.
+            error = std::current_exception();
+            sc_core::sc_stop();
+            return false;
+        }
         functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
         if (!more) return false;
         rays_by_kind[static_cast<int>(work.kind)]++;
@@ -117,6 +127,7 @@ class CountingSource : public RayWorkSource {
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
     uint64_t steps = 0;
     double functional_seconds = 0;  // tracing rays, or reading and decoding the trace
+    std::exception_ptr error;       // what stopped the run early, if anything
 
   protected:
     virtual bool produce(RayWork& work, bool& hit) = 0;
@@ -353,6 +364,7 @@ int run_command(const RunOptions& opt) {
     sc_core::sc_start();
     const double sim_seconds = std::chrono::duration<double>(Clock::now() - t_sim).count();
     source.finish_progress();
+    if (source.error) std::rethrow_exception(source.error);
 
     ReportInputs ri;
     ri.stats = &chip.stats;

@@ -184,10 +184,12 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
         fail(8, fmt::format("unknown trace format version {} (this build reads version {})",
                             version_, kTraceVersion));
     if (get<uint32_t>(head + 12) != 0)
-        fail(12, fmt::format("unknown header flags {:#x} (this build knows none)", get<uint32_t>(head + 12)));
+        fail(12, fmt::format("unknown header flags {:#x} (this build knows none)",
+                             get<uint32_t>(head + 12)));
     const uint32_t meta_len = get<uint32_t>(head + 16);
     if (24 + uint64_t(meta_len) > file_size_)
-        fail(16, fmt::format("header metadata of {} bytes runs past the end of the file", meta_len));
+        fail(16,
+             fmt::format("header metadata of {} bytes runs past the end of the file", meta_len));
     metadata_.resize(meta_len);
     read_at(20, metadata_.data(), meta_len, "header metadata");
     uint32_t meta_crc;
@@ -289,7 +291,8 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
         return uint8_t(*p++);
     };
     // Every ray takes at least 3 bytes and every step 2: no size claim can allocate beyond that.
-    if (uint64_t(rays) * 3 > raw_size) chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
+    if (uint64_t(rays) * 3 > raw_size)
+        chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
     int64_t last_id = 0;
     out.resize(rays);
     for (uint32_t r = 0; r < rays; ++r) {

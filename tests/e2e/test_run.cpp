@@ -356,3 +356,91 @@ TEST(Trace, PacketsReportUtilisationAndKeepHits) {
     expect_one_line_error(rtsim("trace --packet 65"), "--packet");
     expect_one_line_error(rtsim("trace --packet 8 --packet-switch 2"), "--packet-switch");
 }
+
+TEST(TraceFileRun, RecordThenReplayGivesIdenticalStats) {
+    const fs::path rtt = work_dir() / "frame.rtt", live = work_dir() / "live",
+                   replay = work_dir() / "replay";
+    const std::string rays = "--rays primary,shadow,ao,diffuse --res 40x40 --set bvh.width=4";
+    ASSERT_EQ(rtsim("trace -q " + rays + " --chunk-rays 500 -o '" + rtt.string() + "'").status, 0);
+    ASSERT_EQ(rtsim("run -q " + rays + " --out '" + live.string() + "'").status, 0);
+    const Result r = rtsim("run --set bvh.width=4 --trace '" + rtt.string() + "' --out '" +
+                           replay.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("replayed from"), std::string::npos);
+    const json a = stats_of(live), b = stats_of(replay);
+    EXPECT_EQ(without_host(a), without_host(b));
+    EXPECT_GT(a["rays"]["total"].get<uint64_t>(), 1600u);
+}
+
+TEST(TraceFileRun, MismatchedLayoutOrOptionsAreRefused) {
+    const fs::path rtt = work_dir() / "w8.rtt";
+    ASSERT_EQ(rtsim("trace -q --res 16x16 --set bvh.width=8 -o '" + rtt.string() + "'").status, 0);
+    expect_one_line_error(rtsim("run --trace '" + rtt.string() + "'"), "recorded with bvh.width=8");
+    expect_one_line_error(rtsim("run --set bvh.width=8 --set bvh.node_format=compressed --trace '" +
+                                rtt.string() + "'"),
+                          "bvh.node_format");
+    expect_one_line_error(
+        rtsim("run --set bvh.width=8 --scene builtin:sphere --trace '" + rtt.string() + "'"),
+        "--scene: cannot be combined with --trace");
+    EXPECT_EQ(rtsim("run --set bvh.width=8 --trace '" + rtt.string() + "' -o '" +
+                    (work_dir() / "ok").string() + "'")
+                  .status,
+              0);
+}
+
+TEST(TraceFileRun, BadTracesExitTwoNamingTheDamage) {
+    const fs::path rtt = work_dir() / "good.rtt";
+    ASSERT_EQ(
+        rtsim("trace -q --rays primary,ao --res 32x32 --chunk-rays 300 -o '" + rtt.string() + "'")
+            .status,
+        0);
+    const std::string bytes = slurp(rtt);
+    auto damaged = [&](const std::string& name, std::string b) {
+        const fs::path p = work_dir() / name;
+        std::ofstream(p, std::ios::binary) << b;
+        return p.string();
+    };
+    expect_one_line_error(
+        rtsim("run --trace '" + damaged("trunc.rtt", bytes.substr(0, bytes.size() - 100)) + "'"),
+        "footer missing");
+    std::string flipped = bytes;
+    flipped[bytes.size() / 2] ^= 0x20;
+    const Result r = rtsim("run --trace '" + damaged("flip.rtt", flipped) + "'");
+    expect_one_line_error(r, "chunk");
+    std::string magic = bytes;
+    magic[0] = 'X';
+    expect_one_line_error(rtsim("trace-info '" + damaged("magic.rtt", magic) + "'"), "wrong magic");
+    std::string version = bytes;
+    version[8] = 7;
+    expect_one_line_error(rtsim("trace-info '" + damaged("version.rtt", version) + "'"),
+                          "unknown trace format version 7");
+    expect_one_line_error(rtsim("trace-info '" + (work_dir() / "none.rtt").string() + "'"),
+                          "cannot open");
+    EXPECT_FALSE(fs::exists(work_dir() / "never"));
+}
+
+TEST(TraceFileRun, TraceInfoAndPythonReaderAgree) {
+    const fs::path rtt = work_dir() / "info.rtt";
+    ASSERT_EQ(rtsim("trace -q --rays primary,ao,reflection --res 24x24 --chunk-rays 100 -o '" +
+                    rtt.string() + "'")
+                  .status,
+              0);
+    const Result info = rtsim("trace-info --json '" + rtt.string() + "'");
+    ASSERT_EQ(info.status, 0) << info.err;
+    const json ours = json::parse(info.out);
+    const fs::path py_out = work_dir() / "py.json";
+    const std::string cmd = fmt::format("python3 '{}/scripts/rtt_reader.py' --json '{}' > '{}'",
+                                        RTSIM_SOURCE_DIR, rtt.string(), py_out.string());
+    ASSERT_EQ(std::system(cmd.c_str()), 0)
+        << "scripts/rtt_reader.py failed (python3 and zstd are set up by setup.sh)";
+    const json theirs = json::parse(slurp(py_out));
+    EXPECT_EQ(ours["rays"], theirs["rays"]);
+    EXPECT_EQ(ours["steps"], theirs["steps"]);
+    EXPECT_EQ(ours["chunks"], theirs["chunks"]);
+    for (const char* kind : {"primary", "ao", "reflection"})
+        for (const char* f : {"rays", "hits", "node_steps", "triangle_steps"})
+            EXPECT_EQ(ours["by_kind"][kind][f], theirs["by_kind"][kind][f]) << kind << " " << f;
+    const Result text = rtsim("trace-info '" + rtt.string() + "'");
+    EXPECT_NE(text.out.find("bytes per step"), std::string::npos);
+    EXPECT_NE(text.out.find("nodes "), std::string::npos);
+}

@@ -39,7 +39,8 @@ std::vector<TraceRecord> random_records(int n, uint32_t seed) {
             s.id = s.kind == StepKind::Node ? rng() % L.inner_node_count : rng() % L.triangle_count;
             s.count = s.kind == StepKind::Node ? uint8_t(2 + rng() % 7) : 1;
             s.addr = s.kind == StepKind::Node ? L.node_addr(s.id) : L.tri_addr(s.id);
-            s.size_bytes = uint16_t(s.kind == StepKind::Node ? L.node_size_bytes : L.tri_size_bytes);
+            s.size_bytes =
+                uint16_t(s.kind == StepKind::Node ? L.node_size_bytes : L.tri_size_bytes);
             r.steps.push_back(s);
         }
         if (rng() % 2) {
@@ -51,10 +52,12 @@ std::vector<TraceRecord> random_records(int n, uint32_t seed) {
 }
 
 std::string temp_path(const std::string& name) {
-    return (fs::temp_directory_path() / ("rtsim_trace_" + std::to_string(::getpid()) + "_" + name)).string();
+    return (fs::temp_directory_path() / ("rtsim_trace_" + std::to_string(::getpid()) + "_" + name))
+        .string();
 }
 
-std::string write_trace(const std::string& name, const std::vector<TraceRecord>& recs, uint32_t chunk_rays) {
+std::string write_trace(const std::string& name, const std::vector<TraceRecord>& recs,
+                        uint32_t chunk_rays) {
     const std::string path = temp_path(name);
     TraceWriter w(path, R"({"test": true})", chunk_rays);
     for (const auto& r : recs) w.add(r);
@@ -101,7 +104,9 @@ std::string slurp(const std::string& p) {
     return ss.str();
 }
 
-void spit(const std::string& p, const std::string& bytes) { std::ofstream(p, std::ios::binary) << bytes; }
+void spit(const std::string& p, const std::string& bytes) {
+    std::ofstream(p, std::ios::binary) << bytes;
+}
 
 // Reading must fail with one line naming the file and containing `fragment`.
 void expect_damage(const std::string& path, const std::string& fragment) {
@@ -140,7 +145,8 @@ TEST(TraceFile, SeeksToAnyChunk) {
     for (size_t k : {5u, 0u, 3u}) {
         r.read_chunk(k, chunk);
         ASSERT_EQ(chunk.size(), 50u);
-        expect_same(std::vector<TraceRecord>(recs.begin() + 50 * k, recs.begin() + 50 * (k + 1)), chunk);
+        expect_same(std::vector<TraceRecord>(recs.begin() + 50 * k, recs.begin() + 50 * (k + 1)),
+                    chunk);
     }
     EXPECT_THROW(r.read_chunk(6, chunk), InputError);
 }
@@ -199,7 +205,8 @@ TEST(TraceFile, EverySingleByteCorruptionIsCaught) {
         spit(p, b);
         try {
             read_all(p);
-            ADD_FAILURE() << "corruption at byte " << i << " of " << bytes.size() << " went unnoticed";
+            ADD_FAILURE() << "corruption at byte " << i << " of " << bytes.size()
+                          << " went unnoticed";
         } catch (const InputError&) {
             ++caught;
         }
