@@ -5,7 +5,6 @@
 //   build/bench_tracer [--threads N] [--res WxH] [--reps N] [--leaf N] [--kinds primary,ao,...]
 //   [mesh ...]
 // With no mesh, uses the glmark2 bunny and the largest libcgal-demo meshes in .cache/meshes/cgal.
-#include <embree3/rtcore.h>
 
 #include <fmt/format.h>
 #include <algorithm>
@@ -17,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "support/embree_scene.h"
 #include "workloads/bvh.h"
 #include "workloads/packet.h"
 #include "workloads/parallel.h"
@@ -25,53 +25,13 @@
 #include "workloads/tracer.h"
 
 using namespace rtsim;
+using rtsim::test::EmbreeScene;
 using Clock = std::chrono::steady_clock;
 
 namespace {
 
 double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-struct EmbreeScene {
-    RTCDevice device;
-    RTCScene scene;
-    double build_seconds;
-    EmbreeScene(const Scene& s, int threads) {
-        device = rtcNewDevice(fmt::format("threads={}", threads).c_str());
-        const auto t0 = Clock::now();
-        scene = rtcNewScene(device);
-        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, s.vertices.size()));
-        std::memcpy(v, s.vertices.data(), s.vertices.size() * 12);
-        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, s.triangles.size()));
-        std::memcpy(idx, s.triangles.data(), s.triangles.size() * 12);
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(scene, g);
-        rtcReleaseGeometry(g);
-        rtcCommitScene(scene);
-        build_seconds = seconds_since(t0);
-    }
-    ~EmbreeScene() {
-        rtcReleaseScene(scene);
-        rtcReleaseDevice(device);
-    }
-};
-
-void fill(RTCRay& e, const Ray& r) {
-    e.org_x = r.org.x;
-    e.org_y = r.org.y;
-    e.org_z = r.org.z;
-    e.dir_x = r.dir.x;
-    e.dir_y = r.dir.y;
-    e.dir_z = r.dir.z;
-    e.tnear = r.tmin;
-    e.tfar = r.tmax;
-    e.mask = 0xFFFFFFFFu;
-    e.flags = 0;
-    e.time = 0;
 }
 
 struct RaySet {
@@ -122,29 +82,16 @@ double ours(const Bvh& bvh, const RaySet& rs, int threads, int reps, uint64_t* c
 }
 
 double embree(const EmbreeScene& es, const RaySet& rs, int threads, int reps, uint64_t* checksum) {
-    std::vector<uint32_t> hit(rs.rays.size());
+    std::vector<uint8_t> hit(rs.rays.size());
     const double r = mrays(rs.rays.size(), reps, [&] {
         parallel_blocks(rs.rays.size(), 512, threads, [&](size_t b, size_t e) {
-            RTCIntersectContext ctx;
-            rtcInitIntersectContext(&ctx);
-            for (size_t i = b; i < e; ++i) {
-                if (rs.query == HitQuery::Any) {
-                    RTCRay ray;
-                    fill(ray, rs.rays[i]);
-                    rtcOccluded1(es.scene, &ctx, &ray);
-                    hit[i] = ray.tfar < 0.0f;
-                } else {
-                    RTCRayHit rh;
-                    fill(rh.ray, rs.rays[i]);
-                    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-                    rtcIntersect1(es.scene, &ctx, &rh);
-                    hit[i] = rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
-                }
-            }
+            for (size_t i = b; i < e; ++i)
+                hit[i] = rs.query == HitQuery::Any ? es.occluded(rs.rays[i])
+                                                   : es.intersect(rs.rays[i]).valid();
         });
     });
     *checksum = 0;
-    for (uint32_t h : hit) *checksum += h;
+    for (uint8_t h : hit) *checksum += h;
     return r;
 }
 

@@ -44,6 +44,19 @@ uint32_t default_node_size_bytes(int width) {
     return size;
 }
 
+int largest_inner_node(const BinaryBvh& bvh, const std::vector<uint32_t>& nodes) {
+    int best = -1;
+    float best_area = -1.0f;
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        const BinaryNode& n = bvh.nodes[nodes[i]];
+        if (!n.is_leaf() && n.box.surface_area() > best_area) {
+            best_area = n.box.surface_area();
+            best = int(i);
+        }
+    }
+    return best;
+}
+
 double binary_sah_cost(const BinaryBvh& bvh, const BvhBuildOptions& o) {
     const double root_area = std::max(bvh.nodes[0].box.surface_area(), 1e-30f);
     double cost = 0;
@@ -128,16 +141,7 @@ class Collapser {
     uint32_t emit_from(uint32_t b) {
         std::vector<uint32_t> kids = {in_.nodes[b].a, in_.nodes[b].b};
         while (kids.size() < size_t(W)) {
-            // Open the inner child of largest surface area: it is the most likely to be visited.
-            int best = -1;
-            float best_area = -1.0f;
-            for (size_t i = 0; i < kids.size(); ++i) {
-                const BinaryNode& k = in_.nodes[kids[i]];
-                if (!k.is_leaf() && k.box.surface_area() > best_area) {
-                    best_area = k.box.surface_area();
-                    best = int(i);
-                }
-            }
+            const int best = largest_inner_node(in_, kids);
             if (best < 0) break;
             const BinaryNode& k = in_.nodes[kids[best]];
             kids[best] = k.a;

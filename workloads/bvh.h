@@ -82,6 +82,9 @@ struct BinaryBvh {
     std::vector<uint32_t> prim_order;  // leaf slot -> scene primitive id
 };
 BinaryBvh build_binary_sah(const Scene& scene, const BvhBuildOptions& options);
+// Position in `nodes` of the inner node with the largest surface area, or -1 if all are leaves:
+// the node a collapse or a treelet opens next (the one rays are most likely to enter).
+int largest_inner_node(const BinaryBvh& bvh, const std::vector<uint32_t>& nodes);
 BinaryBvh build_binary_lbvh(const Scene& scene, const BvhBuildOptions& options);
 // Treelet restructuring (Karras & Aila 2013), `passes` bottom-up sweeps; returns the number of
 // treelets rebuilt. Never increases the SAH cost.

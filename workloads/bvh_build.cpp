@@ -12,6 +12,16 @@ namespace {
 // Past this depth the builders split by index, so depth <= kMaxSahDepth + log2(n) < kMaxBvhDepth.
 constexpr uint32_t kMaxSahDepth = 64;
 
+// Appends two children to nodes[index] and returns the first one's index.
+uint32_t append_children(BinaryBvh& bvh, uint32_t index) {
+    const auto left = static_cast<uint32_t>(bvh.nodes.size());
+    bvh.nodes.emplace_back();
+    bvh.nodes.emplace_back();
+    bvh.nodes[index].a = left;
+    bvh.nodes[index].b = left + 1;
+    return left;
+}
+
 struct BuildPrim {
     AABB box;
     Vec3 centroid;
@@ -121,11 +131,7 @@ class SahBuilder {
                 if (mid == begin || mid == end) mid = begin + n / 2;
             }
         }
-        const auto left = static_cast<uint32_t>(bvh.nodes.size());
-        bvh.nodes.emplace_back();
-        bvh.nodes.emplace_back();
-        bvh.nodes[index].a = left;
-        bvh.nodes[index].b = left + 1;
+        const uint32_t left = append_children(bvh, index);
         build_node(bvh, left, begin, mid, depth + 1);
         build_node(bvh, left + 1, mid, end, depth + 1);
     }
@@ -216,11 +222,7 @@ class LbvhBuilder {
                                      [&](uint32_t c) { return ((c >> bit) & 1u) == 0; });
             mid = static_cast<uint32_t>(it - sorted_codes_.begin());
         }
-        const auto left = static_cast<uint32_t>(bvh.nodes.size());
-        bvh.nodes.emplace_back();
-        bvh.nodes.emplace_back();
-        bvh.nodes[index].a = left;
-        bvh.nodes[index].b = left + 1;
+        const uint32_t left = append_children(bvh, index);
         build_node(bvh, left, begin, mid, depth + 1);
         build_node(bvh, left + 1, mid, end, depth + 1);
         AABB box = bvh.nodes[left].box;

@@ -64,15 +64,7 @@ class Restructurer {
         std::vector<uint32_t> leaves = {bvh_.nodes[root].a, bvh_.nodes[root].b};
         std::vector<uint32_t> internal = {root};
         while (int(leaves.size()) < kTreeletLeaves) {
-            int best = -1;
-            float best_area = -1.0f;
-            for (size_t k = 0; k < leaves.size(); ++k) {
-                const BinaryNode& n = bvh_.nodes[leaves[k]];
-                if (!n.is_leaf() && n.box.surface_area() > best_area) {
-                    best_area = n.box.surface_area();
-                    best = int(k);
-                }
-            }
+            const int best = largest_inner_node(bvh_, leaves);
             if (best < 0) break;
             const uint32_t opened = leaves[best];
             internal.push_back(opened);

@@ -1,10 +1,10 @@
 // Embree (libembree-dev) is the oracle: our tracer must agree with it on the same rays.
-#include <embree3/rtcore.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 
+#include "support/embree_scene.h"
 #include "workloads/bvh.h"
 #include "workloads/intersect.h"
 #include "workloads/raygen.h"
@@ -12,74 +12,9 @@
 #include "workloads/tracer.h"
 
 using namespace rtsim;
+using rtsim::test::EmbreeScene;
 
 namespace {
-
-class EmbreeScene {
-  public:
-    explicit EmbreeScene(const Scene& s) {
-        device_ = rtcNewDevice(nullptr);
-        scene_ = rtcNewScene(device_);
-        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.vertices.size()));
-        for (size_t i = 0; i < s.vertices.size(); ++i) {
-            v[3 * i] = s.vertices[i].x;
-            v[3 * i + 1] = s.vertices[i].y;
-            v[3 * i + 2] = s.vertices[i].z;
-        }
-        auto* idx = static_cast<unsigned*>(
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                    3 * sizeof(unsigned), s.triangles.size()));
-        for (size_t i = 0; i < s.triangles.size(); ++i)
-            for (int c = 0; c < 3; ++c) idx[3 * i + c] = s.triangles[i][c];
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(scene_, g);
-        rtcReleaseGeometry(g);
-        rtcCommitScene(scene_);
-        rtcInitIntersectContext(&ctx_);
-    }
-    ~EmbreeScene() {
-        rtcReleaseScene(scene_);
-        rtcReleaseDevice(device_);
-    }
-    Hit intersect(const Ray& r) {
-        RTCRayHit rh{};
-        fill(rh.ray, r);
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(scene_, &ctx_, &rh);
-        Hit h;
-        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
-        h.t = rh.ray.tfar;
-        h.prim = rh.hit.primID;
-        h.u = rh.hit.u;
-        h.v = rh.hit.v;
-        return h;
-    }
-    bool occluded(const Ray& r) {
-        RTCRay ray{};
-        fill(ray, r);
-        rtcOccluded1(scene_, &ctx_, &ray);
-        return ray.tfar == -std::numeric_limits<float>::infinity();
-    }
-
-  private:
-    static void fill(RTCRay& e, const Ray& r) {
-        e.org_x = r.org.x;
-        e.org_y = r.org.y;
-        e.org_z = r.org.z;
-        e.dir_x = r.dir.x;
-        e.dir_y = r.dir.y;
-        e.dir_z = r.dir.z;
-        e.tnear = r.tmin;
-        e.tfar = r.tmax;
-        e.mask = 0xFFFFFFFFu;  // Debian's Embree is built with ray masks
-        e.flags = 0;
-    }
-    RTCDevice device_;
-    RTCScene scene_;
-    RTCIntersectContext ctx_;
-};
 
 // Distance of the hit point to the triangle's nearest edge, in barycentric units.
 float edge_distance(const Scene& s, uint32_t prim, const Ray& r) {

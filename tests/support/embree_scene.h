@@ -1,0 +1,92 @@
+// Embree 3 (libembree-dev) as the oracle and speed baseline: one scene of our triangles, single
+// rays in and out. Shared by tests/workloads/test_embree.cpp and bench/bench_tracer.cpp.
+#pragma once
+
+#include <embree3/rtcore.h>
+
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <string>
+
+#include "workloads/geometry.h"
+#include "workloads/scene.h"
+
+namespace rtsim::test {
+
+class EmbreeScene {
+  public:
+    // threads: Embree's worker threads for the build (0: its default).
+    explicit EmbreeScene(const Scene& s, int threads = 0) {
+        device_ =
+            rtcNewDevice(threads > 0 ? ("threads=" + std::to_string(threads)).c_str() : nullptr);
+        const auto t0 = std::chrono::steady_clock::now();
+        scene_ = rtcNewScene(device_);
+        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, s.vertices.size()));
+        std::memcpy(v, s.vertices.data(), s.vertices.size() * 12);
+        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, s.triangles.size()));
+        std::memcpy(idx, s.triangles.data(), s.triangles.size() * 12);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(scene_, g);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(scene_);
+        build_seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+    ~EmbreeScene() {
+        rtcReleaseScene(scene_);
+        rtcReleaseDevice(device_);
+    }
+    EmbreeScene(const EmbreeScene&) = delete;
+    EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+    Hit intersect(const Ray& r) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRayHit rh{};
+        fill(rh.ray, r);
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(scene_, &ctx, &rh);
+        Hit h;
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
+        h.t = rh.ray.tfar;
+        h.prim = rh.hit.primID;
+        h.u = rh.hit.u;
+        h.v = rh.hit.v;
+        return h;
+    }
+    bool occluded(const Ray& r) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRay ray{};
+        fill(ray, r);
+        rtcOccluded1(scene_, &ctx, &ray);
+        return ray.tfar ==
+               -std::numeric_limits<float>::infinity();  // Embree marks a blocked ray so
+    }
+
+    double build_seconds = 0;
+
+  private:
+    static void fill(RTCRay& e, const Ray& r) {
+        e.org_x = r.org.x;
+        e.org_y = r.org.y;
+        e.org_z = r.org.z;
+        e.dir_x = r.dir.x;
+        e.dir_y = r.dir.y;
+        e.dir_z = r.dir.z;
+        e.tnear = r.tmin;
+        e.tfar = r.tmax;
+        e.mask =
+            0xFFFFFFFFu;  // Debian's Embree is built with ray masks: without this every ray misses
+        e.flags = 0;
+        e.time = 0;
+    }
+    RTCDevice device_;
+    RTCScene scene_;
+};
+
+}  // namespace rtsim::test
