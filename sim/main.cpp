@@ -5,6 +5,7 @@
 #include <systemc>
 
 #include "sim/config.h"
+#include "sim/errors.h"
 #include "sim/run.h"
 #include "sim/trace_cmd.h"
 #include "sim/trace_info.h"
@@ -87,11 +88,9 @@ int main_impl(int argc, char** argv) {
             return 0;
         }
     } catch (const rtsim::InputError& e) {
-        fmt::print(stderr, "rtsim: error: {}\n", e.what());
-        return 2;
+        return rtsim::report_failure(e.what(), true);
     } catch (const std::exception& e) {
-        fmt::print(stderr, "rtsim: failed: {}\n", e.what());
-        return 1;
+        return rtsim::report_failure(e.what(), false);
     }
     return 2;
 }

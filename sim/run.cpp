@@ -9,13 +9,14 @@
 #include <cstdio>
 #include <ctime>
 #include <deque>
-#include <exception>
 #include <filesystem>
+#include <future>
 #include <nlohmann/json.hpp>
 #include <systemc>
 
 #include "sim/chip.h"
 #include "sim/config.h"
+#include "sim/errors.h"
 #include "sim/stats_report.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
@@ -102,16 +103,7 @@ class CountingSource : public RayWorkSource {
     bool next(RayWork& work) override {
         const auto t0 = Clock::now();
         bool hit = false;
-        bool more = false;
-        try {
-            more = produce(work, hit);
-        } catch (...) {
-            // Bad input found mid-run (a damaged trace chunk): stop the simulation and let
-            // run_command report it, rather than let SystemC wrap it as a kernel error.
-            error = std::current_exception();
-            sc_core::sc_stop();
-            return false;
-        }
+        const bool more = failed() ? false : produce(work, hit);
         functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
         if (!more) return false;
         rays_by_kind[static_cast<int>(work.kind)]++;
@@ -127,7 +119,12 @@ class CountingSource : public RayWorkSource {
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
     uint64_t steps = 0;
     double functional_seconds = 0;  // tracing rays, or reading and decoding the trace
-    std::exception_ptr error;       // what stopped the run early, if anything
+    // Bad input found mid-run (a damaged trace chunk) stops the simulation; run_command reports
+    // it after the kernel returns, without throwing (exceptions must not cross SystemC's
+    // coroutine stacks, which AddressSanitizer cannot follow either).
+    std::string failure;
+    bool failure_is_input = false;
+    bool failed() const { return !failure.empty(); }
 
   protected:
     virtual bool produce(RayWork& work, bool& hit) = 0;
@@ -183,19 +180,36 @@ class GeneratedWorkSource : public CountingSource {
     int tiles_done_ = 0;
 };
 
-// Rays replayed from a trace file, chunk by chunk.
+// Rays replayed from a trace file. Chunks are read and decoded on a helper thread, one ahead of
+// the simulation: replay overlaps decoding with simulating, and a damaged chunk's error is raised
+// on that thread, never inside a SystemC process (whose coroutine stacks exceptions should not
+// cross, and which AddressSanitizer cannot follow).
 class TraceWorkSource : public CountingSource {
   public:
     TraceWorkSource(TraceReader& reader, bool progress)
-        : CountingSource(progress), reader_(reader) {}
+        : CountingSource(progress), reader_(reader) {
+        prefetch();
+    }
+    ~TraceWorkSource() override {
+        if (pending_.valid()) pending_.wait();
+    }
 
   protected:
     bool produce(RayWork& work, bool& hit) override {
         while (pos_ == chunk_.size()) {
-            if (next_chunk_ == reader_.chunk_count()) return false;
-            reader_.read_chunk(next_chunk_++, chunk_);
+            if (!pending_.valid()) return false;
+            Decoded d = pending_.get();
+            if (!d.error.empty()) {
+                failure = d.error;
+                failure_is_input = d.input_error;
+                sc_core::sc_stop();
+                return false;
+            }
+            chunk_.swap(d.records);
             pos_ = 0;
-            report_progress(double(next_chunk_) / double(reader_.chunk_count()), "chunks");
+            report_progress(
+                double(next_chunk_) / double(std::max<size_t>(1, reader_.chunk_count())), "chunks");
+            prefetch();
         }
         TraceRecord& r = chunk_[pos_++];
         work.ray_id = r.ray_id;
@@ -206,7 +220,30 @@ class TraceWorkSource : public CountingSource {
     }
 
   private:
+    struct Decoded {
+        std::vector<TraceRecord> records;
+        std::string error;
+        bool input_error = false;
+    };
+    void prefetch() {
+        if (next_chunk_ == reader_.chunk_count()) return;
+        const size_t k = next_chunk_++;
+        pending_ = std::async(std::launch::async, [this, k] {
+            Decoded d;
+            try {
+                reader_.read_chunk(k, d.records);
+            } catch (const InputError& e) {
+                d.error = e.what();
+                d.input_error = true;
+            } catch (const std::exception& e) {
+                d.error = e.what();
+            }
+            return d;
+        });
+    }
+
     TraceReader& reader_;
+    std::future<Decoded> pending_;
     std::vector<TraceRecord> chunk_;
     size_t pos_ = 0, next_chunk_ = 0;
 };
@@ -364,7 +401,7 @@ int run_command(const RunOptions& opt) {
     sc_core::sc_start();
     const double sim_seconds = std::chrono::duration<double>(Clock::now() - t_sim).count();
     source.finish_progress();
-    if (source.error) std::rethrow_exception(source.error);
+    if (source.failed()) return report_failure(source.failure, source.failure_is_input);
 
     ReportInputs ri;
     ri.stats = &chip.stats;
