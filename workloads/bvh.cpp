@@ -225,6 +225,27 @@ BvhQuality measure(const std::vector<WideNode<W>>& nodes, const AABB& root,
 
 }  // namespace
 
+// Packs each leaf's triangles into Tri4 blocks (unused lanes stay zero; tests mask them off).
+template <int W>
+void build_tri_blocks(const std::vector<WideNode<W>>& nodes, Bvh& bvh) {
+    bvh.leaf_block.assign(bvh.prim_order.size(), 0);
+    bvh.tri4.clear();
+    for (const WideNode<W>& n : nodes)
+        for (int l = 0; l < n.num; ++l) {
+            if (!n.count[l]) continue;
+            bvh.leaf_block[n.child[l]] = static_cast<uint32_t>(bvh.tri4.size());
+            for (uint32_t base = 0; base < n.count[l]; base += 4) {
+                Tri4 block{};
+                for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
+                    const auto& t = bvh.tri_verts[n.child[l] + base + lane];
+                    for (int vert = 0; vert < 3; ++vert)
+                        for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
+                }
+                bvh.tri4.push_back(block);
+            }
+        }
+}
+
 BvhQuality measure_bvh(const Bvh& bvh) {
     BvhQuality q;
     switch (bvh.width()) {
@@ -278,6 +299,17 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
     bvh.tri_verts.resize(bin.prim_order.size());
     for (size_t s = 0; s < bin.prim_order.size(); ++s)
         for (int c = 0; c < 3; ++c) bvh.tri_verts[s][c] = scene.v(bin.prim_order[s], c);
+    switch (options.width) {
+        case 2:
+            build_tri_blocks(bvh.nodes2, bvh);
+            break;
+        case 4:
+            build_tri_blocks(bvh.nodes4, bvh);
+            break;
+        default:
+            build_tri_blocks(bvh.nodes8, bvh);
+            break;
+    }
 
     BvhLayout& L = bvh.layout;
     L = layout_sizes;

@@ -107,6 +107,12 @@ struct alignas(64) WideNode {
     }
 };
 
+// Up to four triangles of one leaf, vertex components in structure-of-arrays form
+// ([vertex][axis][lane]) so that one SSE watertight test covers all four.
+struct alignas(16) Tri4 {
+    float v[3][3][4];
+};
+
 struct BvhQuality {
     double sah_cost = 0;  // with the traversal and intersection costs of BvhBuildOptions
     uint32_t node_count = 0, inner_count = 0, leaf_count = 0, max_depth = 0;
@@ -128,6 +134,8 @@ struct Bvh {
     std::vector<WideNode<8>> nodes8;
     std::vector<uint32_t> prim_order;            // triangle slot -> scene primitive id
     std::vector<std::array<Vec3, 3>> tri_verts;  // triangle slot -> vertices, for fast tests
+    std::vector<Tri4> tri4;                      // every leaf's triangles, 4 to a block
+    std::vector<uint32_t> leaf_block;            // a leaf's first slot -> its first Tri4 block
 
     int width() const { return options.width; }
     const AABB& bounds() const { return bounds_box; }

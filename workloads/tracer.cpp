@@ -103,6 +103,105 @@ inline unsigned box_test(const WideNode<W>& n, const BoxRay<W>& r, float tmin, f
     return mask;
 }
 
+// Watertight test of up to four triangles at once: the same IEEE operations in the same order as
+// intersect_triangle_perm, lane by lane, so results are bit-identical. Returns the mask of lanes
+// below `lanes` hit with t in [tmin, tmax) and fills t, u, v; or -1 when a lane lies exactly on
+// an edge in float (U, V or W is 0), for the caller to decide with the scalar test's
+// double-precision fallback.
+inline int intersect_tri4(const RayPrecomp& r, const Tri4& tri, int lanes, float tmin, float tmax,
+                          float* t, float* u, float* v) {
+#if defined(__SSE2__)
+    const __m128 ox = _mm_set1_ps(r.org[r.kx]), oy = _mm_set1_ps(r.org[r.ky]),
+                 oz = _mm_set1_ps(r.org[r.kz]);
+    const __m128 sx = _mm_set1_ps(r.sx), sy = _mm_set1_ps(r.sy), sz = _mm_set1_ps(r.sz);
+    __m128 px[3], py[3],
+        pz[3];  // vertices relative to the origin, sheared: x, y; and z before shearing
+    for (int vert = 0; vert < 3; ++vert) {
+        const __m128 z = _mm_sub_ps(_mm_load_ps(tri.v[vert][r.kz]), oz);
+        px[vert] = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(tri.v[vert][r.kx]), ox), _mm_mul_ps(sx, z));
+        py[vert] = _mm_sub_ps(_mm_sub_ps(_mm_load_ps(tri.v[vert][r.ky]), oy), _mm_mul_ps(sy, z));
+        pz[vert] = z;
+    }
+    const __m128 U = _mm_sub_ps(_mm_mul_ps(px[2], py[1]), _mm_mul_ps(py[2], px[1]));
+    const __m128 V = _mm_sub_ps(_mm_mul_ps(px[0], py[2]), _mm_mul_ps(py[0], px[2]));
+    const __m128 Wc = _mm_sub_ps(_mm_mul_ps(px[1], py[0]), _mm_mul_ps(py[1], px[0]));
+    const __m128 zero = _mm_setzero_ps();
+    const int valid = (1 << lanes) - 1;
+    const __m128 on_edge =
+        _mm_or_ps(_mm_or_ps(_mm_cmpeq_ps(U, zero), _mm_cmpeq_ps(V, zero)), _mm_cmpeq_ps(Wc, zero));
+    if (_mm_movemask_ps(on_edge) & valid) return -1;
+    const __m128 neg =
+        _mm_or_ps(_mm_or_ps(_mm_cmplt_ps(U, zero), _mm_cmplt_ps(V, zero)), _mm_cmplt_ps(Wc, zero));
+    const __m128 pos =
+        _mm_or_ps(_mm_or_ps(_mm_cmpgt_ps(U, zero), _mm_cmpgt_ps(V, zero)), _mm_cmpgt_ps(Wc, zero));
+    const __m128 det = _mm_add_ps(_mm_add_ps(U, V), Wc);
+    const __m128 T = _mm_add_ps(
+        _mm_add_ps(_mm_mul_ps(U, _mm_mul_ps(sz, pz[0])), _mm_mul_ps(V, _mm_mul_ps(sz, pz[1]))),
+        _mm_mul_ps(Wc, _mm_mul_ps(sz, pz[2])));
+    const __m128 inv = _mm_div_ps(_mm_set1_ps(1.0f), det);
+    const __m128 tt = _mm_mul_ps(T, inv);
+    const __m128 ok =
+        _mm_and_ps(_mm_cmpge_ps(tt, _mm_set1_ps(tmin)), _mm_cmplt_ps(tt, _mm_set1_ps(tmax)));
+    const __m128 good = _mm_andnot_ps(_mm_or_ps(_mm_and_ps(neg, pos), _mm_cmpeq_ps(det, zero)), ok);
+    _mm_storeu_ps(t, tt);
+    _mm_storeu_ps(u, _mm_mul_ps(V, inv));
+    _mm_storeu_ps(v, _mm_mul_ps(Wc, inv));
+    return _mm_movemask_ps(good) & valid;
+#else
+    (void)r, (void)tri, (void)lanes, (void)tmin, (void)tmax, (void)t, (void)u, (void)v;
+    return -1;
+#endif
+}
+
+// Tests a leaf's triangles (slots first .. first+count-1, in order). Returns true when an any-hit
+// query found its hit. Steps and counters are exactly those of testing one triangle at a time:
+// an any-hit query stops at the first hit in slot order; a closest-hit query keeps the nearest
+// (the earliest slot on a tie).
+template <class Sink, class Counters>
+inline bool test_leaf(const Bvh& bvh, const RayPrecomp& rp, const Ray& ray, bool any,
+                      uint32_t first, uint32_t count, Hit& hit, Sink& sink, Counters& c) {
+    uint32_t block = bvh.leaf_block[first];
+    for (uint32_t base = 0; base < count; base += 4, ++block) {
+        const int lanes = int(std::min<uint32_t>(4, count - base));
+        alignas(16) float t[4], u[4], v[4];
+        const int mask = intersect_tri4(rp, bvh.tri4[block], lanes, ray.tmin, hit.t, t, u, v);
+        if (mask < 0) {
+            // A lane on an edge: decide this block one triangle at a time.
+            for (int l = 0; l < lanes; ++l) {
+                const uint32_t slot = first + base + l;
+                const auto& tv = bvh.tri_verts[slot];
+                sink.tri(bvh.layout, slot);
+                c.tri_tests++;
+                if (intersect_triangle(rp, tv[0], tv[1], tv[2], ray.tmin, hit)) {
+                    hit.prim = bvh.prim_order[slot];
+                    if (any) return true;
+                }
+            }
+            continue;
+        }
+        int pick = -1;
+        if (mask) {
+            if (any) {
+                pick = __builtin_ctz(unsigned(mask));
+            } else {
+                for (int l = 0; l < lanes; ++l)
+                    if ((mask >> l) & 1 && (pick < 0 || t[l] < t[pick])) pick = l;
+            }
+        }
+        const int tested = any && pick >= 0 ? pick + 1 : lanes;
+        for (int l = 0; l < tested; ++l) sink.tri(bvh.layout, first + base + l);
+        c.tri_tests += tested;
+        if (pick >= 0) {
+            hit.t = t[pick];
+            hit.u = u[pick];
+            hit.v = v[pick];
+            hit.prim = bvh.prim_order[first + base + pick];
+            if (any) return true;
+        }
+    }
+    return false;
+}
+
 // Counting is compiled out of the fastest path (no counters requested).
 struct NoCounters {
     uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0;  // never read: optimised away
@@ -122,18 +221,9 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
     Entry cur = start;
     for (;;) {
         if (cur.count) {
-            for (uint32_t i = 0; i < cur.count; ++i) {
-                const uint32_t slot = cur.child + i;
-                const auto& v = bvh.tri_verts[slot];
-                sink.tri(bvh.layout, slot);
-                c.tri_tests++;
-                if (intersect_triangle(rp, v[0], v[1], v[2], ray.tmin, hit)) {
-                    hit.prim = bvh.prim_order[slot];
-                    if (any) {
-                        c.max_stack = depth_max;
-                        return hit;
-                    }
-                }
+            if (test_leaf(bvh, rp, ray, any, cur.child, cur.count, hit, sink, c)) {
+                c.max_stack = depth_max;
+                return hit;
             }
         } else {
             const WideNode<W>& n = nodes[cur.child];
