@@ -4,15 +4,16 @@
 
 namespace rtsim {
 
-Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level)
-    : sc_core::sc_module(name), params_(params), next_(next_level) {
+Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
+             int level)
+    : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
     ways_.resize(params_.sets() * params_.ways);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
 
-Cycle Cache::access_line(uint64_t line_addr, Cycle now) {
+Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     ++accesses;
     const uint64_t set = line_addr & set_mask_;
     const uint64_t tag = line_addr;  // the full line address as tag: simple and unambiguous
@@ -25,13 +26,21 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now) {
             ++hits;
             way.last_use = ++use_clock_;
             if (way.ready > lookup_done) ++merged_misses;
+            if (bd) {
+                bd->cycles[level_] += params_.hit_latency_cycles;
+                // Waiting for a fill already in flight is time spent below this level.
+                if (way.ready > lookup_done)
+                    bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += way.ready - lookup_done;
+            }
             return std::max(lookup_done, way.ready);
         }
         if (!way.valid || (victim->valid && way.last_use < victim->last_use)) victim = &way;
     }
     ++misses;
     fill_bytes += params_.line_bytes;
-    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, lookup_done);
+    if (bd) bd->cycles[level_] += params_.hit_latency_cycles;
+    const Cycle ready =
+        next_->access(line_addr << line_shift_, params_.line_bytes, lookup_done, bd);
     victim->valid = true;
     victim->tag = tag;
     victim->last_use = ++use_clock_;
@@ -53,12 +62,24 @@ bool Cache::served_locally(uint64_t addr, uint32_t size_bytes) const {
     return true;
 }
 
-Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now) {
+Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
     const uint64_t first = addr >> line_shift_;
     const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
     Cycle done = now;
-    for (uint64_t line = first; line <= last; ++line) done = std::max(done, access_line(line, now));
+    // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
+    // to what the requester's levels already charged.
+    AccessBreakdown slowest;
+    for (uint64_t line = first; line <= last; ++line) {
+        AccessBreakdown line_bd;
+        const Cycle d = access_line(line, now, bd ? &line_bd : nullptr);
+        if (d > done || line == first) {
+            done = std::max(done, d);
+            slowest = line_bd;
+        }
+    }
+    if (bd)
+        for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += slowest.cycles[l];
     return done;
 }
 

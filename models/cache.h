@@ -24,8 +24,11 @@ struct CacheParams {
 
 class Cache : public sc_core::sc_module, public MemoryPort {
   public:
-    Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level);
-    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
+    // `level` names the level for stall attribution (kLevelL1, kLevelL2).
+    Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
+          int level = kLevelL1);
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                 AccessBreakdown* breakdown = nullptr) override;
     // Every line of the request is present (or already being filled): a hit, no next-level access.
     bool served_locally(uint64_t addr, uint32_t size_bytes) const override;
     void register_stats(StatsRegistry& reg, const std::string& block);
@@ -45,11 +48,12 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         Cycle ready = 0;  // cycle the line's data is present
         bool valid = false;
     };
-    Cycle access_line(uint64_t line_addr, Cycle now);
+    Cycle access_line(uint64_t line_addr, Cycle now, AccessBreakdown* breakdown);
     bool present(uint64_t line_addr) const;
 
     CacheParams params_;
     MemoryPort* next_;
+    int level_;
     std::vector<Way> ways_;  // sets * ways, set-major
     uint64_t set_mask_;
     uint32_t line_shift_;

@@ -60,11 +60,20 @@ void Core::run() {
             s->pos = 0;
             s->start = t;
             s->ready = issue(t);  // ray setup; a ray that misses the root box ends here
+            stall_cycles[kIssue] += s->ready - t;
         } else {
             const Step& st = s->work.steps[s->pos++];
             ++steps;
-            const Cycle fetched = l1_->access(st.addr, st.size_bytes, issue(t));
-            s->ready = (st.kind == StepKind::Node ? box_ : tri_)->issue(fetched);
+            const Cycle issued = issue(t);
+            AccessBreakdown bd;
+            const Cycle fetched = l1_->access(st.addr, st.size_bytes, issued, &bd);
+            const bool node = st.kind == StepKind::Node;
+            s->ready = node ? box_->issue(fetched, st.count) : tri_->issue(fetched);
+            stall_cycles[kIssue] += issued - t;
+            stall_cycles[kL1] += bd.cycles[kLevelL1];
+            stall_cycles[kL2] += bd.cycles[kLevelL2];
+            stall_cycles[kDram] += bd.cycles[kLevelDram];
+            stall_cycles[node ? kBoxUnit : kTriangleUnit] += s->ready - fetched;
         }
         if (s->pos == s->work.steps.size()) {
             ++rays;
@@ -75,7 +84,16 @@ void Core::run() {
     }
 }
 
+const char* Core::stall_name(int s) {
+    static const char* const names[kStallKinds] = {"issue", "l1",       "l2",
+                                                   "dram",  "box_unit", "triangle_unit"};
+    return names[s];
+}
+
 void Core::register_stats(StatsRegistry& reg, const std::string& block) {
+    for (int k = 0; k < kStallKinds; ++k)
+        reg.add(block, std::string("stall_") + stall_name(k) + "_cycles", &stall_cycles[k],
+                "ray-slot cycles charged to this cause");
     reg.add(block, "rays", &rays, "rays completed");
     reg.add(block, "steps", &steps, "traversal steps executed");
     reg.add(block, "ray_latency_cycles", &ray_latency_cycles,

@@ -43,6 +43,12 @@ class Core : public sc_core::sc_module {
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source);
     void register_stats(StatsRegistry& reg, const std::string& block);
 
+    // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
+    // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
+    enum Stall { kIssue, kL1, kL2, kDram, kBoxUnit, kTriangleUnit, kStallKinds };
+    static const char* stall_name(int s);
+    uint64_t stall_cycles[kStallKinds] = {};
+
     uint64_t rays = 0;
     uint64_t steps = 0;
     uint64_t ray_latency_cycles = 0;  // summed over rays, dispatch to last result

@@ -8,7 +8,7 @@ namespace rtsim {
 Dram::Dram(sc_core::sc_module_name name, const DramParams& params)
     : sc_core::sc_module(name), params_(params) {}
 
-Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now) {
+Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     const double start = std::max(static_cast<double>(now), next_free_);
     const double transfer = size_bytes / params_.bytes_per_cycle;
     next_free_ = start + transfer;
@@ -17,7 +17,9 @@ Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now) {
     busy_cycles += static_cast<uint64_t>(std::ceil(transfer));
     queue_cycles += static_cast<uint64_t>(std::ceil(start - static_cast<double>(now)));
     // Data is usable once its last byte has crossed the channel and the access latency passed.
-    return static_cast<Cycle>(std::ceil(next_free_)) + params_.latency_cycles;
+    const Cycle done = static_cast<Cycle>(std::ceil(next_free_)) + params_.latency_cycles;
+    if (bd) bd->cycles[kLevelDram] += done - now;
+    return done;
 }
 
 void Dram::register_stats(StatsRegistry& reg, const std::string& block) {

@@ -18,7 +18,8 @@ struct DramParams {
 class Dram : public sc_core::sc_module, public MemoryPort {
   public:
     Dram(sc_core::sc_module_name name, const DramParams& params);
-    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override;
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                 AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
     const DramParams& params() const { return params_; }
 

@@ -19,10 +19,19 @@ inline Cycle now_cycles() {
 // A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
 // that returns the cycle the data is available. Requests must arrive in non-decreasing time
 // order per level (the cores' quantum keeps them within a bound).
+// Where an access spent its cycles, by the memory level that spent them (stall attribution).
+enum MemLevel : int { kLevelL1 = 0, kLevelL2 = 1, kLevelDram = 2, kMemLevels = 3 };
+struct AccessBreakdown {
+    Cycle cycles[kMemLevels] = {0, 0, 0};
+};
+
 class MemoryPort {
   public:
     virtual ~MemoryPort() = default;
-    virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) = 0;
+    // `breakdown` (optional) receives the cycles each level spent on this access; they add up to
+    // the returned cycle minus `now`.
+    virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                         AccessBreakdown* breakdown = nullptr) = 0;
     // True if access() would be served entirely inside this block, touching no other block's
     // state (a private cache's hit). A requester may then run it ahead of simulated time without
     // synchronising; anything else may reach shared state and must wait for its cycle.

@@ -7,14 +7,15 @@ namespace rtsim {
 PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params)
     : sc_core::sc_module(name), params_(params), next_free_(static_cast<size_t>(params.count), 0) {}
 
-Cycle PipelinedUnit::issue(Cycle ready) {
+Cycle PipelinedUnit::issue(Cycle ready, int items) {
+    const Cycle n = Cycle(std::max(1, (items + params_.width - 1) / params_.width));
     auto it = std::min_element(next_free_.begin(), next_free_.end());
     const Cycle start = std::max(ready, *it);
-    *it = start + params_.interval_cycles;
-    ops++;
-    busy_cycles += params_.interval_cycles;
+    *it = start + n * params_.interval_cycles;
+    ops += n;
+    busy_cycles += n * params_.interval_cycles;
     queue_cycles += start - ready;
-    return start + params_.latency_cycles;
+    return start + (n - 1) * params_.interval_cycles + params_.latency_cycles;
 }
 
 void PipelinedUnit::register_stats(StatsRegistry& reg, const std::string& block) {

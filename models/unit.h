@@ -16,14 +16,17 @@ struct UnitParams {
     int count = 1;
     Cycle latency_cycles = 1;
     Cycle interval_cycles = 1;
+    int width =
+        1;  // items (child boxes) one operation handles; wider work takes several operations
 };
 
 class PipelinedUnit : public sc_core::sc_module {
   public:
     PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params);
-    // Issues one operation that is ready at `ready`; returns the cycle its result is available.
-    // Arbitration is first come, first served, onto the pipeline that frees first.
-    Cycle issue(Cycle ready);
+    // Issues the operations for `items` items (ceil(items / width), back to back on one pipeline)
+    // that are ready at `ready`; returns the cycle the last result is available. Arbitration is
+    // first come, first served, onto the pipeline that frees first.
+    Cycle issue(Cycle ready, int items = 1);
     void register_stats(StatsRegistry& reg, const std::string& block);
     const UnitParams& params() const { return params_; }
 

@@ -30,7 +30,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     dp.bytes_per_cycle = cfg.number("dram.bytes_per_cycle");
     dram = std::make_unique<Dram>("dram", dp);
     dram->register_stats(stats, "dram");
-    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get());
+    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get(), kLevelL2);
     l2->register_stats(stats, "l2");
 
     CoreParams cp;
@@ -39,7 +39,9 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     cp.issue_latency_cycles = Cycle(cfg.integer("core.issue_latency_cycles"));
     cp.quantum_cycles = Cycle(cfg.integer("sim.quantum_cycles"));
     const CacheParams l1p = cache_params(cfg, "l1");
-    const UnitParams bp = unit_params(cfg, "box_unit"), tp = unit_params(cfg, "triangle_unit");
+    UnitParams bp = unit_params(cfg, "box_unit");
+    bp.width = int(cfg.integer("box_unit.width"));
+    const UnitParams tp = unit_params(cfg, "triangle_unit");
     const int n = int(cfg.integer("core.count"));
     for (int i = 0; i < n; ++i) {
         const std::string idx = fmt::format("[{}]", i);

@@ -410,6 +410,7 @@ int run_command(const RunOptions& opt) {
     ri.cores = int(cfg.integer("core.count"));
     ri.box_pipelines_per_core = int(cfg.integer("box_unit.count"));
     ri.triangle_pipelines_per_core = int(cfg.integer("triangle_unit.count"));
+    ri.ray_slots_per_core = int(cfg.integer("core.ray_slots"));
     json timing = timing_report(ri);
 
     // Ray kinds reported: those the workload asked for (or, for rays from a file, those seen).
@@ -440,7 +441,7 @@ int run_command(const RunOptions& opt) {
     out["clock_ghz"] = ri.clock_ghz;
     out["simulated_seconds"] = sim_s;
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
-    for (const char* k : {"units", "caches", "bandwidth", "counters"}) out[k] = timing[k];
+    for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     out["host"] = {{"run_time_s", host_total},
                    {"prepare_s", prepare_seconds},
@@ -479,6 +480,15 @@ int run_command(const RunOptions& opt) {
         fmt::print("  units    box {:.1f}% busy, triangle {:.1f}% busy\n",
                    100 * un["box_unit_total"]["utilization"].get<double>(),
                    100 * un["triangle_unit_total"]["utilization"].get<double>());
+        const json& share = out["stalls"]["total"]["share"];
+        fmt::print(
+            "  slots    issue {:.1f}%, L1 {:.1f}%, L2 {:.1f}%, DRAM {:.1f}%, box unit {:.1f}%, "
+            "triangle unit "
+            "{:.1f}%, no work {:.1f}%\n",
+            100 * share["issue"].get<double>(), 100 * share["l1"].get<double>(),
+            100 * share["l2"].get<double>(), 100 * share["dram"].get<double>(),
+            100 * share["box_unit"].get<double>(), 100 * share["triangle_unit"].get<double>(),
+            100 * share["no_work"].get<double>());
         fmt::print("  caches   L1 hit rate {:.1f}%, L2 hit rate {:.1f}%\n",
                    100 * ca["l1_total"]["hit_rate"].get<double>(),
                    100 * ca["l2"]["hit_rate"].get<double>());

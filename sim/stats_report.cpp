@@ -72,6 +72,34 @@ json timing_report(const ReportInputs& in) {
                           {"busy_cycles", s.get("dram.busy_cycles")},
                           {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles)}}}};
 
+    // Stall attribution: every ray-slot cycle charged to one cause; cycles without a ray are
+    // "no_work". Per core and in total, in slot-cycles and as shares.
+    static const char* const causes[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
+    json stalls = json::object();
+    auto stall_entry = [&](const std::string& prefix, bool one_core) {
+        json e = json::object();
+        uint64_t charged = 0;
+        for (const char* c : causes) {
+            const std::string counter = fmt::format("stall_{}_cycles", c);
+            const uint64_t v = one_core ? s.get(prefix + "." + counter) : s.sum(prefix, counter);
+            e[c] = v;
+            charged += v;
+        }
+        const uint64_t slot_cycles =
+            uint64_t(in.ray_slots_per_core) * in.total_cycles * uint64_t(one_core ? 1 : in.cores);
+        e["no_work"] = slot_cycles >= charged ? slot_cycles - charged : 0;
+        e["slot_cycles"] = slot_cycles;
+        json share = json::object();
+        for (const char* c : causes) share[c] = ratio(e[c].get<double>(), double(slot_cycles));
+        share["no_work"] = ratio(e["no_work"].get<double>(), double(slot_cycles));
+        e["share"] = share;
+        return e;
+    };
+    for (int i = 0; i < in.cores; ++i)
+        stalls[fmt::format("core[{}]", i)] = stall_entry(fmt::format("core[{}]", i), true);
+    stalls["total"] = stall_entry("core[", false);
+    out["stalls"] = stalls;
+
     json counters = json::object();
     for (const auto& e : s.entries()) counters[e.name] = *e.value;
     out["counters"] = counters;

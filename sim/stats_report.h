@@ -16,9 +16,10 @@ struct ReportInputs {
     double clock_ghz = 1.0;
     int cores = 0;
     int box_pipelines_per_core = 1, triangle_pipelines_per_core = 1;
+    int ray_slots_per_core = 1;
 };
 
-// Sections "cycles", "units", "caches", "bandwidth", "counters" of stats.json.
+// Sections "units", "caches", "bandwidth", "stalls", "counters" of stats.json.
 nlohmann::json timing_report(const ReportInputs& in);
 
 }  // namespace rtsim

@@ -444,3 +444,36 @@ TEST(TraceFileRun, TraceInfoAndPythonReaderAgree) {
     EXPECT_NE(text.out.find("bytes per step"), std::string::npos);
     EXPECT_NE(text.out.find("nodes "), std::string::npos);
 }
+
+TEST(Run, StallAttributionAccountsForEverySlotCycle) {
+    const fs::path out = work_dir() / "stalls";
+    const Result r = rtsim(
+        "run -q --rays primary,ao --res 48x48 --set core.count=3 --set core.ray_slots=5 "
+        "--set box_unit.width=2 --set bvh.width=8 --out '" +
+        out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    const char* causes[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
+    uint64_t latency = 0, charged = 0;
+    for (int c = 0; c < 3; ++c) {
+        const json& e = s["stalls"][fmt::format("core[{}]", c)];
+        uint64_t core_charged = 0;
+        for (const char* k : causes) core_charged += e[k].get<uint64_t>();
+        // Charged cycles are exactly the cycles the core's slots held rays (measured separately).
+        EXPECT_EQ(core_charged,
+                  s["counters"][fmt::format("core[{}].ray_latency_cycles", c)].get<uint64_t>());
+        EXPECT_EQ(core_charged + e["no_work"].get<uint64_t>(),
+                  5 * s["total_cycles"].get<uint64_t>());
+        latency += s["counters"][fmt::format("core[{}].ray_latency_cycles", c)].get<uint64_t>();
+        charged += core_charged;
+    }
+    EXPECT_EQ(latency, charged);
+    double shares = 0;
+    for (auto& [k, v] : s["stalls"]["total"]["share"].items()) shares += v.get<double>();
+    EXPECT_NEAR(shares, 1.0, 1e-9);
+    EXPECT_GT(s["stalls"]["total"]["box_unit"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["stalls"]["total"]["dram"].get<uint64_t>(), 0u);
+    // 8-wide nodes on a 2-wide box unit: several operations per node visit.
+    EXPECT_GT(s["units"]["box_unit_total"]["ops"].get<uint64_t>(),
+              s["counters"]["core[0].steps"].get<uint64_t>() / 2);
+}

@@ -10,13 +10,16 @@ namespace rtsim::test {
 class FixedLatencyMemory : public MemoryPort {
   public:
     explicit FixedLatencyMemory(Cycle latency) : latency_(latency) {}
-    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                 AccessBreakdown* bd = nullptr) override {
         addrs.push_back(addr);
         bytes += size_bytes;
+        if (bd) bd->cycles[level] += latency_;
         return now + latency_;
     }
     std::vector<uint64_t> addrs;
     uint64_t bytes = 0;
+    int level = kLevelDram;  // where its latency is attributed
 
   private:
     Cycle latency_;

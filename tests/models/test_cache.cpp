@@ -84,3 +84,33 @@ TEST(Cache, LatenciesAndMissMerging) {
     EXPECT_EQ(mem.addrs.size(), 3u);
     EXPECT_EQ(c.accesses, 5u);
 }
+
+TEST(Cache, BreakdownChargesEachLevelItsCycles) {
+    CacheParams p1, p2;
+    p1.size_bytes = 1024;
+    p1.ways = 2;
+    p1.hit_latency_cycles = 4;
+    p2.size_bytes = 8192;
+    p2.ways = 4;
+    p2.hit_latency_cycles = 30;
+    test::FixedLatencyMemory dram(200);  // charges its latency to the DRAM level
+    Cache l2("l2", p2, &dram, kLevelL2);
+    Cache l1("l1", p1, &l2, kLevelL1);
+    AccessBreakdown a;
+    EXPECT_EQ(l1.access(0x4000, 64, 100, &a), 100u + 4 + 30 + 200);  // misses everywhere
+    EXPECT_EQ(a.cycles[kLevelL1], 4u);
+    EXPECT_EQ(a.cycles[kLevelL2], 30u);
+    EXPECT_EQ(a.cycles[kLevelDram], 200u);
+    AccessBreakdown b;
+    EXPECT_EQ(l1.access(0x4000, 64, 110, &b), 334u);  // hit on a line still filling: waits below L1
+    EXPECT_EQ(b.cycles[kLevelL1], 4u);
+    EXPECT_EQ(b.cycles[kLevelL2], 334u - 114u);
+    AccessBreakdown c;
+    EXPECT_EQ(l1.access(0x4000, 32, 1000, &c), 1004u);  // plain hit
+    EXPECT_EQ(c.cycles[kLevelL1] + c.cycles[kLevelL2] + c.cycles[kLevelDram], 4u);
+    // Two lines, one cached, one not: the slower line's breakdown is charged.
+    AccessBreakdown d;
+    EXPECT_EQ(l1.access(0x4000 + 32, 64, 2000, &d), 2000u + 4 + 30 + 200);
+    EXPECT_EQ(d.cycles[kLevelL1], 4u);
+    EXPECT_EQ(d.cycles[kLevelDram], 200u);
+}

@@ -37,7 +37,7 @@ TEST(Core, FullPipelineThroughCoreFinishesInNPlusLMinusOne) {
     const int n = 16;
     const Cycle L = 8;
     test::FixedLatencyMemory mem(0);
-    PipelinedUnit box("box", UnitParams{1, L, 1}), tri("tri", UnitParams{1, 18, 1});
+    PipelinedUnit box("box", UnitParams{1, L, 1, 8}), tri("tri", UnitParams{1, 18, 1});
     SyntheticSource src(n, 1, StepKind::Node);
     CoreParams cp;
     cp.ray_slots = n;
@@ -67,6 +67,14 @@ TEST(Core, SingleSlotLatenciesAdd) {
     EXPECT_EQ(core.steps, uint64_t(rays * steps));
     EXPECT_EQ(mem.addrs.size(), size_t(rays * steps));
     EXPECT_EQ(core.ray_latency_cycles, core.last_cycle);  // back to back, never overlapping
+    // Stall attribution, analytically: issue I per setup and per step, memory M and unit T per
+    // step.
+    EXPECT_EQ(core.stall_cycles[Core::kIssue], Cycle(rays) * (I + steps * I));
+    EXPECT_EQ(core.stall_cycles[Core::kDram], Cycle(rays) * steps * M);
+    EXPECT_EQ(core.stall_cycles[Core::kTriangleUnit], Cycle(rays) * steps * T);
+    EXPECT_EQ(core.stall_cycles[Core::kBoxUnit] + core.stall_cycles[Core::kL1] +
+                  core.stall_cycles[Core::kL2],
+              0u);
 }
 
 // Issue width 1 serialises step issue across slots: K slots of one-step rays with free memory
@@ -74,7 +82,7 @@ TEST(Core, SingleSlotLatenciesAdd) {
 TEST(Core, IssueWidthLimitsThroughput) {
     const int k = 10;
     test::FixedLatencyMemory mem(0);
-    PipelinedUnit box("box", UnitParams{1, 1, 1}), tri("tri", UnitParams{1, 1, 1});
+    PipelinedUnit box("box", UnitParams{1, 1, 1, 8}), tri("tri", UnitParams{1, 1, 1});
     SyntheticSource src(k, 1, StepKind::Node);
     CoreParams cp;
     cp.ray_slots = k;

@@ -38,3 +38,14 @@ TEST(PipelinedUnit, IdleGapsAreNotBusy) {
     EXPECT_EQ(u.busy_cycles, 2u);
     EXPECT_EQ(u.queue_cycles, 0u);
 }
+
+TEST(PipelinedUnit, WideNodesTakeSeveralOperations) {
+    UnitParams p{1, 8, 1};
+    p.width = 4;
+    PipelinedUnit u(sc_core::sc_gen_unique_name("u"), p);
+    EXPECT_EQ(u.issue(0, 8), 1u + 8);  // two back-to-back operations: the second starts at 1
+    EXPECT_EQ(u.ops, 2u);
+    EXPECT_EQ(u.issue(0, 3), 2u + 8);  // one more operation, queued behind them
+    EXPECT_EQ(u.busy_cycles, 3u);
+    EXPECT_EQ(u.queue_cycles, 2u);
+}

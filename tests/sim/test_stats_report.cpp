@@ -12,6 +12,8 @@ struct Blocks {
     uint64_t l1[6] = {1000, 900, 100, 10, 64000, 6400};
     uint64_t l2[6] = {100, 60, 40, 0, 6400, 2560};
     uint64_t dram[4] = {40, 2560, 80, 0};
+    uint64_t stalls[6] = {100, 200, 300,
+                          400, 500, 600};  // one core of 3 slots: 2100 of 3000 cycles
     StatsRegistry reg;
     Blocks() {
         const char* unit[] = {"ops", "busy_cycles", "queue_cycles"};
@@ -23,6 +25,9 @@ struct Blocks {
         for (int i = 0; i < 6; ++i) reg.add("l1[0]", cache[i], &l1[i], "");
         for (int i = 0; i < 6; ++i) reg.add("l2", cache[i], &l2[i], "");
         for (int i = 0; i < 4; ++i) reg.add("dram", mem[i], &dram[i], "");
+        const char* cause[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
+        for (int i = 0; i < 6; ++i)
+            reg.add("core[0]", std::string("stall_") + cause[i] + "_cycles", &stalls[i], "");
     }
 };
 
@@ -36,6 +41,7 @@ TEST(StatsReport, DerivedFiguresFromCounters) {
     in.clock_ghz = 2.0;  // 1000 cycles = 0.5 us
     in.cores = 1;
     in.triangle_pipelines_per_core = 2;
+    in.ray_slots_per_core = 3;
     const auto r = timing_report(in);
     EXPECT_DOUBLE_EQ(r["simulated_seconds"].get<double>(), 0.5e-6);
     EXPECT_DOUBLE_EQ(r["units"]["box_unit[0]"]["utilization"].get<double>(), 0.5);
@@ -46,6 +52,9 @@ TEST(StatsReport, DerivedFiguresFromCounters) {
     EXPECT_EQ(r["bandwidth"]["l2"]["bytes"].get<uint64_t>(), 6400u);
     EXPECT_DOUBLE_EQ(r["bandwidth"]["dram"]["gbps"].get<double>(), 2560 / 0.5e-6 / 1e9);
     EXPECT_EQ(r["counters"]["l1[0].misses"].get<uint64_t>(), 100u);
+    // 3 slots x 1000 cycles, 2100 charged: 900 without work.
+    EXPECT_EQ(r["stalls"]["total"]["no_work"].get<uint64_t>(), 900u);
+    EXPECT_DOUBLE_EQ(r["stalls"]["core[0]"]["share"]["dram"].get<double>(), 400.0 / 3000.0);
 }
 
 TEST(StatsReport, RegistryRejectsDuplicatesAndSums) {
