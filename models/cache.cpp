@@ -38,6 +38,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     }
     ++misses;
     fill_bytes += params_.line_bytes;
+    if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
     if (bd) bd->cycles[level_] += params_.hit_latency_cycles;
     const Cycle ready =
         next_->access(line_addr << line_shift_, params_.line_bytes, lookup_done, bd);

@@ -32,6 +32,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     // Every line of the request is present (or already being filled): a hit, no next-level access.
     bool served_locally(uint64_t addr, uint32_t size_bytes) const override;
     void register_stats(StatsRegistry& reg, const std::string& block);
+    void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
 
     uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
@@ -54,6 +55,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
+    TimeSeries* fill_series_ = nullptr;
     std::vector<Way> ways_;  // sets * ways, set-major
     uint64_t set_mask_;
     uint32_t line_shift_;

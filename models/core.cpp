@@ -78,6 +78,7 @@ void Core::run() {
         if (s->pos == s->work.steps.size()) {
             ++rays;
             ray_latency_cycles += s->ready - s->start;
+            if (rays_series_) rays_series_->add(s->ready, 1);
             last_cycle = std::max(last_cycle, s->ready);
             s->busy = false;
         }

@@ -42,6 +42,7 @@ class Core : public sc_core::sc_module {
     Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source);
     void register_stats(StatsRegistry& reg, const std::string& block);
+    void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
     // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
@@ -73,6 +74,7 @@ class Core : public sc_core::sc_module {
     PipelinedUnit* tri_;
     RayWorkSource* source_;
     std::vector<Slot> slots_;
+    TimeSeries* rays_series_ = nullptr;
     Cycle issue_cycle_ = 0;
     int issued_in_cycle_ = 0;
 };

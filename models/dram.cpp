@@ -14,6 +14,7 @@ Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now, AccessBrea
     next_free_ = start + transfer;
     ++reads;
     bytes += size_bytes;
+    if (bytes_series_) bytes_series_->add(static_cast<uint64_t>(start), size_bytes);
     busy_cycles += static_cast<uint64_t>(std::ceil(transfer));
     queue_cycles += static_cast<uint64_t>(std::ceil(start - static_cast<double>(now)));
     // Data is usable once its last byte has crossed the channel and the access latency passed.

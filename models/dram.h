@@ -21,6 +21,7 @@ class Dram : public sc_core::sc_module, public MemoryPort {
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
+    void set_series(TimeSeries* bytes) { bytes_series_ = bytes; }
     const DramParams& params() const { return params_; }
 
     uint64_t reads = 0;
@@ -30,7 +31,9 @@ class Dram : public sc_core::sc_module, public MemoryPort {
 
   private:
     DramParams params_;
-    double next_free_ = 0.0;  // fractional, so that e.g. 12.8 bytes per cycle is exact over time
+    double next_free_ = 0.0;
+    TimeSeries* bytes_series_ =
+        nullptr;  // fractional, so that e.g. 12.8 bytes per cycle is exact over time
 };
 
 }  // namespace rtsim

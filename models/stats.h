@@ -8,6 +8,24 @@
 
 namespace rtsim {
 
+// A counter per window of simulated cycles, for plots of bandwidth and utilisation over time.
+// Blocks share one series per quantity; a run without windows passes none, so it costs nothing.
+class TimeSeries {
+  public:
+    explicit TimeSeries(uint64_t window_cycles) : window_(window_cycles) {}
+    void add(uint64_t cycle, uint64_t value) {
+        const size_t w = size_t(cycle / window_);
+        if (w >= buckets_.size()) buckets_.resize(w + 1, 0);
+        buckets_[w] += value;
+    }
+    uint64_t window_cycles() const { return window_; }
+    const std::vector<uint64_t>& buckets() const { return buckets_; }
+
+  private:
+    uint64_t window_;
+    std::vector<uint64_t> buckets_;
+};
+
 class StatsRegistry {
   public:
     struct Entry {

@@ -14,6 +14,7 @@ Cycle PipelinedUnit::issue(Cycle ready, int items) {
     *it = start + n * params_.interval_cycles;
     ops += n;
     busy_cycles += n * params_.interval_cycles;
+    if (busy_series_) busy_series_->add(start, n * params_.interval_cycles);
     queue_cycles += start - ready;
     return start + (n - 1) * params_.interval_cycles + params_.latency_cycles;
 }

@@ -28,6 +28,7 @@ class PipelinedUnit : public sc_core::sc_module {
     // first come, first served, onto the pipeline that frees first.
     Cycle issue(Cycle ready, int items = 1);
     void register_stats(StatsRegistry& reg, const std::string& block);
+    void set_series(TimeSeries* busy_cycles) { busy_series_ = busy_cycles; }
     const UnitParams& params() const { return params_; }
 
     uint64_t ops = 0;
@@ -37,6 +38,7 @@ class PipelinedUnit : public sc_core::sc_module {
   private:
     UnitParams params_;
     std::vector<Cycle> next_free_;  // per pipeline: first cycle it accepts a new operation
+    TimeSeries* busy_series_ = nullptr;
 };
 
 }  // namespace rtsim

@@ -25,13 +25,20 @@ UnitParams unit_params(const Config& cfg, const std::string& unit) {
 }  // namespace
 
 Chip::Chip(const Config& cfg, RayWorkSource* source) {
+    const auto window = uint64_t(cfg.integer("sim.window_cycles"));
+    if (window > 0)
+        for (auto* p : {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes,
+                        &series.box_busy, &series.triangle_busy, &series.rays})
+            *p = std::make_unique<TimeSeries>(window);
     DramParams dp;
     dp.latency_cycles = Cycle(cfg.integer("dram.latency_cycles"));
     dp.bytes_per_cycle = cfg.number("dram.bytes_per_cycle");
     dram = std::make_unique<Dram>("dram", dp);
     dram->register_stats(stats, "dram");
+    dram->set_series(series.dram_bytes.get());
     l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get(), kLevelL2);
     l2->register_stats(stats, "l2");
+    l2->set_series(series.l2_fill_bytes.get());
 
     CoreParams cp;
     cp.ray_slots = int(cfg.integer("core.ray_slots"));
@@ -47,16 +54,20 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
         const std::string idx = fmt::format("[{}]", i);
         l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, l2.get()));
         l1.back()->register_stats(stats, "l1" + idx);
+        l1.back()->set_series(series.l1_fill_bytes.get());
         box_units.push_back(
             std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(i)).c_str(), bp));
         box_units.back()->register_stats(stats, "box_unit" + idx);
+        box_units.back()->set_series(series.box_busy.get());
         triangle_units.push_back(
             std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(i)).c_str(), tp));
         triangle_units.back()->register_stats(stats, "triangle_unit" + idx);
+        triangle_units.back()->set_series(series.triangle_busy.get());
         cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp,
                                                l1.back().get(), box_units.back().get(),
                                                triangle_units.back().get(), source));
         cores.back()->register_stats(stats, "core" + idx);
+        cores.back()->set_series(series.rays.get());
     }
 }
 

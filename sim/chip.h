@@ -3,6 +3,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "models/cache.h"
@@ -26,6 +27,11 @@ class Chip {
     std::vector<std::unique_ptr<Cache>> l1;
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
     std::vector<std::unique_ptr<Core>> cores;
+    // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
+    struct Series {
+        std::unique_ptr<TimeSeries> dram_bytes, l1_fill_bytes, l2_fill_bytes, box_busy,
+            triangle_busy, rays;
+    } series;
 };
 
 }  // namespace rtsim

@@ -258,6 +258,32 @@ std::string fresh_out_dir() {
     }
 }
 
+// Per-window figures for plots: bandwidth in GB/s at each level and unit utilisation.
+json time_series_report(const Chip& chip, const ReportInputs& ri) {
+    const auto& S = chip.series;
+    const uint64_t window = S.rays->window_cycles();
+    const size_t n = size_t((ri.total_cycles + window - 1) / window);
+    const double window_seconds = double(window) / (ri.clock_ghz * 1e9);
+    auto values = [&](const TimeSeries& t, double scale) {
+        json a = json::array();
+        for (size_t w = 0; w < n; ++w)
+            a.push_back(w < t.buckets().size() ? double(t.buckets()[w]) * scale : 0.0);
+        return a;
+    };
+    const double gbps = 1.0 / window_seconds / 1e9;
+    return {{"window_cycles", window},
+            {"windows", n},
+            {"dram_gbps", values(*S.dram_bytes, gbps)},
+            {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
+            {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
+            {"box_unit_utilization",
+             values(*S.box_busy, 1.0 / (double(window) * ri.box_pipelines_per_core * ri.cores))},
+            {"triangle_unit_utilization",
+             values(*S.triangle_busy,
+                    1.0 / (double(window) * ri.triangle_pipelines_per_core * ri.cores))},
+            {"rays", values(*S.rays, 1.0)}};
+}
+
 json aabb_json(const AABB& b) {
     return {{"lo", {b.lo.x, b.lo.y, b.lo.z}}, {"hi", {b.hi.x, b.hi.y, b.hi.z}}};
 }
@@ -442,6 +468,7 @@ int run_command(const RunOptions& opt) {
     out["simulated_seconds"] = sim_s;
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
     for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
+    if (chip.series.rays) out["time_series"] = time_series_report(chip, ri);
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     out["host"] = {{"run_time_s", host_total},
                    {"prepare_s", prepare_seconds},

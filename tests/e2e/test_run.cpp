@@ -477,3 +477,39 @@ TEST(Run, StallAttributionAccountsForEverySlotCycle) {
     EXPECT_GT(s["units"]["box_unit_total"]["ops"].get<uint64_t>(),
               s["counters"]["core[0].steps"].get<uint64_t>() / 2);
 }
+
+TEST(Run, TimeSeriesAddUpToTheTotals) {
+    const fs::path out = work_dir() / "series", plain = work_dir() / "plain";
+    ASSERT_EQ(rtsim("run -q --rays primary,ao --res 40x40 --set sim.window_cycles=5000 --set "
+                    "clock_ghz=2 --out '" +
+                    out.string() + "'")
+                  .status,
+              0);
+    const json s = stats_of(out);
+    const json& t = s["time_series"];
+    const uint64_t windows = t["windows"];
+    EXPECT_EQ(windows, (s["total_cycles"].get<uint64_t>() + 4999) / 5000);
+    const double window_s = 5000 / 2e9;
+    double rays = 0, dram = 0, l2 = 0, box_busy = 0;
+    for (size_t w = 0; w < windows; ++w) {
+        rays += t["rays"][w].get<double>();
+        dram += t["dram_gbps"][w].get<double>() * 1e9 * window_s;
+        l2 += t["l2_to_l1_gbps"][w].get<double>() * 1e9 * window_s;
+        box_busy +=
+            t["box_unit_utilization"][w].get<double>() * 5000 * 8;  // 8 cores, 1 pipeline each
+        EXPECT_LE(t["box_unit_utilization"][w].get<double>(), 1.0);
+    }
+    EXPECT_EQ(uint64_t(rays), s["rays"]["total"].get<uint64_t>());
+    EXPECT_NEAR(dram, s["bandwidth"]["dram"]["bytes"].get<double>(), 1e-6 * dram + 1);
+    EXPECT_NEAR(l2, s["bandwidth"]["l2"]["bytes"].get<double>(), 1e-6 * l2 + 1);
+    EXPECT_NEAR(box_busy, s["units"]["box_unit_total"]["busy_cycles"].get<double>(),
+                1e-6 * box_busy + 1);
+    // Off by default: no series, and the same simulated result.
+    ASSERT_EQ(rtsim("run -q --rays primary,ao --res 40x40 --set clock_ghz=2 --out '" +
+                    plain.string() + "'")
+                  .status,
+              0);
+    const json p = stats_of(plain);
+    EXPECT_FALSE(p.contains("time_series"));
+    EXPECT_EQ(p["total_cycles"], s["total_cycles"]);
+}
