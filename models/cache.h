@@ -22,6 +22,20 @@ struct CacheParams {
     uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
 };
 
+// Ideal memory: every access is an L1 hit (an upper bound on what caches can give).
+class IdealMemory : public MemoryPort {
+  public:
+    explicit IdealMemory(Cycle hit_latency_cycles) : latency_(hit_latency_cycles) {}
+    Cycle access(uint64_t, uint32_t, Cycle now, AccessBreakdown* bd = nullptr) override {
+        if (bd) bd->cycles[kLevelL1] += latency_;
+        return now + latency_;
+    }
+    bool served_locally(uint64_t, uint32_t) const override { return true; }
+
+  private:
+    Cycle latency_;
+};
+
 class Cache : public sc_core::sc_module, public MemoryPort {
   public:
     // `level` names the level for stall attribution (kLevelL1, kLevelL2).

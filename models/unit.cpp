@@ -10,8 +10,8 @@ PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& par
 Cycle PipelinedUnit::issue(Cycle ready, int items) {
     const Cycle n = Cycle(std::max(1, (items + params_.width - 1) / params_.width));
     auto it = std::min_element(next_free_.begin(), next_free_.end());
-    const Cycle start = std::max(ready, *it);
-    *it = start + n * params_.interval_cycles;
+    const Cycle start = params_.unlimited ? ready : std::max(ready, *it);
+    if (!params_.unlimited) *it = start + n * params_.interval_cycles;
     ops += n;
     busy_cycles += n * params_.interval_cycles;
     if (busy_series_) busy_series_->add(start, n * params_.interval_cycles);

@@ -16,8 +16,10 @@ struct UnitParams {
     int count = 1;
     Cycle latency_cycles = 1;
     Cycle interval_cycles = 1;
-    int width =
-        1;  // items (child boxes) one operation handles; wider work takes several operations
+    // Items (child boxes) one operation handles; wider work takes several operations.
+    int width = 1;
+    // Ideal mode: as many pipelines as needed, so an operation never waits for one.
+    bool unlimited = false;
 };
 
 class PipelinedUnit : public sc_core::sc_module {

@@ -48,7 +48,10 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     const CacheParams l1p = cache_params(cfg, "l1");
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
-    const UnitParams tp = unit_params(cfg, "triangle_unit");
+    UnitParams tp = unit_params(cfg, "triangle_unit");
+    bp.unlimited = tp.unlimited = cfg.boolean("sim.ideal_units");
+    if (cfg.boolean("sim.ideal_memory"))
+        ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
     const int n = int(cfg.integer("core.count"));
     for (int i = 0; i < n; ++i) {
         const std::string idx = fmt::format("[{}]", i);
@@ -63,9 +66,11 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
             std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(i)).c_str(), tp));
         triangle_units.back()->register_stats(stats, "triangle_unit" + idx);
         triangle_units.back()->set_series(series.triangle_busy.get());
-        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp,
-                                               l1.back().get(), box_units.back().get(),
-                                               triangle_units.back().get(), source));
+        MemoryPort* memory =
+            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
+        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, memory,
+                                               box_units.back().get(), triangle_units.back().get(),
+                                               source));
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());
     }

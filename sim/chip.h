@@ -25,6 +25,7 @@ class Chip {
     std::unique_ptr<Dram> dram;
     std::unique_ptr<Cache> l2;
     std::vector<std::unique_ptr<Cache>> l1;
+    std::unique_ptr<IdealMemory> ideal_memory;  // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
     std::vector<std::unique_ptr<Core>> cores;
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.

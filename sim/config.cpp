@@ -201,6 +201,9 @@ int64_t Config::integer(const std::string& path) const {
 double Config::number(const std::string& path) const {
     return lookup(values, path).get<double>();
 }
+bool Config::boolean(const std::string& path) const {
+    return lookup(values, path).get<bool>();
+}
 std::string Config::string(const std::string& path) const {
     return lookup(values, path).get<std::string>();
 }

@@ -20,6 +20,7 @@ class Config {
     int64_t integer(const std::string& path) const;
     double number(const std::string& path) const;
     std::string string(const std::string& path) const;
+    bool boolean(const std::string& path) const;
     // FNV-1a 64 over the canonical (sorted-key) dump of `values`, as 16 hex digits.
     std::string hash() const;
 };

@@ -31,6 +31,11 @@ int main_impl(int argc, char** argv) {
     run_cmd->add_option("--out,-o", run.out_dir,
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
+    run_cmd->add_flag(
+        "--bound", run.bound,
+        "Also simulate the same rays with ideal memory and unlimited units, and report "
+        "achieved / bound rays per second");
+    run.argv.assign(argv, argv + argc);
 
     rtsim::TraceOptions trace;
     CLI::App* trace_cmd = app.add_subcommand(

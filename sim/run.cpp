@@ -1,6 +1,8 @@
 #include "sim/run.h"
 
+#include <spawn.h>
 #include <sys/resource.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <fmt/format.h>
@@ -10,6 +12,7 @@
 #include <ctime>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <future>
 #include <nlohmann/json.hpp>
 #include <systemc>
@@ -284,6 +287,45 @@ json time_series_report(const Chip& chip, const ReportInputs& ri) {
             {"rays", values(*S.rays, 1.0)}};
 }
 
+// Runs this command again in a child process with ideal memory and unlimited units (a SystemC
+// kernel runs once per process) and returns the child's stats.json.
+json run_bound(const RunOptions& opt) {
+    std::vector<std::string> args = {"/proc/self/exe"};
+    for (size_t i = 1; i < opt.argv.size(); ++i) {
+        const std::string& a = opt.argv[i];
+        if (a == "--bound" || a == "--quiet" || a == "-q") continue;
+        if (a == "--out" || a == "-o") {
+            ++i;  // and its value
+            continue;
+        }
+        if (a.rfind("--out=", 0) == 0) continue;
+        args.push_back(a);
+    }
+    char tmpl[] = "/tmp/rtsim-bound-XXXXXX";
+    const char* dir = mkdtemp(tmpl);
+    if (!dir) throw std::runtime_error("--bound: cannot create a temporary folder");
+    for (const char* extra :
+         {"--set", "sim.ideal_memory=true", "--set", "sim.ideal_units=true", "--quiet", "--out"})
+        args.push_back(extra);
+    args.push_back(dir);
+    std::vector<char*> cargv;
+    for (std::string& a : args) cargv.push_back(a.data());
+    cargv.push_back(nullptr);
+    pid_t pid;
+    if (posix_spawn(&pid, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0)
+        throw std::runtime_error("--bound: cannot start the ideal run");
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const std::string path = (fs::path(dir) / "stats.json").string();
+    std::ifstream in(path);
+    json b = json::parse(in, nullptr, false);
+    std::error_code ec;
+    fs::remove_all(dir, ec);
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded())
+        throw std::runtime_error("--bound: the ideal run failed");
+    return b;
+}
+
 json aabb_json(const AABB& b) {
     return {{"lo", {b.lo.x, b.lo.y, b.lo.z}}, {"hi", {b.hi.x, b.hi.y, b.hi.z}}};
 }
@@ -480,6 +522,16 @@ int run_command(const RunOptions& opt) {
     if (bvh) out["host"]["bvh_build_s"] = bvh->quality.build_seconds;
     if (reader) out["host"]["trace"] = opt.trace_path;
 
+    if (opt.bound) {
+        const json b = run_bound(opt);
+        const double bound_rps = b["rays_per_second"].get<double>();
+        out["bound"] = {{"sim", {{"ideal_memory", true}, {"ideal_units", true}}},
+                        {"total_cycles", b["total_cycles"]},
+                        {"rays_per_second", bound_rps},
+                        {"achieved_over_bound",
+                         bound_rps > 0 ? out["rays_per_second"].get<double>() / bound_rps : 0.0}};
+    }
+
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
     write_file_atomically(stats_path, out.dump(2) + "\n");
 
@@ -530,6 +582,11 @@ int run_command(const RunOptions& opt) {
             "second\n",
             host_total, sim_seconds,
             out["host"]["simulated_rays_per_host_second"].get<double>() / 1e6);
+        if (out.contains("bound"))
+            fmt::print(
+                "  bound    ideal memory and units: {:.2f} Mrays/s; achieved {:.1f}% of it\n",
+                out["bound"]["rays_per_second"].get<double>() / 1e6,
+                100 * out["bound"]["achieved_over_bound"].get<double>());
         fmt::print("  stats    {}\n", stats_path);
     }
     return 0;

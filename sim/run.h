@@ -37,6 +37,10 @@ struct RunOptions {
     std::string trace_path;  // replay this trace instead of generating rays
     std::string out_dir;     // empty: a fresh folder under out/
     bool quiet = false;
+    // Also run the same rays with ideal memory and unlimited units (a child rtsim process) and
+    // report achieved / bound. `argv` is this process's command line, to repeat it.
+    bool bound = false;
+    std::vector<std::string> argv;
 };
 
 // Returns the process exit status. Throws InputError for bad input.

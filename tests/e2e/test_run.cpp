@@ -513,3 +513,26 @@ TEST(Run, TimeSeriesAddUpToTheTotals) {
     EXPECT_FALSE(p.contains("time_series"));
     EXPECT_EQ(p["total_cycles"], s["total_cycles"]);
 }
+
+TEST(Run, IdealModesBoundTheAchievedRate) {
+    const fs::path real = work_dir() / "real", ideal = work_dir() / "ideal";
+    const std::string rays = "run -q --rays primary,ao --res 40x40 ";
+    const Result r = rtsim(rays + "--bound --out '" + real.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    ASSERT_EQ(rtsim(rays + "--set sim.ideal_memory=true --set sim.ideal_units=true --out '" +
+                    ideal.string() + "'")
+                  .status,
+              0);
+    const json s = stats_of(real), i = stats_of(ideal);
+    // The child run behind --bound is the ideal run of the same rays.
+    EXPECT_EQ(s["bound"]["total_cycles"], i["total_cycles"]);
+    EXPECT_LT(i["total_cycles"].get<uint64_t>(), s["total_cycles"].get<uint64_t>());
+    const double ratio = s["bound"]["achieved_over_bound"];
+    EXPECT_GT(ratio, 0.0);
+    EXPECT_LT(ratio, 1.0);
+    // Ideal memory: no L2 or DRAM time, no queueing at units.
+    EXPECT_EQ(i["stalls"]["total"]["l2"].get<uint64_t>(), 0u);
+    EXPECT_EQ(i["stalls"]["total"]["dram"].get<uint64_t>(), 0u);
+    EXPECT_EQ(i["units"]["box_unit[0]"]["queue_cycles"].get<uint64_t>(), 0u);
+    EXPECT_EQ(i["rays"]["total"], s["rays"]["total"]);
+}

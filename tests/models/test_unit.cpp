@@ -49,3 +49,12 @@ TEST(PipelinedUnit, WideNodesTakeSeveralOperations) {
     EXPECT_EQ(u.busy_cycles, 3u);
     EXPECT_EQ(u.queue_cycles, 2u);
 }
+
+TEST(PipelinedUnit, UnlimitedNeverQueues) {
+    UnitParams p{1, 8, 3};
+    p.unlimited = true;
+    PipelinedUnit u(sc_core::sc_gen_unique_name("u"), p);
+    for (int i = 0; i < 10; ++i) EXPECT_EQ(u.issue(5), 13u);  // all at once, each after its latency
+    EXPECT_EQ(u.queue_cycles, 0u);
+    EXPECT_EQ(u.busy_cycles, 30u);
+}
