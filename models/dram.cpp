@@ -6,19 +6,49 @@
 namespace rtsim {
 
 Dram::Dram(sc_core::sc_module_name name, const DramParams& params)
-    : sc_core::sc_module(name), params_(params) {}
+    : sc_core::sc_module(name),
+      params_(params),
+      banks_(size_t(std::max(1, params.channels)) * size_t(std::max(1, params.banks))),
+      bus_free_(size_t(std::max(1, params.channels)), 0.0) {}
 
-Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    const double start = std::max(static_cast<double>(now), next_free_);
-    const double transfer = size_bytes / params_.bytes_per_cycle;
-    next_free_ = start + transfer;
+Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+    const uint64_t block = addr / params_.row_bytes;
+    const auto channels = uint64_t(bus_free_.size());
+    const uint64_t channel = block % channels;
+    const uint64_t bank_index = (block / channels) % uint64_t(params_.banks);
+    const uint64_t row = block / (channels * uint64_t(params_.banks));
+    Bank& bank = banks_[channel * uint64_t(params_.banks) + bank_index];
+
+    const Cycle start = std::max(now, bank.ready);
+    Cycle column = start;  // when the column (read) command issues
+    if (!bank.open) {
+        column += params_.t_rcd_cycles;
+        ++row_empty;
+    } else if (bank.open_row != row) {
+        column += params_.t_rp_cycles + params_.t_rcd_cycles;
+        ++row_conflicts;
+    } else {
+        ++row_hits;
+    }
+    bank.open = true;
+    bank.open_row = row;
+    bank.ready = column + params_.t_ccd_cycles;
+    const Cycle data_ready = column + params_.t_cas_cycles;
+
+    const uint32_t bursts = (size_bytes + params_.burst_bytes - 1) / params_.burst_bytes;
+    const uint32_t moved = std::max(1u, bursts) * params_.burst_bytes;
+    double& bus = bus_free_[channel];
+    const double bus_start = std::max(static_cast<double>(data_ready), bus);
+    const double transfer = moved / params_.bytes_per_cycle;
+    bus = bus_start + transfer;
     ++reads;
-    bytes += size_bytes;
-    if (bytes_series_) bytes_series_->add(static_cast<uint64_t>(start), size_bytes);
+    bytes += moved;
+    if (bytes_series_) bytes_series_->add(static_cast<uint64_t>(bus_start), moved);
     busy_cycles += static_cast<uint64_t>(std::ceil(transfer));
-    queue_cycles += static_cast<uint64_t>(std::ceil(start - static_cast<double>(now)));
-    // Data is usable once its last byte has crossed the channel and the access latency passed.
-    const Cycle done = static_cast<Cycle>(std::ceil(next_free_)) + params_.latency_cycles;
+    queue_cycles += (start - now) +
+                    static_cast<uint64_t>(std::ceil(bus_start - static_cast<double>(data_ready)));
+    // Data is usable once its last byte has crossed the bus and the controller latency passed.
+    const Cycle done = static_cast<Cycle>(std::ceil(bus)) + params_.latency_cycles;
     if (bd) bd->cycles[kLevelDram] += done - now;
     return done;
 }
@@ -26,8 +56,11 @@ Cycle Dram::access(uint64_t /*addr*/, uint32_t size_bytes, Cycle now, AccessBrea
 void Dram::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "reads", &reads, "read bursts");
     reg.add(block, "bytes", &bytes, "bytes read");
-    reg.add(block, "busy_cycles", &busy_cycles, "cycles the channel was transferring");
-    reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for the channel");
+    reg.add(block, "row_hits", &row_hits, "reads to the open row of their bank");
+    reg.add(block, "row_empty", &row_empty, "reads to a bank with no open row");
+    reg.add(block, "row_conflicts", &row_conflicts, "reads that closed another row first");
+    reg.add(block, "busy_cycles", &busy_cycles, "cycles the buses were transferring");
+    reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for a bank or a bus");
 }
 
 }  // namespace rtsim

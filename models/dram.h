@@ -1,9 +1,14 @@
-// DRAM as one channel: fixed access latency plus a transfer time at `bytes_per_cycle`, with
-// transfers serialised on the channel (the bandwidth cap). Row buffers and banks come later.
+// DRAM: channels of banks with row buffers (open-page policy) and a data bus per channel.
+// A read waits for its bank, pays tCAS on a row hit, tRCD + tCAS on an empty bank, and
+// tRP + tRCD + tCAS on a row conflict; a bank takes its next column command tCCD after the last
+// (so reads to an open row pipeline); the data then crosses the channel's bus at
+// bytes_per_cycle (the bandwidth cap); latency_cycles covers the controller and interconnect.
+// Passive, like the caches: each bank and bus knows the cycle it is next free.
 #pragma once
 
 #include <string>
 #include <systemc>
+#include <vector>
 
 #include "models/stats.h"
 #include "models/timing.h"
@@ -12,7 +17,13 @@ namespace rtsim {
 
 struct DramParams {
     Cycle latency_cycles = 200;
-    double bytes_per_cycle = 32.0;
+    double bytes_per_cycle = 32.0;  // per channel
+    int channels = 1;
+    int banks = 1;              // per channel
+    uint32_t row_bytes = 2048;  // row-buffer size; consecutive rows interleave channels, then banks
+    uint32_t burst_bytes = 64;  // reads are whole bursts
+    Cycle t_rcd_cycles = 0, t_cas_cycles = 0, t_rp_cycles = 0;
+    Cycle t_ccd_cycles = 0;  // column command to column command in one bank (reads pipeline)
 };
 
 class Dram : public sc_core::sc_module, public MemoryPort {
@@ -26,14 +37,20 @@ class Dram : public sc_core::sc_module, public MemoryPort {
 
     uint64_t reads = 0;
     uint64_t bytes = 0;
-    uint64_t busy_cycles = 0;   // cycles the channel spent transferring (rounded up per access)
-    uint64_t queue_cycles = 0;  // cycles requests waited for the channel
+    uint64_t row_hits = 0, row_empty = 0, row_conflicts = 0;
+    uint64_t busy_cycles = 0;   // cycles the buses spent transferring (rounded up per access)
+    uint64_t queue_cycles = 0;  // cycles requests waited for a bank or a bus
 
   private:
+    struct Bank {
+        uint64_t open_row = 0;
+        bool open = false;
+        Cycle ready = 0;  // next cycle it accepts a command
+    };
     DramParams params_;
-    double next_free_ = 0.0;
-    TimeSeries* bytes_series_ =
-        nullptr;  // fractional, so that e.g. 12.8 bytes per cycle is exact over time
+    std::vector<Bank> banks_;       // channels * banks
+    std::vector<double> bus_free_;  // per channel; fractional, so 12.8 bytes per cycle is exact
+    TimeSeries* bytes_series_ = nullptr;
 };
 
 }  // namespace rtsim

@@ -33,6 +33,14 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     DramParams dp;
     dp.latency_cycles = Cycle(cfg.integer("dram.latency_cycles"));
     dp.bytes_per_cycle = cfg.number("dram.bytes_per_cycle");
+    dp.channels = int(cfg.integer("dram.channels"));
+    dp.banks = int(cfg.integer("dram.banks"));
+    dp.row_bytes = uint32_t(cfg.integer("dram.row_bytes"));
+    dp.burst_bytes = uint32_t(cfg.integer("dram.burst_bytes"));
+    dp.t_rcd_cycles = Cycle(cfg.integer("dram.t_rcd_cycles"));
+    dp.t_cas_cycles = Cycle(cfg.integer("dram.t_cas_cycles"));
+    dp.t_rp_cycles = Cycle(cfg.integer("dram.t_rp_cycles"));
+    dp.t_ccd_cycles = Cycle(cfg.integer("dram.t_ccd_cycles"));
     dram = std::make_unique<Dram>("dram", dp);
     dram->register_stats(stats, "dram");
     dram->set_series(series.dram_bytes.get());

@@ -479,6 +479,7 @@ int run_command(const RunOptions& opt) {
     ri.box_pipelines_per_core = int(cfg.integer("box_unit.count"));
     ri.triangle_pipelines_per_core = int(cfg.integer("triangle_unit.count"));
     ri.ray_slots_per_core = int(cfg.integer("core.ray_slots"));
+    ri.dram_channels = int(cfg.integer("dram.channels"));
     json timing = timing_report(ri);
 
     // Ray kinds reported: those the workload asked for (or, for rays from a file, those seen).

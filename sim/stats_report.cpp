@@ -64,13 +64,18 @@ json timing_report(const ReportInputs& in) {
     const uint64_t l1_bytes = s.sum("l1[", "bytes_requested");
     const uint64_t l2_bytes = s.sum("l1[", "fill_bytes");
     const uint64_t dram_bytes = s.get("dram.bytes");
-    out["bandwidth"] = {{"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},
-                        {"l2", {{"bytes", l2_bytes}, {"gbps", gbps(l2_bytes)}}},
-                        {"dram",
-                         {{"bytes", dram_bytes},
-                          {"gbps", gbps(dram_bytes)},
-                          {"busy_cycles", s.get("dram.busy_cycles")},
-                          {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles)}}}};
+    out["bandwidth"] = {
+        {"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},
+        {"l2", {{"bytes", l2_bytes}, {"gbps", gbps(l2_bytes)}}},
+        {"dram",
+         {{"bytes", dram_bytes},
+          {"gbps", gbps(dram_bytes)},
+          {"busy_cycles", s.get("dram.busy_cycles")},
+          {"row_hits", s.get("dram.row_hits")},
+          {"row_empty", s.get("dram.row_empty")},
+          {"row_conflicts", s.get("dram.row_conflicts")},
+          {"row_hit_rate", ratio(double(s.get("dram.row_hits")), double(s.get("dram.reads")))},
+          {"utilization", ratio(double(s.get("dram.busy_cycles")), cycles * in.dram_channels)}}}};
 
     // Stall attribution: every ray-slot cycle charged to one cause; cycles without a ray are
     // "no_work". Per core and in total, in slot-cycles and as shares.

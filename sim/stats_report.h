@@ -17,6 +17,7 @@ struct ReportInputs {
     int cores = 0;
     int box_pipelines_per_core = 1, triangle_pipelines_per_core = 1;
     int ray_slots_per_core = 1;
+    int dram_channels = 1;
 };
 
 // Sections "units", "caches", "bandwidth", "stalls", "counters" of stats.json.

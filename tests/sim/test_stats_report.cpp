@@ -11,7 +11,7 @@ struct Blocks {
     uint64_t box[3] = {500, 500, 0}, tri[3] = {100, 200, 0};
     uint64_t l1[6] = {1000, 900, 100, 10, 64000, 6400};
     uint64_t l2[6] = {100, 60, 40, 0, 6400, 2560};
-    uint64_t dram[4] = {40, 2560, 80, 0};
+    uint64_t dram[7] = {40, 2560, 80, 0, 30, 6, 4};
     uint64_t stalls[6] = {100, 200, 300,
                           400, 500, 600};  // one core of 3 slots: 2100 of 3000 cycles
     StatsRegistry reg;
@@ -19,12 +19,13 @@ struct Blocks {
         const char* unit[] = {"ops", "busy_cycles", "queue_cycles"};
         const char* cache[] = {"accesses",        "hits",      "misses", "merged_misses",
                                "bytes_requested", "fill_bytes"};
-        const char* mem[] = {"reads", "bytes", "busy_cycles", "queue_cycles"};
+        const char* mem[] = {"reads",    "bytes",     "busy_cycles",  "queue_cycles",
+                             "row_hits", "row_empty", "row_conflicts"};
         for (int i = 0; i < 3; ++i) reg.add("box_unit[0]", unit[i], &box[i], "");
         for (int i = 0; i < 3; ++i) reg.add("triangle_unit[0]", unit[i], &tri[i], "");
         for (int i = 0; i < 6; ++i) reg.add("l1[0]", cache[i], &l1[i], "");
         for (int i = 0; i < 6; ++i) reg.add("l2", cache[i], &l2[i], "");
-        for (int i = 0; i < 4; ++i) reg.add("dram", mem[i], &dram[i], "");
+        for (int i = 0; i < 7; ++i) reg.add("dram", mem[i], &dram[i], "");
         const char* cause[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
         for (int i = 0; i < 6; ++i)
             reg.add("core[0]", std::string("stall_") + cause[i] + "_cycles", &stalls[i], "");
@@ -52,6 +53,7 @@ TEST(StatsReport, DerivedFiguresFromCounters) {
     EXPECT_EQ(r["bandwidth"]["l2"]["bytes"].get<uint64_t>(), 6400u);
     EXPECT_DOUBLE_EQ(r["bandwidth"]["dram"]["gbps"].get<double>(), 2560 / 0.5e-6 / 1e9);
     EXPECT_EQ(r["counters"]["l1[0].misses"].get<uint64_t>(), 100u);
+    EXPECT_DOUBLE_EQ(r["bandwidth"]["dram"]["row_hit_rate"].get<double>(), 0.75);
     // 3 slots x 1000 cycles, 2100 charged: 900 without work.
     EXPECT_EQ(r["stalls"]["total"]["no_work"].get<uint64_t>(), 900u);
     EXPECT_DOUBLE_EQ(r["stalls"]["core[0]"]["share"]["dram"].get<double>(), 400.0 / 3000.0);
