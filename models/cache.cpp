@@ -9,6 +9,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
     ways_.resize(params_.sets() * params_.ways);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
+    mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
@@ -39,9 +40,16 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
-    if (bd) bd->cycles[level_] += params_.hit_latency_cycles;
-    const Cycle ready =
-        next_->access(line_addr << line_shift_, params_.line_bytes, lookup_done, bd);
+    Cycle issue_at = lookup_done;
+    std::vector<Cycle>::iterator mshr;
+    if (!mshr_free_.empty()) {
+        mshr = std::min_element(mshr_free_.begin(), mshr_free_.end());
+        issue_at = std::max(lookup_done, *mshr);
+        mshr_wait_cycles += issue_at - lookup_done;
+    }
+    if (bd) bd->cycles[level_] += params_.hit_latency_cycles + (issue_at - lookup_done);
+    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
+    if (!mshr_free_.empty()) *mshr = ready;
     victim->valid = true;
     victim->tag = tag;
     victim->last_use = ++use_clock_;
@@ -91,6 +99,7 @@ void Cache::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "merged_misses", &merged_misses, "hits that waited for an in-flight fill");
     reg.add(block, "bytes_requested", &bytes_requested, "bytes delivered to the level above");
     reg.add(block, "fill_bytes", &fill_bytes, "bytes read from the level below");
+    reg.add(block, "mshr_wait_cycles", &mshr_wait_cycles, "cycles misses waited for a free MSHR");
 }
 
 }  // namespace rtsim

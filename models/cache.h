@@ -1,7 +1,8 @@
 // A set-associative, read-only (BVH data is never written during traversal), LRU cache.
 // Loosely timed: a hit costs `hit_latency_cycles`; a miss adds the next level's latency.
 // A line stays "filling" until its data arrives, so a second access to it waits for the same
-// fill instead of issuing another (miss merging, as MSHRs do).
+// fill instead of issuing another (miss merging). A miss holds one of `mshrs` registers until its
+// data returns; with all of them busy, the next miss waits (Little's law bounds the bandwidth).
 #pragma once
 
 #include <string>
@@ -18,6 +19,7 @@ struct CacheParams {
     int ways = 4;
     uint32_t line_bytes = 64;
     Cycle hit_latency_cycles = 4;
+    int mshrs = 0;  // misses in flight at once (miss status holding registers); 0: unlimited
 
     uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
 };
@@ -52,9 +54,10 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
     uint64_t hits = 0;
     uint64_t misses = 0;
-    uint64_t merged_misses = 0;    // hits on a line whose fill was still in flight
-    uint64_t bytes_requested = 0;  // bytes delivered to the level above
-    uint64_t fill_bytes = 0;       // bytes read from the level below
+    uint64_t merged_misses = 0;     // hits on a line whose fill was still in flight
+    uint64_t bytes_requested = 0;   // bytes delivered to the level above
+    uint64_t fill_bytes = 0;        // bytes read from the level below
+    uint64_t mshr_wait_cycles = 0;  // cycles misses waited for a free MSHR
 
   private:
     struct Way {
@@ -69,6 +72,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
+    std::vector<Cycle> mshr_free_;  // per MSHR: cycle its miss completes
     TimeSeries* fill_series_ = nullptr;
     std::vector<Way> ways_;  // sets * ways, set-major
     uint64_t set_mask_;

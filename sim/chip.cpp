@@ -11,6 +11,7 @@ CacheParams cache_params(const Config& cfg, const std::string& level) {
     p.ways = int(cfg.integer(level + ".ways"));
     p.line_bytes = uint32_t(cfg.integer(level + ".line_bytes"));
     p.hit_latency_cycles = Cycle(cfg.integer(level + ".hit_latency_cycles"));
+    p.mshrs = int(cfg.integer(level + ".mshrs"));
     return p;
 }
 

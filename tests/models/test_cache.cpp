@@ -114,3 +114,30 @@ TEST(Cache, BreakdownChargesEachLevelItsCycles) {
     EXPECT_EQ(d.cycles[kLevelL1], 4u);
     EXPECT_EQ(d.cycles[kLevelDram], 200u);
 }
+
+TEST(Cache, MshrsBoundBandwidthByLittlesLaw) {
+    // N misses to distinct lines, all at once, through M MSHRs to a memory of latency L: M misses
+    // are in flight at any time, so they finish in waves, L cycles apart, and the bandwidth is
+    // M lines per L cycles (Little's law).
+    const int M = 4;
+    const Cycle L = 100, hit = 4;
+    const int N = 100;
+    CacheParams p;
+    p.size_bytes = 64 * 1024;
+    p.ways = 4;
+    p.hit_latency_cycles = hit;
+    p.mshrs = M;
+    test::FixedLatencyMemory mem(L);
+    Cache c("c", p, &mem);
+    Cycle last = 0;
+    for (int i = 0; i < N; ++i) last = std::max(last, c.access(uint64_t(i) * 64, 64, 0));
+    EXPECT_EQ(last, hit + Cycle(N / M) * L);
+    const double lines_per_cycle = double(N) / double(last - hit);
+    EXPECT_NEAR(lines_per_cycle, double(M) / double(L), 1e-9);
+    EXPECT_GT(c.mshr_wait_cycles, 0u);
+    // Merged misses take no MSHR: a second access to a filling line does not wait for one.
+    Cache d("d", p, &mem);
+    for (int i = 0; i < M; ++i) d.access(uint64_t(i) * 64, 64, 0);
+    EXPECT_EQ(d.access(0, 64, 1), hit + L);  // joins the first fill
+    EXPECT_EQ(d.mshr_wait_cycles, 0u);
+}
