@@ -16,17 +16,21 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
     SC_THREAD(run);
 }
 
-Cycle Core::issue(Cycle t) {
+// Issues `instructions` instructions ready at t through the core's shared issue port
+// (issue_width per cycle); returns when the step's fetch can start.
+Cycle Core::issue(Cycle t, int instructions) {
     if (t > issue_cycle_) {
         issue_cycle_ = t;
         issued_in_cycle_ = 0;
     }
-    if (issued_in_cycle_ == params_.issue_width) {
-        ++issue_cycle_;
-        issued_in_cycle_ = 0;
+    for (int i = 0; i < instructions; ++i) {
+        if (issued_in_cycle_ == params_.issue_width) {
+            ++issue_cycle_;
+            issued_in_cycle_ = 0;
+        }
+        ++issued_in_cycle_;
+        if (i == 0) issue_stall_cycles += issue_cycle_ - t;  // waiting for the first issue slot
     }
-    ++issued_in_cycle_;
-    issue_stall_cycles += issue_cycle_ - t;
     return issue_cycle_ + params_.issue_latency_cycles;
 }
 
@@ -59,15 +63,17 @@ void Core::run() {
             s->busy = true;
             s->pos = 0;
             s->start = t;
-            s->ready = issue(t);  // ray setup; a ray that misses the root box ends here
+            s->ready =
+                issue(t, params_.ray_setup_instructions);  // a ray missing the root box ends here
             stall_cycles[kIssue] += s->ready - t;
         } else {
             const Step& st = s->work.steps[s->pos++];
             ++steps;
-            const Cycle issued = issue(t);
+            const bool node = st.kind == StepKind::Node;
+            const Cycle issued = issue(
+                t, node ? params_.node_step_instructions : params_.triangle_step_instructions);
             AccessBreakdown bd;
             const Cycle fetched = l1_->access(st.addr, st.size_bytes, issued, &bd);
-            const bool node = st.kind == StepKind::Node;
             s->ready = node ? box_->issue(fetched, st.count) : tri_->issue(fetched);
             stall_cycles[kIssue] += issued - t;
             stall_cycles[kL1] += bd.cycles[kLevelL1];

@@ -31,8 +31,11 @@ class RayWorkSource {
 
 struct CoreParams {
     int ray_slots = 8;
-    int issue_width = 1;             // steps the core can issue per cycle, over all slots
-    Cycle issue_latency_cycles = 1;  // control work per step before its fetch starts
+    int issue_width = 1;             // instructions the core issues per cycle, over all slots
+    Cycle issue_latency_cycles = 1;  // pipeline depth from the last issued instruction to the fetch
+    int node_step_instructions = 1;  // control instructions per node step (traversal)
+    int triangle_step_instructions = 1;  // control instructions per triangle step (intersection)
+    int ray_setup_instructions = 1;      // instructions to start a ray
     Cycle quantum_cycles = 0;
 };
 
@@ -66,7 +69,7 @@ class Core : public sc_core::sc_module {
         bool retired = false;
     };
     void run();
-    Cycle issue(Cycle t);
+    Cycle issue(Cycle t, int instructions);
 
     CoreParams params_;
     MemoryPort* l1_;

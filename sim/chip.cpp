@@ -53,6 +53,9 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     cp.ray_slots = int(cfg.integer("core.ray_slots"));
     cp.issue_width = int(cfg.integer("core.issue_width"));
     cp.issue_latency_cycles = Cycle(cfg.integer("core.issue_latency_cycles"));
+    cp.node_step_instructions = int(cfg.integer("core.node_step_instructions"));
+    cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
+    cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
     cp.quantum_cycles = Cycle(cfg.integer("sim.quantum_cycles"));
     const CacheParams l1p = cache_params(cfg, "l1");
     UnitParams bp = unit_params(cfg, "box_unit");

@@ -105,3 +105,21 @@ TEST(Core, NoWorkCostsNothing) {
     EXPECT_EQ(core.last_cycle, 0u);
     EXPECT_EQ(sc_core::sc_time_stamp(), sc_core::SC_ZERO_TIME);
 }
+
+// Control instructions per step go through the issue port, issue_width per cycle: n instructions
+// at width 1 add n - 1 cycles before the fetch.
+TEST(Core, StepInstructionsOccupyTheIssuePort) {
+    const Cycle M = 30, T = 18, I = 2;
+    const int rays = 3, steps = 5, n = 4;
+    test::FixedLatencyMemory mem(M);
+    PipelinedUnit box("box", UnitParams{1, 8, 1}), tri("tri", UnitParams{1, T, 1});
+    SyntheticSource src(rays, steps, StepKind::Triangle);
+    CoreParams cp;
+    cp.ray_slots = 1;
+    cp.issue_latency_cycles = I;
+    cp.triangle_step_instructions = n;
+    Core core("core", cp, &mem, &box, &tri, &src);
+    sc_core::sc_start();
+    EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * ((n - 1) + I + M + T)));
+    EXPECT_EQ(core.stall_cycles[Core::kIssue], Cycle(rays) * (I + steps * ((n - 1) + I)));
+}
