@@ -10,6 +10,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     ways_.resize(params_.sets() * params_.ways);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
+    bank_free_.assign(size_t(std::max(1, params_.banks)), 0);
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
@@ -20,15 +21,21 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     const uint64_t tag = line_addr;  // the full line address as tag: simple and unambiguous
     Way* base = &ways_[set * params_.ways];
     Way* victim = base;
-    const Cycle lookup_done = now + params_.hit_latency_cycles;
+    // One lookup per bank per cycle; waiting for the bank is charged to this level.
+    Cycle& bank = bank_free_[line_addr % bank_free_.size()];
+    const Cycle start = std::max(now, bank);
+    bank = start + 1;
+    bank_conflict_cycles += start - now;
+    const Cycle lookup_done = start + params_.hit_latency_cycles;
+    const bool lru = params_.replacement == CacheParams::Replacement::Lru;
     for (int w = 0; w < params_.ways; ++w) {
         Way& way = base[w];
         if (way.valid && way.tag == tag) {
             ++hits;
-            way.last_use = ++use_clock_;
+            if (lru) way.last_use = ++use_clock_;  // FIFO keeps the fill order
             if (way.ready > lookup_done) ++merged_misses;
             if (bd) {
-                bd->cycles[level_] += params_.hit_latency_cycles;
+                bd->cycles[level_] += lookup_done - now;
                 // Waiting for a fill already in flight is time spent below this level.
                 if (way.ready > lookup_done)
                     bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += way.ready - lookup_done;
@@ -36,6 +43,12 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
             return std::max(lookup_done, way.ready);
         }
         if (!way.valid || (victim->valid && way.last_use < victim->last_use)) victim = &way;
+    }
+    if (victim->valid && params_.replacement == CacheParams::Replacement::Random) {
+        rng_ ^= rng_ << 13;
+        rng_ ^= rng_ >> 7;
+        rng_ ^= rng_ << 17;
+        victim = base + rng_ % uint64_t(params_.ways);
     }
     ++misses;
     fill_bytes += params_.line_bytes;
@@ -47,7 +60,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
         issue_at = std::max(lookup_done, *mshr);
         mshr_wait_cycles += issue_at - lookup_done;
     }
-    if (bd) bd->cycles[level_] += params_.hit_latency_cycles + (issue_at - lookup_done);
+    if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
     if (!mshr_free_.empty()) *mshr = ready;
     victim->valid = true;
@@ -100,6 +113,8 @@ void Cache::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "bytes_requested", &bytes_requested, "bytes delivered to the level above");
     reg.add(block, "fill_bytes", &fill_bytes, "bytes read from the level below");
     reg.add(block, "mshr_wait_cycles", &mshr_wait_cycles, "cycles misses waited for a free MSHR");
+    reg.add(block, "bank_conflict_cycles", &bank_conflict_cycles,
+            "cycles lookups waited for their bank");
 }
 
 }  // namespace rtsim

@@ -20,6 +20,9 @@ struct CacheParams {
     uint32_t line_bytes = 64;
     Cycle hit_latency_cycles = 4;
     int mshrs = 0;  // misses in flight at once (miss status holding registers); 0: unlimited
+    enum class Replacement : uint8_t { Lru, Fifo, Random };
+    Replacement replacement = Replacement::Lru;
+    int banks = 1;  // line-interleaved banks, each starting one lookup per cycle
 
     uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
 };
@@ -54,10 +57,11 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
     uint64_t hits = 0;
     uint64_t misses = 0;
-    uint64_t merged_misses = 0;     // hits on a line whose fill was still in flight
-    uint64_t bytes_requested = 0;   // bytes delivered to the level above
-    uint64_t fill_bytes = 0;        // bytes read from the level below
-    uint64_t mshr_wait_cycles = 0;  // cycles misses waited for a free MSHR
+    uint64_t merged_misses = 0;         // hits on a line whose fill was still in flight
+    uint64_t bytes_requested = 0;       // bytes delivered to the level above
+    uint64_t fill_bytes = 0;            // bytes read from the level below
+    uint64_t mshr_wait_cycles = 0;      // cycles misses waited for a free MSHR
+    uint64_t bank_conflict_cycles = 0;  // cycles lookups waited for their bank
 
   private:
     struct Way {
@@ -72,7 +76,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
-    std::vector<Cycle> mshr_free_;  // per MSHR: cycle its miss completes
+    std::vector<Cycle> mshr_free_;          // per MSHR: cycle its miss completes
+    std::vector<Cycle> bank_free_;          // per bank: next cycle it starts a lookup
+    uint64_t rng_ = 0x9E3779B97F4A7C15ull;  // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
     std::vector<Way> ways_;  // sets * ways, set-major
     uint64_t set_mask_;

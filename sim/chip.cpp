@@ -12,6 +12,11 @@ CacheParams cache_params(const Config& cfg, const std::string& level) {
     p.line_bytes = uint32_t(cfg.integer(level + ".line_bytes"));
     p.hit_latency_cycles = Cycle(cfg.integer(level + ".hit_latency_cycles"));
     p.mshrs = int(cfg.integer(level + ".mshrs"));
+    p.banks = int(cfg.integer(level + ".banks"));
+    const std::string policy = cfg.string(level + ".replacement");
+    p.replacement = policy == "fifo"     ? CacheParams::Replacement::Fifo
+                    : policy == "random" ? CacheParams::Replacement::Random
+                                         : CacheParams::Replacement::Lru;
     return p;
 }
 
