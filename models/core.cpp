@@ -46,8 +46,9 @@ void Core::run() {
         // core's own calendars still see its requests in time order, because it always runs
         // the earliest slot, so this equals waiting before every step (up to the order of
         // requests from different cores in the same cycle).
-        const bool shared = !s->busy || !l1_->served_locally(s->work.steps[s->pos].addr,
-                                                             s->work.steps[s->pos].size_bytes);
+        const bool shared =
+            !s->busy || params_.units_shared ||
+            !l1_->served_locally(s->work.steps[s->pos].addr, s->work.steps[s->pos].size_bytes);
         if (shared) {
             const Cycle now = now_cycles();
             if (t > now + params_.quantum_cycles) {

@@ -37,6 +37,7 @@ struct CoreParams {
     int triangle_step_instructions = 1;  // control instructions per triangle step (intersection)
     int ray_setup_instructions = 1;      // instructions to start a ray
     Cycle quantum_cycles = 0;
+    bool units_shared = false;  // units serve several cores: every step synchronises
 };
 
 class Core : public sc_core::sc_module {

@@ -70,23 +70,32 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     if (cfg.boolean("sim.ideal_memory"))
         ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
     const int n = int(cfg.integer("core.count"));
+    // Units may serve several cores (shared_by): core i uses unit i / shared_by.
+    const int box_share = int(cfg.integer("box_unit.shared_by"));
+    const int tri_share = int(cfg.integer("triangle_unit.shared_by"));
+    cp.units_shared = box_share > 1 || tri_share > 1;
+    for (int u = 0; u < (n + box_share - 1) / box_share; ++u) {
+        box_units.push_back(
+            std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(u)).c_str(), bp));
+        box_units.back()->register_stats(stats, fmt::format("box_unit[{}]", u));
+        box_units.back()->set_series(series.box_busy.get());
+    }
+    for (int u = 0; u < (n + tri_share - 1) / tri_share; ++u) {
+        triangle_units.push_back(
+            std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(u)).c_str(), tp));
+        triangle_units.back()->register_stats(stats, fmt::format("triangle_unit[{}]", u));
+        triangle_units.back()->set_series(series.triangle_busy.get());
+    }
     for (int i = 0; i < n; ++i) {
         const std::string idx = fmt::format("[{}]", i);
         l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, l2.get()));
         l1.back()->register_stats(stats, "l1" + idx);
         l1.back()->set_series(series.l1_fill_bytes.get());
-        box_units.push_back(
-            std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(i)).c_str(), bp));
-        box_units.back()->register_stats(stats, "box_unit" + idx);
-        box_units.back()->set_series(series.box_busy.get());
-        triangle_units.push_back(
-            std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(i)).c_str(), tp));
-        triangle_units.back()->register_stats(stats, "triangle_unit" + idx);
-        triangle_units.back()->set_series(series.triangle_busy.get());
         MemoryPort* memory =
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
         cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, memory,
-                                               box_units.back().get(), triangle_units.back().get(),
+                                               box_units[size_t(i / box_share)].get(),
+                                               triangle_units[size_t(i / tri_share)].get(),
                                                source));
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());

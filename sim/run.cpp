@@ -274,17 +274,18 @@ json time_series_report(const Chip& chip, const ReportInputs& ri) {
         return a;
     };
     const double gbps = 1.0 / window_seconds / 1e9;
-    return {{"window_cycles", window},
-            {"windows", n},
-            {"dram_gbps", values(*S.dram_bytes, gbps)},
-            {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
-            {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
-            {"box_unit_utilization",
-             values(*S.box_busy, 1.0 / (double(window) * ri.box_pipelines_per_core * ri.cores))},
-            {"triangle_unit_utilization",
-             values(*S.triangle_busy,
-                    1.0 / (double(window) * ri.triangle_pipelines_per_core * ri.cores))},
-            {"rays", values(*S.rays, 1.0)}};
+    return {
+        {"window_cycles", window},
+        {"windows", n},
+        {"dram_gbps", values(*S.dram_bytes, gbps)},
+        {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
+        {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
+        {"box_unit_utilization",
+         values(*S.box_busy, 1.0 / (double(window) * ri.box_pipelines_per_core * ri.box_units))},
+        {"triangle_unit_utilization",
+         values(*S.triangle_busy,
+                1.0 / (double(window) * ri.triangle_pipelines_per_core * ri.triangle_units))},
+        {"rays", values(*S.rays, 1.0)}};
 }
 
 // Runs this command again in a child process with ideal memory and unlimited units (a SystemC
@@ -479,6 +480,8 @@ int run_command(const RunOptions& opt) {
     ri.box_pipelines_per_core = int(cfg.integer("box_unit.count"));
     ri.triangle_pipelines_per_core = int(cfg.integer("triangle_unit.count"));
     ri.ray_slots_per_core = int(cfg.integer("core.ray_slots"));
+    ri.box_units = int(chip.box_units.size());
+    ri.triangle_units = int(chip.triangle_units.size());
     ri.dram_channels = int(cfg.integer("dram.channels"));
     json timing = timing_report(ri);
 

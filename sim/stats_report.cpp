@@ -1,6 +1,7 @@
 #include "sim/stats_report.h"
 
 #include <fmt/format.h>
+#include <tuple>
 
 namespace rtsim {
 
@@ -18,10 +19,12 @@ json timing_report(const ReportInputs& in) {
     out["simulated_seconds"] = seconds;
 
     json units = json::object();
-    for (int i = 0; i < in.cores; ++i)
-        for (auto [kind, pipes] :
-             {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
-              {"triangle_unit", in.triangle_pipelines_per_core}}) {
+    for (auto [kind, pipes, count] :
+         {std::tuple<const char*, int, int>{"box_unit", in.box_pipelines_per_core,
+                                            in.box_units ? in.box_units : in.cores},
+          {"triangle_unit", in.triangle_pipelines_per_core,
+           in.triangle_units ? in.triangle_units : in.cores}}) {
+        for (int i = 0; i < count; ++i) {
             const std::string b = fmt::format("{}[{}]", kind, i);
             const uint64_t busy = s.get(b + ".busy_cycles");
             units[b] = {{"ops", s.get(b + ".ops")},
@@ -29,14 +32,12 @@ json timing_report(const ReportInputs& in) {
                         {"queue_cycles", s.get(b + ".queue_cycles")},
                         {"utilization", ratio(double(busy), cycles * pipes)}};
         }
-    for (auto [kind, pipes] : {std::pair<const char*, int>{"box_unit", in.box_pipelines_per_core},
-                               {"triangle_unit", in.triangle_pipelines_per_core}}) {
         const std::string prefix = std::string(kind) + "[";
         const uint64_t busy = s.sum(prefix, "busy_cycles");
         units[std::string(kind) + "_total"] = {
             {"ops", s.sum(prefix, "ops")},
             {"busy_cycles", busy},
-            {"utilization", ratio(double(busy), cycles * pipes * in.cores)}};
+            {"utilization", ratio(double(busy), cycles * pipes * count)}};
     }
     out["units"] = units;
 

@@ -15,7 +15,8 @@ struct ReportInputs {
     Cycle total_cycles = 0;
     double clock_ghz = 1.0;
     int cores = 0;
-    int box_pipelines_per_core = 1, triangle_pipelines_per_core = 1;
+    int box_pipelines_per_core = 1, triangle_pipelines_per_core = 1;  // per unit
+    int box_units = 0, triangle_units = 0;  // unit instances (0: one per core)
     int ray_slots_per_core = 1;
     int dram_channels = 1;
 };

@@ -536,3 +536,24 @@ TEST(Run, IdealModesBoundTheAchievedRate) {
     EXPECT_EQ(i["units"]["box_unit[0]"]["queue_cycles"].get<uint64_t>(), 0u);
     EXPECT_EQ(i["rays"]["total"], s["rays"]["total"]);
 }
+
+TEST(Run, UnitsSharedAmongCoresContend) {
+    const fs::path own = work_dir() / "own", shared = work_dir() / "shared",
+                   again = work_dir() / "again";
+    const std::string base = "run -q --rays primary,ao --res 40x40 ";
+    ASSERT_EQ(rtsim(base + "--out '" + own.string() + "'").status, 0);
+    const std::string share = "--set box_unit.shared_by=4 --set triangle_unit.shared_by=3 ";
+    ASSERT_EQ(rtsim(base + share + "--out '" + shared.string() + "'").status, 0);
+    ASSERT_EQ(rtsim(base + share + "--out '" + again.string() + "'").status, 0);
+    const json a = stats_of(own), b = stats_of(shared);
+    EXPECT_TRUE(b["units"].contains("box_unit[1]"));
+    EXPECT_FALSE(b["units"].contains("box_unit[2]"));      // 8 cores, 4 per box unit
+    EXPECT_TRUE(b["units"].contains("triangle_unit[2]"));  // 8 cores, 3 per triangle unit: 3 units
+    EXPECT_FALSE(b["units"].contains("triangle_unit[3]"));
+    // The same work, on fewer units: more queueing, never faster.
+    EXPECT_EQ(a["units"]["box_unit_total"]["ops"], b["units"]["box_unit_total"]["ops"]);
+    EXPECT_GE(b["total_cycles"].get<uint64_t>(), a["total_cycles"].get<uint64_t>());
+    EXPECT_GT(b["stalls"]["total"]["box_unit"].get<uint64_t>(),
+              a["stalls"]["total"]["box_unit"].get<uint64_t>());
+    EXPECT_EQ(without_host(b), without_host(stats_of(again)));
+}
