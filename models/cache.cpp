@@ -7,48 +7,56 @@ namespace rtsim {
 Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
              int level)
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
-    ways_.resize(params_.sets() * params_.ways);
+    tags_.assign(params_.sets() * params_.ways, kNoTag);
+    state_.resize(params_.sets() * params_.ways);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     bank_free_.assign(size_t(std::max(1, params_.banks)), 0);
+    bank_mask_ = bank_free_.size() - 1;  // a power of two (config validates)
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
 
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     ++accesses;
-    const uint64_t set = line_addr & set_mask_;
-    const uint64_t tag = line_addr;  // the full line address as tag: simple and unambiguous
-    Way* base = &ways_[set * params_.ways];
-    Way* victim = base;
+    const size_t base = size_t(line_addr & set_mask_) * size_t(params_.ways);
+    const uint64_t* tags = &tags_[base];
     // One lookup per bank per cycle; waiting for the bank is charged to this level.
-    Cycle& bank = bank_free_[line_addr % bank_free_.size()];
+    Cycle& bank = bank_free_[line_addr & bank_mask_];
     const Cycle start = std::max(now, bank);
     bank = start + 1;
     bank_conflict_cycles += start - now;
     const Cycle lookup_done = start + params_.hit_latency_cycles;
-    const bool lru = params_.replacement == CacheParams::Replacement::Lru;
     for (int w = 0; w < params_.ways; ++w) {
-        Way& way = base[w];
-        if (way.valid && way.tag == tag) {
-            ++hits;
-            if (lru) way.last_use = ++use_clock_;  // FIFO keeps the fill order
-            if (way.ready > lookup_done) ++merged_misses;
-            if (bd) {
-                bd->cycles[level_] += lookup_done - now;
-                // Waiting for a fill already in flight is time spent below this level.
-                if (way.ready > lookup_done)
-                    bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += way.ready - lookup_done;
-            }
-            return std::max(lookup_done, way.ready);
+        if (tags[w] != line_addr) continue;
+        WayState& way = state_[base + w];
+        ++hits;
+        if (params_.replacement == CacheParams::Replacement::Lru)
+            way.last_use = ++use_clock_;  // FIFO: fill order
+        if (way.ready > lookup_done) ++merged_misses;
+        if (bd) {
+            bd->cycles[level_] += lookup_done - now;
+            // Waiting for a fill already in flight is time spent below this level.
+            if (way.ready > lookup_done)
+                bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += way.ready - lookup_done;
         }
-        if (!way.valid || (victim->valid && way.last_use < victim->last_use)) victim = &way;
+        return std::max(lookup_done, way.ready);
     }
-    if (victim->valid && params_.replacement == CacheParams::Replacement::Random) {
-        rng_ ^= rng_ << 13;
-        rng_ ^= rng_ >> 7;
-        rng_ ^= rng_ << 17;
-        victim = base + rng_ % uint64_t(params_.ways);
+    // Miss: an invalid way if any, else the policy's victim.
+    int victim = -1;
+    for (int w = 0; w < params_.ways && victim < 0; ++w)
+        if (tags[w] == kNoTag) victim = w;
+    if (victim < 0) {
+        if (params_.replacement == CacheParams::Replacement::Random) {
+            rng_ ^= rng_ << 13;
+            rng_ ^= rng_ >> 7;
+            rng_ ^= rng_ << 17;
+            victim = int(rng_ % uint64_t(params_.ways));
+        } else {
+            victim = 0;
+            for (int w = 1; w < params_.ways; ++w)
+                if (state_[base + w].last_use < state_[base + victim].last_use) victim = w;
+        }
     }
     ++misses;
     fill_bytes += params_.line_bytes;
@@ -63,17 +71,15 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
     if (!mshr_free_.empty()) *mshr = ready;
-    victim->valid = true;
-    victim->tag = tag;
-    victim->last_use = ++use_clock_;
-    victim->ready = ready;
+    tags_[base + victim] = line_addr;
+    state_[base + victim] = {++use_clock_, ready};
     return ready;
 }
 
 bool Cache::present(uint64_t line_addr) const {
-    const Way* base = &ways_[(line_addr & set_mask_) * params_.ways];
+    const uint64_t* tags = &tags_[size_t(line_addr & set_mask_) * size_t(params_.ways)];
     for (int w = 0; w < params_.ways; ++w)
-        if (base[w].valid && base[w].tag == line_addr) return true;
+        if (tags[w] == line_addr) return true;
     return false;
 }
 

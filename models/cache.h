@@ -64,11 +64,12 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t bank_conflict_cycles = 0;  // cycles lookups waited for their bank
 
   private:
-    struct Way {
-        uint64_t tag = 0;
+    // Tags apart from the rest (structure of arrays): a lookup scans one set's tags, a few
+    // contiguous words, and touches the rest only on a hit or a fill.
+    static constexpr uint64_t kNoTag = ~uint64_t(0);  // no line address reaches this
+    struct WayState {
         uint64_t last_use = 0;
         Cycle ready = 0;  // cycle the line's data is present
-        bool valid = false;
     };
     Cycle access_line(uint64_t line_addr, Cycle now, AccessBreakdown* breakdown);
     bool present(uint64_t line_addr) const;
@@ -80,7 +81,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     std::vector<Cycle> bank_free_;          // per bank: next cycle it starts a lookup
     uint64_t rng_ = 0x9E3779B97F4A7C15ull;  // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
-    std::vector<Way> ways_;  // sets * ways, set-major
+    std::vector<uint64_t> tags_;   // sets * ways, set-major; kNoTag when invalid
+    std::vector<WayState> state_;  // same indexing
+    uint64_t bank_mask_ = 0;
     uint64_t set_mask_;
     uint32_t line_shift_;
     uint64_t use_clock_ = 0;
