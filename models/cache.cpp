@@ -1,6 +1,7 @@
 #include "models/cache.h"
 
 #include <algorithm>
+#include <functional>
 
 namespace rtsim {
 
@@ -61,16 +62,21 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
+    // MSHRs as a min-heap of the cycles they free: take the earliest, give it back busy until
+    // this miss's data returns.
     Cycle issue_at = lookup_done;
-    std::vector<Cycle>::iterator mshr;
-    if (!mshr_free_.empty()) {
-        mshr = std::min_element(mshr_free_.begin(), mshr_free_.end());
-        issue_at = std::max(lookup_done, *mshr);
+    const bool limited = !mshr_free_.empty();
+    if (limited) {
+        std::pop_heap(mshr_free_.begin(), mshr_free_.end(), std::greater<Cycle>());
+        issue_at = std::max(lookup_done, mshr_free_.back());
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
-    if (!mshr_free_.empty()) *mshr = ready;
+    if (limited) {
+        mshr_free_.back() = ready;
+        std::push_heap(mshr_free_.begin(), mshr_free_.end(), std::greater<Cycle>());
+    }
     tags_[base + victim] = line_addr;
     state_[base + victim] = {++use_clock_, ready};
     return ready;
