@@ -53,6 +53,13 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get(), kLevelL2);
     l2->register_stats(stats, "l2");
     l2->set_series(series.l2_fill_bytes.get());
+    MemoryPort* below_l1 = l2.get();
+    if (cfg.number("crossbar.bytes_per_cycle") > 0) {
+        crossbar = std::make_unique<Crossbar>("crossbar", cfg.number("crossbar.bytes_per_cycle"),
+                                              l2.get());
+        crossbar->register_stats(stats, "crossbar");
+        below_l1 = crossbar.get();
+    }
 
     CoreParams cp;
     cp.ray_slots = int(cfg.integer("core.ray_slots"));
@@ -88,7 +95,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     }
     for (int i = 0; i < n; ++i) {
         const std::string idx = fmt::format("[{}]", i);
-        l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, l2.get()));
+        l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, below_l1));
         l1.back()->register_stats(stats, "l1" + idx);
         l1.back()->set_series(series.l1_fill_bytes.get());
         MemoryPort* memory =

@@ -8,6 +8,7 @@
 
 #include "models/cache.h"
 #include "models/core.h"
+#include "models/crossbar.h"
 #include "models/dram.h"
 #include "models/stats.h"
 #include "models/unit.h"
@@ -24,6 +25,7 @@ class Chip {
     StatsRegistry stats;
     std::unique_ptr<Dram> dram;
     std::unique_ptr<Cache> l2;
+    std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;
     std::unique_ptr<IdealMemory> ideal_memory;  // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;

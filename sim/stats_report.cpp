@@ -106,6 +106,13 @@ json timing_report(const ReportInputs& in) {
     stalls["total"] = stall_entry("core[", false);
     out["stalls"] = stalls;
 
+    if (s.has("crossbar.bytes"))
+        out["bandwidth"]["crossbar"] = {
+            {"bytes", s.get("crossbar.bytes")},
+            {"gbps", gbps(s.get("crossbar.bytes"))},
+            {"queue_cycles", s.get("crossbar.queue_cycles")},
+            {"utilization", ratio(double(s.get("crossbar.busy_cycles")), cycles)}};
+
     json counters = json::object();
     for (const auto& e : s.entries()) counters[e.name] = *e.value;
     out["counters"] = counters;

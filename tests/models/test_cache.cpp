@@ -5,6 +5,7 @@
 
 #include "fixed_memory.h"
 #include "models/cache.h"
+#include "models/crossbar.h"
 
 using namespace rtsim;
 
@@ -180,4 +181,19 @@ TEST(Cache, FifoAndRandomReplacement) {
     EXPECT_EQ(run(CacheParams::Replacement::Lru), 1u);
     EXPECT_EQ(run(CacheParams::Replacement::Fifo), 0u);
     EXPECT_EQ(run(CacheParams::Replacement::Random), run(CacheParams::Replacement::Random));
+}
+
+TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {
+    test::FixedLatencyMemory l2(30);
+    Crossbar x("xbar", 32.0, &l2);
+    const Cycle n = 50;
+    Cycle last = 0;
+    for (Cycle k = 0; k < n; ++k) last = std::max(last, x.access(k * 64, 64, 0));
+    // 64-byte lines at 32 bytes per cycle: one every 2 cycles, each crossing in 2 after the L2.
+    EXPECT_EQ(last, 2 * (n - 1) + 30 + 2);
+    EXPECT_EQ(x.bytes, n * 64);
+    EXPECT_EQ(x.queue_cycles, n * (n - 1));  // request k waited 2k cycles
+    AccessBreakdown bd;
+    EXPECT_EQ(x.access(0, 64, 1000, &bd), 1000u + 30 + 2);  // idle: latency plus crossing only
+    EXPECT_EQ(bd.cycles[kLevelL2], 2u);
 }

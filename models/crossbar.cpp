@@ -1,0 +1,33 @@
+#include "models/crossbar.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace rtsim {
+
+Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
+    : sc_core::sc_module(name), bytes_per_cycle_(bytes_per_cycle), next_(next_level) {}
+
+Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+    const double start = std::max(static_cast<double>(now), next_free_);
+    const double transfer = size_bytes / bytes_per_cycle_;
+    next_free_ = start + transfer;
+    const auto wait = static_cast<Cycle>(std::ceil(start)) - now;
+    const auto crossing = static_cast<Cycle>(std::ceil(transfer));
+    ++transfers;
+    bytes += size_bytes;
+    busy_cycles += crossing;
+    queue_cycles += wait;
+    const Cycle ready = next_->access(addr, size_bytes, now + wait, bd);
+    if (bd) bd->cycles[kLevelL2] += wait + crossing;
+    return ready + crossing;
+}
+
+void Crossbar::register_stats(StatsRegistry& reg, const std::string& block) {
+    reg.add(block, "transfers", &transfers, "line transfers from the L2 to the L1s");
+    reg.add(block, "bytes", &bytes, "bytes moved");
+    reg.add(block, "busy_cycles", &busy_cycles, "cycles spent transferring");
+    reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for bandwidth");
+}
+
+}  // namespace rtsim

@@ -1,0 +1,33 @@
+// The on-chip network between the cores' L1s and the shared L2: a crossbar with a per-cycle
+// bandwidth. Each request reserves its line's transfer at the time it is made (so bandwidth is
+// capped however requests interleave) and its data arrives one transfer time after the L2
+// returns it. Waiting for the crossbar is charged to the L2 level in stall attribution.
+#pragma once
+
+#include <string>
+#include <systemc>
+
+#include "models/stats.h"
+#include "models/timing.h"
+
+namespace rtsim {
+
+class Crossbar : public sc_core::sc_module, public MemoryPort {
+  public:
+    Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level);
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                 AccessBreakdown* breakdown = nullptr) override;
+    void register_stats(StatsRegistry& reg, const std::string& block);
+
+    uint64_t transfers = 0;
+    uint64_t bytes = 0;
+    uint64_t busy_cycles = 0;   // transfer time, rounded up per transfer
+    uint64_t queue_cycles = 0;  // cycles requests waited for bandwidth
+
+  private:
+    double bytes_per_cycle_;
+    MemoryPort* next_;
+    double next_free_ = 0.0;
+};
+
+}  // namespace rtsim
