@@ -5,10 +5,12 @@
 namespace rtsim {
 
 Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
-           PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source)
+           PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
+           MemoryPort* triangle_l1)
     : sc_core::sc_module(name),
       params_(params),
       l1_(l1),
+      l1_tri_(triangle_l1 ? triangle_l1 : l1),
       box_(box_unit),
       tri_(triangle_unit),
       source_(source),
@@ -48,7 +50,8 @@ void Core::run() {
         // requests from different cores in the same cycle).
         const bool shared =
             !s->busy || params_.units_shared ||
-            !l1_->served_locally(s->work.steps[s->pos].addr, s->work.steps[s->pos].size_bytes);
+            !(s->work.steps[s->pos].kind == StepKind::Node ? l1_ : l1_tri_)
+                 ->served_locally(s->work.steps[s->pos].addr, s->work.steps[s->pos].size_bytes);
         if (shared) {
             const Cycle now = now_cycles();
             if (t > now + params_.quantum_cycles) {
@@ -74,7 +77,8 @@ void Core::run() {
             const Cycle issued = issue(
                 t, node ? params_.node_step_instructions : params_.triangle_step_instructions);
             AccessBreakdown bd;
-            const Cycle fetched = l1_->access(st.addr, st.size_bytes, issued, &bd);
+            const Cycle fetched =
+                (node ? l1_ : l1_tri_)->access(st.addr, st.size_bytes, issued, &bd);
             s->ready = node ? box_->issue(fetched, st.count) : tri_->issue(fetched);
             stall_cycles[kIssue] += issued - t;
             stall_cycles[kL1] += bd.cycles[kLevelL1];

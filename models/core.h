@@ -43,8 +43,10 @@ struct CoreParams {
 class Core : public sc_core::sc_module {
   public:
     SC_HAS_PROCESS(Core);
+    // triangle_l1: a separate L1 for triangle fetches (a split L1); nullptr: `l1` serves both.
     Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
-         PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source);
+         PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
+         MemoryPort* triangle_l1 = nullptr);
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
 
@@ -73,7 +75,8 @@ class Core : public sc_core::sc_module {
     Cycle issue(Cycle t, int instructions);
 
     CoreParams params_;
-    MemoryPort* l1_;
+    MemoryPort* l1_;      // node fetches (and triangle fetches without a split L1)
+    MemoryPort* l1_tri_;  // triangle fetches
     PipelinedUnit* box_;
     PipelinedUnit* tri_;
     RayWorkSource* source_;

@@ -98,12 +98,18 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
         l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, below_l1));
         l1.back()->register_stats(stats, "l1" + idx);
         l1.back()->set_series(series.l1_fill_bytes.get());
+        if (cfg.boolean("l1.split")) {
+            l1_tri.push_back(
+                std::make_unique<Cache>(("l1_tri_" + std::to_string(i)).c_str(), l1p, below_l1));
+            l1_tri.back()->register_stats(stats, "l1_tri" + idx);
+            l1_tri.back()->set_series(series.l1_fill_bytes.get());
+        }
         MemoryPort* memory =
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
         cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, memory,
                                                box_units[size_t(i / box_share)].get(),
-                                               triangle_units[size_t(i / tri_share)].get(),
-                                               source));
+                                               triangle_units[size_t(i / tri_share)].get(), source,
+                                               l1_tri.empty() ? nullptr : l1_tri.back().get()));
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());
     }

@@ -27,7 +27,8 @@ class Chip {
     std::unique_ptr<Cache> l2;
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;
-    std::unique_ptr<IdealMemory> ideal_memory;  // sim.ideal_memory: the cores' only memory
+    std::vector<std::unique_ptr<Cache>> l1_tri;  // l1.split: per-core triangle caches
+    std::unique_ptr<IdealMemory> ideal_memory;   // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
     std::vector<std::unique_ptr<Core>> cores;
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.

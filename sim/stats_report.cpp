@@ -55,15 +55,23 @@ json timing_report(const ReportInputs& in) {
         cache_entry(b, s.get(b + ".accesses"), s.get(b + ".hits"), s.get(b + ".misses"),
                     s.get(b + ".merged_misses"));
     }
-    cache_entry("l1_total", s.sum("l1[", "accesses"), s.sum("l1[", "hits"), s.sum("l1[", "misses"),
-                s.sum("l1[", "merged_misses"));
+    // All L1s together: the unified ones, or node and triangle caches of a split L1.
+    auto l1_sum = [&](const std::string& c) { return s.sum("l1[", c) + s.sum("l1_tri[", c); };
+    for (int i = 0; i < in.cores; ++i) {
+        const std::string b = fmt::format("l1_tri[{}]", i);
+        if (s.has(b + ".accesses"))
+            cache_entry(b, s.get(b + ".accesses"), s.get(b + ".hits"), s.get(b + ".misses"),
+                        s.get(b + ".merged_misses"));
+    }
+    cache_entry("l1_total", l1_sum("accesses"), l1_sum("hits"), l1_sum("misses"),
+                l1_sum("merged_misses"));
     cache_entry("l2", s.get("l2.accesses"), s.get("l2.hits"), s.get("l2.misses"),
                 s.get("l2.merged_misses"));
     out["caches"] = caches;
 
     // Bytes crossing each boundary: core<-L1 (requested), L1<-L2 (L1 fills), L2<-DRAM (L2 fills).
-    const uint64_t l1_bytes = s.sum("l1[", "bytes_requested");
-    const uint64_t l2_bytes = s.sum("l1[", "fill_bytes");
+    const uint64_t l1_bytes = l1_sum("bytes_requested");
+    const uint64_t l2_bytes = l1_sum("fill_bytes");
     const uint64_t dram_bytes = s.get("dram.bytes");
     out["bandwidth"] = {
         {"l1", {{"bytes", l1_bytes}, {"gbps", gbps(l1_bytes)}}},

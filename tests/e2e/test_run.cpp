@@ -557,3 +557,26 @@ TEST(Run, UnitsSharedAmongCoresContend) {
               a["stalls"]["total"]["box_unit"].get<uint64_t>());
     EXPECT_EQ(without_host(b), without_host(stats_of(again)));
 }
+
+TEST(Run, SplitL1SeparatesNodesFromTriangles) {
+    const fs::path out = work_dir() / "split";
+    const Result r = rtsim(
+        "run -q --rays primary,ao --res 40x40 --set l1.split=true --set l1.size_kib=4 "
+        "--set crossbar.bytes_per_cycle=0 --out '" +
+        out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    ASSERT_TRUE(s["caches"].contains("l1_tri[0]"));
+    EXPECT_FALSE(s["bandwidth"].contains("crossbar"));  // 0: no crossbar block at all
+    // Node fetches go to l1[i], triangle fetches to l1_tri[i]: their accesses add up to all L1
+    // accesses, and every L1 miss of either is one L2 access.
+    uint64_t node = 0, tri = 0;
+    for (int i = 0; i < 8; ++i) {
+        node += s["caches"][fmt::format("l1[{}]", i)]["accesses"].get<uint64_t>();
+        tri += s["caches"][fmt::format("l1_tri[{}]", i)]["accesses"].get<uint64_t>();
+    }
+    EXPECT_GT(node, 0u);
+    EXPECT_GT(tri, 0u);
+    EXPECT_EQ(node + tri, s["caches"]["l1_total"]["accesses"].get<uint64_t>());
+    EXPECT_EQ(s["caches"]["l2"]["accesses"], s["caches"]["l1_total"]["misses"]);
+}
