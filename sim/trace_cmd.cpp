@@ -38,7 +38,7 @@ void add_trace_options(CLI::App* cmd, TraceOptions& t) {
     cmd->add_option("--threads,-j", t.threads, "Host threads (0: all)")->capture_default_str();
     cmd->add_option(
            "--packet", t.packet,
-           "Trace consecutive rays of one kind in packets of this many (8..64); 0: single rays")
+           "Trace consecutive rays of one kind in packets of this many (1..64); 0: single rays")
         ->capture_default_str();
     cmd->add_option(
            "--packet-switch", t.packet_switch,
@@ -68,6 +68,9 @@ struct Batch {
 int trace_command(const TraceOptions& opt) {
     if (opt.threads < 0)
         throw InputError(fmt::format("--threads: expected 0 or more, got {}", opt.threads));
+    if (opt.trace_chunk_rays < 1 || opt.trace_chunk_rays > (1u << 24))
+        throw InputError(
+            fmt::format("--chunk-rays: expected 1..16777216, got {}", opt.trace_chunk_rays));
     if (opt.packet != 0 && (opt.packet < 1 || opt.packet > kMaxPacketSize))
         throw InputError(
             fmt::format("--packet: expected 0 or 1..{}, got {}", kMaxPacketSize, opt.packet));

@@ -354,6 +354,9 @@ TEST(Trace, PacketsReportUtilisationAndKeepHits) {
     };
     EXPECT_EQ(hit_or_miss(slurp(a)), hit_or_miss(slurp(b)));
     expect_one_line_error(rtsim("trace --packet 65"), "--packet");
+    expect_one_line_error(
+        rtsim("trace --chunk-rays 0 -o '" + (work_dir() / "never.rtt").string() + "'"),
+        "--chunk-rays");
     expect_one_line_error(rtsim("trace --packet 8 --packet-switch 2"), "--packet-switch");
 }
 
