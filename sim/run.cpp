@@ -10,7 +10,6 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
-#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <future>
@@ -121,7 +120,7 @@ class CountingSource : public RayWorkSource {
 
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
     uint64_t steps = 0;
-    double functional_seconds = 0;  // tracing rays, or reading and decoding the trace
+    double functional_seconds = 0;  // time the simulation waited for rays to be produced
     // Bad input found mid-run (a damaged trace chunk) stops the simulation; run_command reports
     // it after the kernel returns, without throwing (exceptions must not cross SystemC's
     // coroutine stacks, which AddressSanitizer cannot follow either).
@@ -151,70 +150,60 @@ class CountingSource : public RayWorkSource {
     Clock::time_point last_print_;
 };
 
-// Rays from the generator, tile by tile, each traced when a core takes it: only the rays in
-// flight hold step streams.
-class GeneratedWorkSource : public CountingSource {
+// Work prepared on a helper thread, one batch ahead of the simulation: the simulation never
+// waits for ray generation, tracing or trace decoding while a second host core is free, and
+// errors (a damaged trace chunk) surface on that thread, never inside a SystemC process (whose
+// coroutine stacks exceptions must not cross, and which AddressSanitizer cannot follow).
+class PrefetchingSource : public CountingSource {
   public:
-    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress)
-        : CountingSource(progress), bvh_(bvh), gen_(gen) {}
+    PrefetchingSource(bool progress, const char* unit) : CountingSource(progress), unit_(unit) {}
 
   protected:
-    bool produce(RayWork& work, bool& hit) override {
-        while (pending_.empty()) {
-            std::vector<GeneratedRay> tile;
-            if (!gen_.next_tile(tile)) return false;
-            ++tiles_done_;
-            report_progress(double(tiles_done_) / std::max(1, gen_.tile_count()), "tiles");
-            pending_.assign(tile.begin(), tile.end());
-        }
-        const GeneratedRay r = pending_.front();
-        pending_.pop_front();
-        work.ray_id = r.id;
-        work.kind = r.kind;
-        work.steps.clear();
-        hit = trace_ray(bvh_, r.ray, r.query, &work.steps).valid();
-        return true;
-    }
+    struct Batch {
+        std::vector<TraceRecord> records;
+        double progress = 0;  // fraction of the work done once this batch is used
+        bool last = false;    // nothing follows
+        std::string error;
+        bool input_error = false;
+    };
+    // Fills the next batch, on the helper thread.
+    virtual void fill(Batch& batch) = 0;
 
-  private:
-    const Bvh& bvh_;
-    RayGenerator& gen_;
-    std::deque<GeneratedRay> pending_;
-    int tiles_done_ = 0;
-};
-
-// Rays replayed from a trace file. Chunks are read and decoded on a helper thread, one ahead of
-// the simulation: replay overlaps decoding with simulating, and a damaged chunk's error is raised
-// on that thread, never inside a SystemC process (whose coroutine stacks exceptions should not
-// cross, and which AddressSanitizer cannot follow).
-class TraceWorkSource : public CountingSource {
-  public:
-    TraceWorkSource(TraceReader& reader, bool progress)
-        : CountingSource(progress), reader_(reader) {
-        prefetch();
+    // Derived constructors start the first batch; derived destructors call wait() first, so
+    // fill() never runs on a half-destroyed object.
+    void prefetch() {
+        pending_ = std::async(std::launch::async, [this] {
+            Batch b;
+            try {
+                fill(b);
+            } catch (const InputError& e) {
+                b.error = e.what();
+                b.input_error = true;
+            } catch (const std::exception& e) {
+                b.error = e.what();
+            }
+            return b;
+        });
     }
-    ~TraceWorkSource() override {
+    void wait() {
         if (pending_.valid()) pending_.wait();
     }
 
-  protected:
     bool produce(RayWork& work, bool& hit) override {
-        while (pos_ == chunk_.size()) {
+        while (pos_ == batch_.records.size()) {
             if (!pending_.valid()) return false;
-            Decoded d = pending_.get();
-            if (!d.error.empty()) {
-                failure = d.error;
-                failure_is_input = d.input_error;
+            batch_ = pending_.get();
+            pos_ = 0;
+            if (!batch_.error.empty()) {
+                failure = batch_.error;
+                failure_is_input = batch_.input_error;
                 sc_core::sc_stop();
                 return false;
             }
-            chunk_.swap(d.records);
-            pos_ = 0;
-            report_progress(
-                double(next_chunk_) / double(std::max<size_t>(1, reader_.chunk_count())), "chunks");
-            prefetch();
+            report_progress(batch_.progress, unit_);
+            if (!batch_.last) prefetch();
         }
-        TraceRecord& r = chunk_[pos_++];
+        TraceRecord& r = batch_.records[pos_++];
         work.ray_id = r.ray_id;
         work.kind = r.kind;
         work.steps.swap(r.steps);
@@ -223,32 +212,64 @@ class TraceWorkSource : public CountingSource {
     }
 
   private:
-    struct Decoded {
-        std::vector<TraceRecord> records;
-        std::string error;
-        bool input_error = false;
-    };
-    void prefetch() {
-        if (next_chunk_ == reader_.chunk_count()) return;
-        const size_t k = next_chunk_++;
-        pending_ = std::async(std::launch::async, [this, k] {
-            Decoded d;
-            try {
-                reader_.read_chunk(k, d.records);
-            } catch (const InputError& e) {
-                d.error = e.what();
-                d.input_error = true;
-            } catch (const std::exception& e) {
-                d.error = e.what();
-            }
-            return d;
-        });
+    const char* unit_;
+    std::future<Batch> pending_;
+    Batch batch_;
+    size_t pos_ = 0;
+};
+
+// Rays from the generator, traced a batch of tiles at a time: only about two batches of rays
+// hold step streams at any time.
+class GeneratedWorkSource : public PrefetchingSource {
+  public:
+    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress)
+        : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen) {
+        prefetch();
+    }
+    ~GeneratedWorkSource() override { wait(); }
+
+  protected:
+    void fill(Batch& b) override {
+        constexpr size_t kBatchRays = 4096;
+        std::vector<GeneratedRay> rays;
+        bool more = true;
+        while (rays.size() < kBatchRays && (more = gen_.next_tile(rays))) ++tiles_done_;
+        b.records.resize(rays.size());
+        for (size_t i = 0; i < rays.size(); ++i) {
+            TraceRecord& r = b.records[i];
+            r.ray_id = rays[i].id;
+            r.kind = rays[i].kind;
+            r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+        }
+        b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());
+        b.last = !more;
     }
 
+  private:
+    const Bvh& bvh_;
+    RayGenerator& gen_;
+    int tiles_done_ = 0;  // touched by the helper thread only
+};
+
+// Rays replayed from a trace file, a chunk at a time.
+class TraceWorkSource : public PrefetchingSource {
+  public:
+    TraceWorkSource(TraceReader& reader, bool progress)
+        : PrefetchingSource(progress, "chunks"), reader_(reader) {
+        prefetch();
+    }
+    ~TraceWorkSource() override { wait(); }
+
+  protected:
+    void fill(Batch& b) override {
+        if (next_chunk_ < reader_.chunk_count()) reader_.read_chunk(next_chunk_++, b.records);
+        b.progress = double(next_chunk_) / double(std::max<size_t>(1, reader_.chunk_count()));
+        b.last = next_chunk_ == reader_.chunk_count();
+    }
+
+  private:
     TraceReader& reader_;
-    std::future<Decoded> pending_;
-    std::vector<TraceRecord> chunk_;
-    size_t pos_ = 0, next_chunk_ = 0;
+    size_t next_chunk_ = 0;  // touched by the helper thread only
 };
 
 std::string fresh_out_dir() {
