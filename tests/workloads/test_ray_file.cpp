@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "support/input_error.h"
 #include "workloads/error.h"
 #include "workloads/ray_file.h"
 
@@ -28,17 +29,14 @@ std::string records(std::initializer_list<std::array<float, 8>> recs) {
 }
 
 void expect_error(const std::string& path, const std::string& fragment) {
-    try {
-        RayFileReader r(path);
-        std::vector<Ray> rays;
-        while (r.read(rays, 2)) {
-        }
-        FAIL() << "accepted " << path;
-    } catch (const InputError& e) {
-        const std::string msg = e.what();
-        EXPECT_NE(msg.find(path), std::string::npos) << msg;
-        EXPECT_NE(msg.find(fragment), std::string::npos) << msg;
-    }
+    test::expect_input_error(
+        [&] {
+            RayFileReader r(path);
+            std::vector<Ray> rays;
+            while (r.read(rays, 2)) {
+            }
+        },
+        path, fragment);
 }
 
 const float kInf = std::numeric_limits<float>::infinity();

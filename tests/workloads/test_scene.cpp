@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "support/input_error.h"
 #include "workloads/error.h"
 #include "workloads/scene.h"
 
@@ -18,17 +19,9 @@ std::string write_temp(const std::string& name, const std::string& text) {
     return p.string();
 }
 
-// Expects load_scene(path) to throw an InputError whose single-line message names the file.
+// load_scene(path) must fail with one line naming the file and containing `fragment`.
 void expect_input_error(const std::string& path, const std::string& fragment) {
-    try {
-        load_scene(path);
-        FAIL() << "no error for " << path;
-    } catch (const InputError& e) {
-        const std::string msg = e.what();
-        EXPECT_NE(msg.find(path), std::string::npos) << msg;
-        EXPECT_NE(msg.find(fragment), std::string::npos) << msg;
-        EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
-    }
+    test::expect_input_error([&] { load_scene(path); }, path, fragment);
 }
 
 }  // namespace
