@@ -1,6 +1,7 @@
 #include "models/core.h"
 
 #include <algorithm>
+#include <chrono>
 
 namespace rtsim {
 
@@ -37,6 +38,13 @@ Cycle Core::issue(Cycle t, int instructions) {
 }
 
 void Core::run() {
+    // Host time this process spends running (between resumptions and its next wait): summed over
+    // cores it splits the simulation's host time into models and SystemC kernel.
+    auto resumed = std::chrono::steady_clock::now();
+    auto account = [&] {
+        host_busy_seconds_ +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
+    };
     for (;;) {
         Slot* s = nullptr;
         for (Slot& c : slots_)
@@ -55,7 +63,9 @@ void Core::run() {
         if (shared) {
             const Cycle now = now_cycles();
             if (t > now + params_.quantum_cycles) {
+                account();
                 wait(cycles_to_time(t - now));
+                resumed = std::chrono::steady_clock::now();
                 continue;
             }
         }
@@ -94,6 +104,7 @@ void Core::run() {
             s->busy = false;
         }
     }
+    account();
 }
 
 const char* Core::stall_name(int s) {

@@ -48,6 +48,8 @@ class Core : public sc_core::sc_module {
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
          MemoryPort* triangle_l1 = nullptr);
     void register_stats(StatsRegistry& reg, const std::string& block);
+    // Host seconds this core's process ran (not simulated statistics: for the host section).
+    double host_busy_seconds() const { return host_busy_seconds_; }
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
@@ -82,6 +84,7 @@ class Core : public sc_core::sc_module {
     RayWorkSource* source_;
     std::vector<Slot> slots_;
     TimeSeries* rays_series_ = nullptr;
+    double host_busy_seconds_ = 0;
     Cycle issue_cycle_ = 0;
     int issued_in_cycle_ = 0;
 };

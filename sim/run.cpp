@@ -519,6 +519,10 @@ int run_command(const RunOptions& opt) {
         total_rays += source.rays_by_kind[k];
     }
     const double sim_s = timing["simulated_seconds"].get<double>();
+    // Host time split: cores running (models, and waiting for rays: functional_s), the rest is the
+    // SystemC kernel switching between them.
+    double cores_busy = 0;
+    for (const auto& c : chip.cores) cores_busy += c->host_busy_seconds();
     const double host_total = std::chrono::duration<double>(Clock::now() - host_start).count();
 
     json out;
@@ -543,6 +547,8 @@ int run_command(const RunOptions& opt) {
                    {"functional_s", source.functional_seconds},
                    {"simulated_rays_per_host_second",
                     sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0},
+                   {"models_s", std::max(0.0, cores_busy - source.functional_seconds)},
+                   {"kernel_s", std::max(0.0, sim_seconds - cores_busy)},
                    {"peak_rss_mib", peak_rss_mib()}};
     if (bvh) out["host"]["bvh_build_s"] = bvh->quality.build_seconds;
     if (reader) out["host"]["trace"] = opt.trace_path;
