@@ -37,6 +37,11 @@ struct RayPrecomp {
 constexpr float kSlabFarScale =
     1.0f + 2.0f * (3.0f * 0.5f * 1.1920929e-7f) / (1.0f - 3.0f * 0.5f * 1.1920929e-7f);
 
+// A box's entry distance and a triangle's hit distance on the box's face are two roundings of
+// one number and may differ by a few ulps. Culling boxes strictly beyond the current hit could
+// then drop a triangle that is nearer than the one found: traversals keep boxes within this margin.
+constexpr float kCullScale = 1.0f + 1.0f / 65536.0f;
+
 // Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
 // Boxes are closed: a ray grazing a face or running inside a face's plane overlaps it.
 inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax,

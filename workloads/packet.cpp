@@ -20,9 +20,6 @@ void PacketStats::add(const PacketStats& o) {
 
 namespace {
 
-// Keeps boxes whose entry lies within rounding of a ray's current hit (as the single-ray tracer).
-constexpr float kCullScale = 1.0f + 1.0f / 65536.0f;
-
 struct PacketEntry {
     uint32_t child, count;  // as WideNode lanes: node index, or leaf first slot and count
     uint64_t mask;          // rays that hit this child's box

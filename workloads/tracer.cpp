@@ -27,11 +27,6 @@ struct VectorSink {
     }
 };
 
-// A box's entry distance and a triangle's hit distance on the box's face are two roundings of
-// one number and may differ by a few ulps. Culling boxes strictly beyond the current hit could
-// then drop a triangle that is nearer than the one found: keep boxes within this margin.
-constexpr float kCullScale = 1.0f + 1.0f / 65536.0f;
-
 struct Entry {
     uint32_t child;  // node index, or first triangle slot of a leaf
     uint32_t count;  // 0: inner node; otherwise leaf triangle count
