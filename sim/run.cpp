@@ -420,6 +420,16 @@ BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
     }
 }
 
+json open_trace_metadata(TraceReader& reader, const std::string& path) {
+    json meta = json::parse(reader.metadata_json(), nullptr, false);
+    if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh") ||
+        !meta.contains("scene"))
+        throw InputError(
+            fmt::format("{}: header metadata is not the JSON an RTSim trace carries", path));
+    reader.set_layout(layout_from_summary(meta["bvh"], path));
+    return meta;
+}
+
 void check_trace_matches_config(const json& bvh, const Config& cfg, const std::string& where) {
     auto refuse = [&](const std::string& field, const std::string& recorded,
                       const std::string& wanted) {
@@ -474,13 +484,8 @@ int run_command(const RunOptions& opt) {
         source_ptr = std::make_unique<GeneratedWorkSource>(*bvh, *gen, progress);
     } else {
         reader = std::make_unique<TraceReader>(opt.trace_path);
-        meta = json::parse(reader->metadata_json(), nullptr, false);
-        if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh") ||
-            !meta.contains("scene"))
-            throw InputError(fmt::format(
-                "{}: header metadata is not the JSON an RTSim trace carries", opt.trace_path));
+        meta = open_trace_metadata(*reader, opt.trace_path);
         check_trace_matches_config(meta["bvh"], cfg, opt.trace_path);
-        reader->set_layout(layout_from_summary(meta["bvh"], opt.trace_path));
         source_ptr = std::make_unique<TraceWorkSource>(*reader, progress);
     }
     const double prepare_seconds = std::chrono::duration<double>(Clock::now() - t_prepare).count();

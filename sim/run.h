@@ -18,6 +18,8 @@ class App;
 
 namespace rtsim {
 
+class TraceReader;
+
 // Scene and ray options shared by every command that produces rays (run, trace).
 struct WorkloadOptions {
     std::string scene = "builtin:cornell";
@@ -52,6 +54,8 @@ nlohmann::json bvh_summary(const Bvh& bvh);
 nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
 // The layout a bvh_summary describes; throws InputError naming `where` if it is incomplete.
 BvhLayout layout_from_summary(const nlohmann::json& bvh, const std::string& where);
+// A trace's header metadata, checked, with the reader's layout set from it. Throws InputError.
+nlohmann::json open_trace_metadata(TraceReader& reader, const std::string& path);
 // Peak resident memory of this process so far.
 double peak_rss_mib();
 

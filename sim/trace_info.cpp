@@ -40,11 +40,7 @@ struct KindStats {
 
 int trace_info_command(const std::string& path, bool as_json) {
     TraceReader reader(path);
-    const json meta = json::parse(reader.metadata_json(), nullptr, false);
-    if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh"))
-        throw InputError(
-            fmt::format("{}: header metadata is not the JSON an RTSim trace carries", path));
-    reader.set_layout(layout_from_summary(meta["bvh"], path));
+    const json meta = open_trace_metadata(reader, path);
 
     std::array<KindStats, kRayKindCount> kinds;
     std::vector<TraceRecord> chunk;
