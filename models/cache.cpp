@@ -8,8 +8,13 @@ namespace rtsim {
 Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
              int level)
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
-    tags_.assign(params_.sets() * params_.ways, kNoTag);
-    state_.resize(params_.sets() * params_.ways);
+    const uint64_t words = params_.sets() * 2 * uint64_t(params_.ways);
+    set_storage_.assign(words + 8, 0);
+    set_block_ = set_storage_.data();
+    while (reinterpret_cast<uintptr_t>(set_block_) % 64) ++set_block_;
+    for (uint64_t set = 0; set < params_.sets(); ++set)
+        std::fill(tags(set), tags(set) + params_.ways, kNoTag);
+    last_use_.assign(params_.sets() * params_.ways, 0);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     bank_free_.assign(size_t(std::max(1, params_.banks)), 0);
@@ -18,35 +23,42 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
 
-Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
-    ++accesses;
-    const size_t base = size_t(line_addr & set_mask_) * size_t(params_.ways);
-    const uint64_t* tags = &tags_[base];
+Cycle Cache::take_bank(uint64_t line_addr, Cycle now) {
     // One lookup per bank per cycle; waiting for the bank is charged to this level.
     Cycle& bank = bank_free_[line_addr & bank_mask_];
     const Cycle start = std::max(now, bank);
     bank = start + 1;
     bank_conflict_cycles += start - now;
-    const Cycle lookup_done = start + params_.hit_latency_cycles;
-    for (int w = 0; w < params_.ways; ++w) {
-        if (tags[w] != line_addr) continue;
-        WayState& way = state_[base + w];
-        ++hits;
-        if (params_.replacement == CacheParams::Replacement::Lru)
-            way.last_use = ++use_clock_;  // FIFO: fill order
-        if (way.ready > lookup_done) ++merged_misses;
-        if (bd) {
-            bd->cycles[level_] += lookup_done - now;
-            // Waiting for a fill already in flight is time spent below this level.
-            if (way.ready > lookup_done)
-                bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += way.ready - lookup_done;
-        }
-        return std::max(lookup_done, way.ready);
+    return start;
+}
+
+Cycle Cache::hit(uint64_t set, int way, Cycle now, Cycle lookup_done, AccessBreakdown* bd) {
+    ++hits;
+    if (params_.replacement == CacheParams::Replacement::Lru)
+        last_use_[set * uint64_t(params_.ways) + uint64_t(way)] = ++use_clock_;  // FIFO: fill order
+    const Cycle ready = fill_ready(set)[way];
+    if (ready > lookup_done) ++merged_misses;
+    if (bd) {
+        bd->cycles[level_] += lookup_done - now;
+        // Waiting for a fill already in flight is time spent below this level.
+        if (ready > lookup_done)
+            bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += ready - lookup_done;
     }
+    return std::max(lookup_done, ready);
+}
+
+Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
+    ++accesses;
+    const uint64_t set = set_of(line_addr);
+    const Cycle lookup_done = take_bank(line_addr, now) + params_.hit_latency_cycles;
+    const int found = find_way(set, line_addr);
+    if (found >= 0) return hit(set, found, now, lookup_done, bd);
+    const uint64_t* tag = tags(set);
+    const uint64_t* age = &last_use_[set * uint64_t(params_.ways)];
     // Miss: an invalid way if any, else the policy's victim.
     int victim = -1;
     for (int w = 0; w < params_.ways && victim < 0; ++w)
-        if (tags[w] == kNoTag) victim = w;
+        if (tag[w] == kNoTag) victim = w;
     if (victim < 0) {
         if (params_.replacement == CacheParams::Replacement::Random) {
             rng_ ^= rng_ << 13;
@@ -56,7 +68,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
         } else {
             victim = 0;
             for (int w = 1; w < params_.ways; ++w)
-                if (state_[base + w].last_use < state_[base + victim].last_use) victim = w;
+                if (age[w] < age[victim]) victim = w;
         }
     }
     ++misses;
@@ -77,23 +89,48 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
         mshr_free_.back() = ready;
         std::push_heap(mshr_free_.begin(), mshr_free_.end(), std::greater<Cycle>());
     }
-    tags_[base + victim] = line_addr;
-    state_[base + victim] = {++use_clock_, ready};
+    tags(set)[victim] = line_addr;
+    fill_ready(set)[victim] = ready;
+    last_use_[set * uint64_t(params_.ways) + uint64_t(victim)] = ++use_clock_;
     return ready;
 }
 
-bool Cache::present(uint64_t line_addr) const {
-    const uint64_t* tags = &tags_[size_t(line_addr & set_mask_) * size_t(params_.ways)];
-    for (int w = 0; w < params_.ways; ++w)
-        if (tags[w] == line_addr) return true;
-    return false;
+bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                         AccessBreakdown* bd) {
+    const uint64_t first = addr >> line_shift_;
+    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+    // Find every line before touching any state: a request with one missing line is not local.
+    constexpr uint64_t kMaxLines = 16;
+    int ways[kMaxLines];
+    if (last - first >= kMaxLines) return false;
+    for (uint64_t line = first; line <= last; ++line) __builtin_prefetch(tags(set_of(line)));
+    for (uint64_t line = first; line <= last; ++line) {
+        const int w = find_way(set_of(line), line);
+        if (w < 0) return false;
+        ways[line - first] = w;
+    }
+    bytes_requested += size_bytes;
+    Cycle done = now;
+    AccessBreakdown slowest;
+    for (uint64_t line = first; line <= last; ++line) {
+        ++accesses;
+        AccessBreakdown line_bd;
+        const Cycle lookup_done = take_bank(line, now) + params_.hit_latency_cycles;
+        const Cycle d =
+            hit(set_of(line), ways[line - first], now, lookup_done, bd ? &line_bd : nullptr);
+        if (d > done || line == first) {
+            done = std::max(done, d);
+            slowest = line_bd;
+        }
+    }
+    add_slowest(bd, slowest);
+    ready = done;
+    return true;
 }
 
-bool Cache::served_locally(uint64_t addr, uint32_t size_bytes) const {
-    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
-    for (uint64_t line = addr >> line_shift_; line <= last; ++line)
-        if (!present(line)) return false;
-    return true;
+void Cache::add_slowest(AccessBreakdown* to, const AccessBreakdown& slowest) {
+    if (to)
+        for (int l = 0; l < kMemLevels; ++l) to->cycles[l] += slowest.cycles[l];
 }
 
 Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
@@ -112,8 +149,7 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
             slowest = line_bd;
         }
     }
-    if (bd)
-        for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += slowest.cycles[l];
+    add_slowest(bd, slowest);
     return done;
 }
 

@@ -35,7 +35,11 @@ class IdealMemory : public MemoryPort {
         if (bd) bd->cycles[kLevelL1] += latency_;
         return now + latency_;
     }
-    bool served_locally(uint64_t, uint32_t) const override { return true; }
+    bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                      AccessBreakdown* bd = nullptr) override {
+        ready = access(addr, size_bytes, now, bd);
+        return true;
+    }
 
   private:
     Cycle latency_;
@@ -48,8 +52,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
           int level = kLevelL1);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    // Every line of the request is present (or already being filled): a hit, no next-level access.
-    bool served_locally(uint64_t addr, uint32_t size_bytes) const override;
+    // Served locally when every line of the request is present (or already being filled).
+    bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                      AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
@@ -64,15 +69,26 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t bank_conflict_cycles = 0;  // cycles lookups waited for their bank
 
   private:
-    // Tags apart from the rest (structure of arrays): a lookup scans one set's tags, a few
-    // contiguous words, and touches the rest only on a hit or a fill.
+    // A set's tags and fill cycles share one block (one host cache line for 4 ways), so a hit
+    // touches one line; replacement ages live apart, read only to choose a victim.
     static constexpr uint64_t kNoTag = ~uint64_t(0);  // no line address reaches this
-    struct WayState {
-        uint64_t last_use = 0;
-        Cycle ready = 0;  // cycle the line's data is present
-    };
+    uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
+    uint64_t* tags(uint64_t set) { return set_block_ + set * 2 * uint64_t(params_.ways); }
+    Cycle* fill_ready(uint64_t set) { return tags(set) + params_.ways; }
+    // The way holding `line_addr` in `set`, or -1. Scans every way without an early exit: a
+    // data-dependent exit mispredicts on most lookups, the extra compares cost less.
+    int find_way(uint64_t set, uint64_t line_addr) {
+        const uint64_t* t = tags(set);
+        int found = -1;
+        for (int w = 0; w < params_.ways; ++w) found = t[w] == line_addr ? w : found;
+        return found;
+    }
+    // Waits for the line's bank; returns the cycle the lookup starts.
+    Cycle take_bank(uint64_t line_addr, Cycle now);
+    Cycle hit(uint64_t set, int way, Cycle now, Cycle lookup_done, AccessBreakdown* breakdown);
     Cycle access_line(uint64_t line_addr, Cycle now, AccessBreakdown* breakdown);
-    bool present(uint64_t line_addr) const;
+    // Adds the slowest line's breakdown to the request's.
+    static void add_slowest(AccessBreakdown* to, const AccessBreakdown& slowest);
 
     CacheParams params_;
     MemoryPort* next_;
@@ -81,8 +97,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     std::vector<Cycle> bank_free_;          // per bank: next cycle it starts a lookup
     uint64_t rng_ = 0x9E3779B97F4A7C15ull;  // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
-    std::vector<uint64_t> tags_;   // sets * ways, set-major; kNoTag when invalid
-    std::vector<WayState> state_;  // same indexing
+    std::vector<uint64_t> set_storage_;  // per set: tags (kNoTag: invalid), then fill cycles
+    uint64_t* set_block_ = nullptr;      // set_storage_ aligned to a host cache line
+    std::vector<uint64_t> last_use_;     // per set and way: LRU use or FIFO fill stamp
     uint64_t bank_mask_ = 0;
     uint64_t set_mask_;
     uint32_t line_shift_;

@@ -1,12 +1,14 @@
 // A MIMD traversal core: `ray_slots` thread contexts, each running one ray's step stream
 // (node fetch + box test, triangle fetch + triangle test) against the core's L1 and units.
 //
-// Speed: a ray slot's steps cost no SystemC event. The core runs the slot that is ready
-// earliest in a tight loop against the resource calendars of its units and L1. It yields to the
-// kernel only before work that touches shared state (taking a ray, an L1 miss) and lies more
-// than `quantum_cycles` ahead of simulated time (temporal decoupling, as TLM-2.0's quantum
-// keeper). A quantum of 0 keeps every core's shared requests in global time order: the exact
-// reference.
+// Speed: a ray slot's steps cost no SystemC event. A core is a passive block: the CoreScheduler
+// (one SystemC process for all cores) advances it, and the core runs its earliest-ready slot in
+// a tight loop against the resource calendars of its units and L1. Private work (an L1 hit on a
+// private unit) runs ahead freely; work that touches shared state (taking a ray, an L1 miss, a
+// shared unit) waits until it is the earliest such work on the chip, so every shared block sees
+// requests in global time order. `quantum_cycles` relaxes that bound (temporal decoupling, as
+// TLM-2.0's quantum keeper): a core may run shared work up to that many cycles ahead of the
+// others. Quantum 0 is the exact reference.
 #pragma once
 
 #include <string>
@@ -36,21 +38,25 @@ struct CoreParams {
     int node_step_instructions = 1;  // control instructions per node step (traversal)
     int triangle_step_instructions = 1;  // control instructions per triangle step (intersection)
     int ray_setup_instructions = 1;      // instructions to start a ray
-    Cycle quantum_cycles = 0;
-    bool units_shared = false;  // units serve several cores: every step synchronises
+    bool units_shared = false;           // units serve several cores: every step synchronises
 };
+
+// The cycle a core reports when it has nothing left to do.
+constexpr Cycle kNeverCycle = ~Cycle(0);
 
 class Core : public sc_core::sc_module {
   public:
-    SC_HAS_PROCESS(Core);
     // triangle_l1: a separate L1 for triangle fetches (a split L1); nullptr: `l1` serves both.
     Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
          MemoryPort* triangle_l1 = nullptr);
     void register_stats(StatsRegistry& reg, const std::string& block);
-    // Host seconds this core's process ran (not simulated statistics: for the host section).
-    double host_busy_seconds() const { return host_busy_seconds_; }
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
+
+    // Runs the slots in ready order: private work freely, shared work only at cycles up to
+    // `horizon`. Returns the cycle of the next shared work, or kNeverCycle once every slot
+    // has retired (the work queue is empty and all rays are done).
+    Cycle advance(Cycle horizon);
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
     // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
@@ -68,13 +74,12 @@ class Core : public sc_core::sc_module {
     struct Slot {
         RayWork work;
         size_t pos = 0;
-        Cycle ready = 0;
         Cycle start = 0;
         bool busy = false;
-        bool retired = false;
+        bool fetch_is_shared = false;  // the next step's fetch was found to leave the L1
     };
-    void run();
     Cycle issue(Cycle t, int instructions);
+    void finish_ray(Slot& s, Cycle done);
 
     CoreParams params_;
     MemoryPort* l1_;      // node fetches (and triangle fetches without a split L1)
@@ -83,10 +88,33 @@ class Core : public sc_core::sc_module {
     PipelinedUnit* tri_;
     RayWorkSource* source_;
     std::vector<Slot> slots_;
+    // Per slot: the cycle it is ready for its next step; kNeverCycle once retired. Apart from
+    // the slots so that finding the earliest is a short branch-free scan.
+    std::vector<Cycle> ready_;
     TimeSeries* rays_series_ = nullptr;
-    double host_busy_seconds_ = 0;
     Cycle issue_cycle_ = 0;
     int issued_in_cycle_ = 0;
+};
+
+// Runs a set of cores in global time order: the cores' one SystemC process. It keeps the cores
+// in a min-heap by the cycle of their next shared work and advances the earliest up to the
+// next one's cycle (plus the quantum), so shared blocks see requests in time order at the cost
+// of a heap operation rather than a kernel event. SystemC time follows the earliest core,
+// synchronised every `kKernelSyncCycles` (nothing else in the chip is an active process; the
+// kernel's time serves progress reports and sc_stop).
+class CoreScheduler : public sc_core::sc_module {
+  public:
+    SC_HAS_PROCESS(CoreScheduler);
+    static constexpr Cycle kKernelSyncCycles = 4096;
+    CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores, Cycle quantum_cycles);
+    // Host seconds the process ran (not simulated statistics: for the host section).
+    double host_busy_seconds() const { return host_busy_seconds_; }
+
+  private:
+    void run();
+    std::vector<Core*> cores_;
+    Cycle quantum_cycles_;
+    double host_busy_seconds_ = 0;
 };
 
 }  // namespace rtsim

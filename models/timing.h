@@ -18,7 +18,7 @@ inline Cycle now_cycles() {
 
 // A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
 // that returns the cycle the data is available. Requests must arrive in non-decreasing time
-// order per level (the cores' quantum keeps them within a bound).
+// order per level (the cores' scheduler keeps them so, to within its quantum).
 // Where an access spent its cycles, by the memory level that spent them (stall attribution).
 enum MemLevel : int { kLevelL1 = 0, kLevelL2 = 1, kLevelDram = 2, kMemLevels = 3 };
 struct AccessBreakdown {
@@ -32,10 +32,14 @@ class MemoryPort {
     // the returned cycle minus `now`.
     virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                          AccessBreakdown* breakdown = nullptr) = 0;
-    // True if access() would be served entirely inside this block, touching no other block's
-    // state (a private cache's hit). A requester may then run it ahead of simulated time without
-    // synchronising; anything else may reach shared state and must wait for its cycle.
-    virtual bool served_locally(uint64_t /*addr*/, uint32_t /*size_bytes*/) const { return false; }
+    // Performs the access only if this block serves it entirely, touching no other block's
+    // state (a private cache's hit): then sets `ready` as access() would return it and returns
+    // true. Otherwise changes nothing and returns false. A requester may run a local access
+    // ahead of simulated time; anything else may reach shared state and must wait for its turn.
+    virtual bool access_local(uint64_t /*addr*/, uint32_t /*size_bytes*/, Cycle /*now*/,
+                              Cycle& /*ready*/, AccessBreakdown* /*breakdown*/ = nullptr) {
+        return false;
+    }
 };
 
 }  // namespace rtsim

@@ -40,7 +40,7 @@ def main():
     quanta = [int(q) for q in a.quanta.split(",")]
     print(f"scene {a.scene}, config {a.config}, {a.res}, overrides {a.set or 'none'}")
     print("Shares of simulation host time: waiting for rays (generation and functional tracing on a")
-    print("helper thread), models (the cores' SystemC processes running), kernel (the rest).")
+    print("helper thread), models (the core scheduler's process running the cores), kernel (the rest).")
     print(f"{'rays':8} {'quantum':>8} {'rays':>9} {'Mcycles':>9} {'cyc err':>8} {'DRAM err':>9} "
           f"{'host s':>7} {'sim Mrays/host s':>17} {'speedup':>8} {'rays wait':>9} {'models':>7} {'kernel':>7}")
     with tempfile.TemporaryDirectory() as tmp:

@@ -68,7 +68,6 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     cp.node_step_instructions = int(cfg.integer("core.node_step_instructions"));
     cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
     cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
-    cp.quantum_cycles = Cycle(cfg.integer("sim.quantum_cycles"));
     const CacheParams l1p = cache_params(cfg, "l1");
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
@@ -113,6 +112,10 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());
     }
+    std::vector<Core*> core_ptrs;
+    for (auto& c : cores) core_ptrs.push_back(c.get());
+    scheduler = std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
+                                                Cycle(cfg.integer("sim.quantum_cycles")));
 }
 
 Cycle Chip::total_cycles() const {

@@ -31,6 +31,7 @@ class Chip {
     std::unique_ptr<IdealMemory> ideal_memory;   // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
     std::vector<std::unique_ptr<Core>> cores;
+    std::unique_ptr<CoreScheduler> scheduler;
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
     struct Series {
         std::unique_ptr<TimeSeries> dram_bytes, l1_fill_bytes, l2_fill_bytes, box_busy,

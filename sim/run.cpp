@@ -103,10 +103,8 @@ class CountingSource : public RayWorkSource {
     explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work) override {
-        const auto t0 = Clock::now();
         bool hit = false;
         const bool more = failed() ? false : produce(work, hit);
-        functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
         if (!more) return false;
         rays_by_kind[static_cast<int>(work.kind)]++;
         if (hit) hits_by_kind[static_cast<int>(work.kind)]++;
@@ -121,6 +119,7 @@ class CountingSource : public RayWorkSource {
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
     uint64_t steps = 0;
     double functional_seconds = 0;  // time the simulation waited for rays to be produced
+                                    // (subclasses measure it where they block)
     // Bad input found mid-run (a damaged trace chunk) stops the simulation; run_command reports
     // it after the kernel returns, without throwing (exceptions must not cross SystemC's
     // coroutine stacks, which AddressSanitizer cannot follow either).
@@ -192,7 +191,9 @@ class PrefetchingSource : public CountingSource {
     bool produce(RayWork& work, bool& hit) override {
         while (pos_ == batch_.records.size()) {
             if (!pending_.valid()) return false;
+            const auto t0 = Clock::now();
             batch_ = pending_.get();
+            functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
             pos_ = 0;
             if (!batch_.error.empty()) {
                 failure = batch_.error;
@@ -524,10 +525,9 @@ int run_command(const RunOptions& opt) {
         total_rays += source.rays_by_kind[k];
     }
     const double sim_s = timing["simulated_seconds"].get<double>();
-    // Host time split: cores running (models, and waiting for rays: functional_s), the rest is the
-    // SystemC kernel switching between them.
-    double cores_busy = 0;
-    for (const auto& c : chip.cores) cores_busy += c->host_busy_seconds();
+    // Host time split: the cores' scheduler running (models, and waiting for rays:
+    // functional_s), the rest is the SystemC kernel.
+    const double cores_busy = chip.scheduler->host_busy_seconds();
     const double host_total = std::chrono::duration<double>(Clock::now() - host_start).count();
 
     json out;

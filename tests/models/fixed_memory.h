@@ -13,11 +13,13 @@ class FixedLatencyMemory : public MemoryPort {
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* bd = nullptr) override {
         addrs.push_back(addr);
+        times.push_back(now);
         bytes += size_bytes;
         if (bd) bd->cycles[level] += latency_;
         return now + latency_;
     }
     std::vector<uint64_t> addrs;
+    std::vector<Cycle> times;  // cycle of each request, in arrival order
     uint64_t bytes = 0;
     int level = kLevelDram;  // where its latency is attributed
 
