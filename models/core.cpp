@@ -1,5 +1,7 @@
 #include "models/core.h"
 
+#include "models/ray_buffer.h"
+
 #include <algorithm>
 #include <chrono>
 #include <queue>
@@ -39,11 +41,27 @@ Cycle Core::issue(Cycle t, int instructions) {
 }
 
 void Core::finish_ray(Slot& s, Cycle done) {
-    ++rays;
+    rays += s.work.rays;
     ray_latency_cycles += done - s.start;
-    if (rays_series_) rays_series_->add(done, 1);
+    if (rays_series_) rays_series_->add(done, s.work.rays);
     last_cycle = std::max(last_cycle, done);
     s.busy = false;
+}
+
+void Core::wake(Cycle at) {
+    for (Cycle& r : ready_)
+        if (r == kParkedCycle) r = at;
+}
+
+// Loads a treelet's nodes and triangles with one request per run: the cache looks its lines up
+// in parallel and fills them; rays that need a line still filling wait for it (miss merging).
+void Core::load_treelet(uint32_t treelet, Cycle now) {
+    const TreeletSpan& span = ray_buffer_->span(treelet);
+    if (span.node_bytes) l1_->access(span.node_addr, uint32_t(span.node_bytes), now);
+    if (span.tri_bytes) l1_tri_->access(span.tri_addr, uint32_t(span.tri_bytes), now);
+    ++treelet_loads;
+    treelet_load_bytes += span.node_bytes + span.tri_bytes;
+    loaded_treelet_ = treelet;
 }
 
 Cycle Core::advance(Cycle horizon) {
@@ -53,30 +71,66 @@ Cycle Core::advance(Cycle horizon) {
         for (size_t j = 1; j < n; ++j)
             if (ready_[j] < ready_[i]) i = j;
         const Cycle t = ready_[i];
-        if (t == kNeverCycle) return kNeverCycle;  // every slot retired
+        if (t >= kParkedCycle) return t;  // every slot parked or retired
         Slot& s = slots_[i];
         // Private work may run ahead of the other cores: this core's own calendars still see
         // its requests in time order, because it always runs its earliest slot.
         if (!s.busy) {
             if (t > horizon) return t;  // the work queue is shared
-            if (!source_->next(s.work)) {
-                ready_[i] = kNeverCycle;
-                continue;
+            Cycle got = t;
+            if (!ray_buffer_) {
+                if (!source_->next(s.work)) {
+                    ready_[i] = kNeverCycle;
+                    continue;
+                }
+                s.pos = 0;
+            } else {
+                if (batch_.empty()) {
+                    if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
+                        ready_[i] = ray_buffer_->finished() ? kNeverCycle : kParkedCycle;
+                        continue;
+                    }
+                    if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
+                        load_treelet(batch_treelet_, t);
+                }
+                s.handle = batch_.front();
+                batch_.pop_front();
+                s.treelet = batch_treelet_;
+                got = ray_buffer_->read(s.handle, t, s.work, s.pos);
+                stall_cycles[kRayBuffer] += got - t;
             }
             // The steps were written on another host thread: start loading them now, long
             // before the slot runs them.
-            const char* p = reinterpret_cast<const char*>(s.work.steps.data());
-            for (size_t b = 0; b < s.work.steps.size() * sizeof(Step); b += 64)
+            const char* p = reinterpret_cast<const char*>(s.work.steps.data() + s.pos);
+            for (size_t b = 0; b < (s.work.steps.size() - s.pos) * sizeof(Step); b += 64)
                 __builtin_prefetch(p + b);
             s.busy = true;
-            s.pos = 0;
             s.start = t;
-            // A ray missing the root box has no steps and ends here.
-            const Cycle done = issue(t, params_.ray_setup_instructions);
+            // A ray missing the root box has no steps and ends after its setup.
+            const Cycle done = issue(got, params_.ray_setup_instructions);
             ready_[i] = done;
-            stall_cycles[kIssue] += done - t;
-            if (s.work.steps.empty()) finish_ray(s, done);
+            stall_cycles[kIssue] += done - got;
+            if (!ray_buffer_ && s.work.steps.empty()) finish_ray(s, done);
             continue;
+        }
+        if (ray_buffer_) {
+            // Leaving the buffer, or moving to another treelet's queue, is shared work.
+            if (s.pos == s.work.steps.size()) {
+                if (t > horizon) return t;
+                ray_buffer_->release(s.handle);
+                finish_ray(s, t);
+                continue;
+            }
+            const uint32_t next_treelet = s.work.steps[s.pos].treelet;
+            if (next_treelet != s.treelet) {
+                if (t > horizon) return t;
+                const Cycle done = ray_buffer_->requeue(s.handle, s.work, s.pos, next_treelet, t);
+                stall_cycles[kRayBuffer] += done - t;
+                ray_latency_cycles += done - s.start;
+                s.busy = false;
+                ready_[i] = done;
+                continue;
+            }
         }
         const Step& st = s.work.steps[s.pos];
         const bool node = st.kind == StepKind::Node;
@@ -109,20 +163,27 @@ Cycle Core::advance(Cycle horizon) {
         }
         ++s.pos;
         ++steps;
-        const Cycle done = node ? box_->issue(fetched, st.count) : tri_->issue(fetched);
+        // A packet's operations occupy every lane, active or not (lockstep SIMD).
+        const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
+        if (params_.packet_lanes > 0) {
+            active_lanes += st.lanes;
+            lane_slots += uint64_t(params_.packet_lanes);
+        }
+        const Cycle done =
+            node ? box_->issue(fetched, st.count, lanes) : tri_->issue(fetched, 1, lanes);
         ready_[i] = done;
         stall_cycles[kIssue] += issued - t;
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
         stall_cycles[node ? kBoxUnit : kTriangleUnit] += done - fetched;
-        if (s.pos == s.work.steps.size()) finish_ray(s, done);
+        if (!ray_buffer_ && s.pos == s.work.steps.size()) finish_ray(s, done);
     }
 }
 
 const char* Core::stall_name(int s) {
-    static const char* const names[kStallKinds] = {"issue", "l1",       "l2",
-                                                   "dram",  "box_unit", "triangle_unit"};
+    static const char* const names[kStallKinds] = {
+        "issue", "l1", "l2", "dram", "box_unit", "triangle_unit", "ray_buffer"};
     return names[s];
 }
 
@@ -137,11 +198,22 @@ void Core::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "issue_stall_cycles", &issue_stall_cycles,
             "cycles steps waited for an issue slot");
     reg.add(block, "last_cycle", &last_cycle, "cycle the core's last ray finished");
+    if (ray_buffer_) {
+        reg.add(block, "treelet_loads", &treelet_loads, "treelets loaded for a batch");
+        reg.add(block, "treelet_load_bytes", &treelet_load_bytes, "bytes of treelets loaded");
+    }
+    if (params_.packet_lanes > 0) {
+        reg.add(block, "active_lanes", &active_lanes, "packet lanes whose ray took part, summed");
+        reg.add(block, "lane_slots", &lane_slots, "packet lanes occupied, summed over steps");
+    }
 }
 
 CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores,
-                             Cycle quantum_cycles)
-    : sc_core::sc_module(name), cores_(std::move(cores)), quantum_cycles_(quantum_cycles) {
+                             Cycle quantum_cycles, WakeSource* wake)
+    : sc_core::sc_module(name),
+      cores_(std::move(cores)),
+      quantum_cycles_(quantum_cycles),
+      wake_(wake) {
     SC_THREAD(run);
 }
 
@@ -149,6 +221,7 @@ void CoreScheduler::run() {
     using Entry = std::pair<Cycle, size_t>;  // (cycle of the next shared work, core index)
     std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> ready;
     for (size_t i = 0; i < cores_.size(); ++i) ready.push({0, i});
+    std::vector<size_t> parked;  // cores waiting for work that may still come
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
     while (!ready.empty()) {
@@ -166,7 +239,19 @@ void CoreScheduler::run() {
         const Cycle horizon =
             others >= kNeverCycle - quantum_cycles_ ? kNeverCycle : others + quantum_cycles_;
         const Cycle next = cores_[e.second]->advance(horizon);
-        if (next != kNeverCycle) ready.push({next, e.second});
+        if (next == kParkedCycle)
+            parked.push_back(e.second);
+        else if (next != kNeverCycle)
+            ready.push({next, e.second});
+        Cycle at;
+        if (wake_ && wake_->take_wake(at) && !parked.empty()) {
+            at = std::max(at, e.first);  // never behind the order already served
+            for (size_t c : parked) {
+                cores_[c]->wake(at);
+                ready.push({at, c});
+            }
+            parked.clear();
+        }
     }
     host_busy_seconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();

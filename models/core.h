@@ -11,6 +11,7 @@
 // others. Quantum 0 is the exact reference.
 #pragma once
 
+#include <deque>
 #include <string>
 #include <systemc>
 #include <vector>
@@ -39,10 +40,25 @@ struct CoreParams {
     int triangle_step_instructions = 1;  // control instructions per triangle step (intersection)
     int ray_setup_instructions = 1;      // instructions to start a ray
     bool units_shared = false;           // units serve several cores: every step synchronises
+    // Packet mode: a work item is a packet and its box and triangle operations occupy this
+    // many SIMD lanes whether or not every lane's ray takes part (lockstep). 0: single rays.
+    int packet_lanes = 0;
+    bool treelet_prefetch = true;  // treelet mode: load a batch's treelet before its rays run
 };
 
 // The cycle a core reports when it has nothing left to do.
 constexpr Cycle kNeverCycle = ~Cycle(0);
+// ...and when it has nothing to do now but more may come (treelet mode): it waits to be woken.
+constexpr Cycle kParkedCycle = kNeverCycle - 1;
+
+// Tells the core scheduler that work arrived for parked cores, and from which cycle.
+class WakeSource {
+  public:
+    virtual ~WakeSource() = default;
+    virtual bool take_wake(Cycle& at) = 0;
+};
+
+class RayBuffer;
 
 class Core : public sc_core::sc_module {
   public:
@@ -52,23 +68,33 @@ class Core : public sc_core::sc_module {
          MemoryPort* triangle_l1 = nullptr);
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
+    // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
+    // from the source) instead of one by one from the source.
+    void set_ray_buffer(RayBuffer* buffer) { ray_buffer_ = buffer; }
 
     // Runs the slots in ready order: private work freely, shared work only at cycles up to
-    // `horizon`. Returns the cycle of the next shared work, or kNeverCycle once every slot
-    // has retired (the work queue is empty and all rays are done).
+    // `horizon`. Returns the cycle of the next shared work; kParkedCycle when every slot waits
+    // for work that may still come; kNeverCycle once every slot has retired (the work queue is
+    // empty and all rays are done).
     Cycle advance(Cycle horizon);
+    // Parked slots look for work again from cycle `at`.
+    void wake(Cycle at);
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
     // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
-    enum Stall { kIssue, kL1, kL2, kDram, kBoxUnit, kTriangleUnit, kStallKinds };
+    enum Stall { kIssue, kL1, kL2, kDram, kBoxUnit, kTriangleUnit, kRayBuffer, kStallKinds };
     static const char* stall_name(int s);
     uint64_t stall_cycles[kStallKinds] = {};
 
     uint64_t rays = 0;
     uint64_t steps = 0;
-    uint64_t ray_latency_cycles = 0;  // summed over rays, dispatch to last result
+    uint64_t ray_latency_cycles = 0;  // summed over rays, cycles each held a slot
     uint64_t issue_stall_cycles = 0;  // cycles steps waited for an issue slot
     uint64_t last_cycle = 0;          // cycle the core's last ray finished
+    // Treelet mode
+    uint64_t treelet_loads = 0, treelet_load_bytes = 0;
+    // Packet mode: lanes whose ray took part, and lanes occupied, summed over steps.
+    uint64_t active_lanes = 0, lane_slots = 0;
 
   private:
     struct Slot {
@@ -77,7 +103,10 @@ class Core : public sc_core::sc_module {
         Cycle start = 0;
         bool busy = false;
         bool fetch_is_shared = false;  // the next step's fetch was found to leave the L1
+        uint32_t handle = 0;           // treelet mode: the ray's ray-buffer entry
+        uint32_t treelet = 0;          // treelet mode: the treelet this slot's ray runs in
     };
+    void load_treelet(uint32_t treelet, Cycle now);
     Cycle issue(Cycle t, int instructions);
     void finish_ray(Slot& s, Cycle done);
 
@@ -91,6 +120,10 @@ class Core : public sc_core::sc_module {
     // Per slot: the cycle it is ready for its next step; kNeverCycle once retired. Apart from
     // the slots so that finding the earliest is a short branch-free scan.
     std::vector<Cycle> ready_;
+    RayBuffer* ray_buffer_ = nullptr;
+    std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
+    uint32_t batch_treelet_ = 0;
+    uint32_t loaded_treelet_ = ~0u;
     TimeSeries* rays_series_ = nullptr;
     Cycle issue_cycle_ = 0;
     int issued_in_cycle_ = 0;
@@ -106,7 +139,9 @@ class CoreScheduler : public sc_core::sc_module {
   public:
     SC_HAS_PROCESS(CoreScheduler);
     static constexpr Cycle kKernelSyncCycles = 4096;
-    CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores, Cycle quantum_cycles);
+    // `wake`: where work for parked cores comes from (the ray buffer in treelet mode).
+    CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores, Cycle quantum_cycles,
+                  WakeSource* wake = nullptr);
     // Host seconds the process ran (not simulated statistics: for the host section).
     double host_busy_seconds() const { return host_busy_seconds_; }
 
@@ -114,6 +149,7 @@ class CoreScheduler : public sc_core::sc_module {
     void run();
     std::vector<Core*> cores_;
     Cycle quantum_cycles_;
+    WakeSource* wake_;
     double host_busy_seconds_ = 0;
 };
 

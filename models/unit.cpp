@@ -7,8 +7,9 @@ namespace rtsim {
 PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params)
     : sc_core::sc_module(name), params_(params), next_free_(static_cast<size_t>(params.count), 0) {}
 
-Cycle PipelinedUnit::issue(Cycle ready, int items) {
-    const Cycle n = Cycle(std::max(1, (items + params_.width - 1) / params_.width));
+Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
+    const Cycle n =
+        Cycle(std::max(1, (items + params_.width - 1) / params_.width)) * Cycle(std::max(1, rays));
     auto it = std::min_element(next_free_.begin(), next_free_.end());
     const Cycle start = params_.unlimited ? ready : std::max(ready, *it);
     if (!params_.unlimited) *it = start + n * params_.interval_cycles;

@@ -26,9 +26,10 @@ class PipelinedUnit : public sc_core::sc_module {
   public:
     PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params);
     // Issues the operations for `items` items (ceil(items / width), back to back on one pipeline)
-    // that are ready at `ready`; returns the cycle the last result is available. Arbitration is
-    // first come, first served, onto the pipeline that frees first.
-    Cycle issue(Cycle ready, int items = 1);
+    // that are ready at `ready`, `rays` times over (the lanes of a packet); returns the cycle
+    // the last result is available. Arbitration is first come, first served, onto the pipeline
+    // that frees first.
+    Cycle issue(Cycle ready, int items = 1, int rays = 1);
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* busy_cycles) { busy_series_ = busy_cycles; }
     const UnitParams& params() const { return params_; }

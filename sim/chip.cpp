@@ -30,7 +30,22 @@ UnitParams unit_params(const Config& cfg, const std::string& unit) {
 
 }  // namespace
 
-Chip::Chip(const Config& cfg, RayWorkSource* source) {
+// Treelet k's runs of node records and triangles as byte ranges.
+std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
+    std::vector<TreeletSpan> spans(L.treelet_count());
+    for (uint32_t k = 0; k < L.treelet_count(); ++k) {
+        const bool cut = !L.treelet_node_start.empty();
+        const uint32_t n0 = cut ? L.treelet_node_start[k] : 0;
+        const uint32_t n1 = cut ? L.treelet_node_start[k + 1] : L.inner_node_count;
+        const uint32_t t0 = cut ? L.treelet_tri_start[k] : 0;
+        const uint32_t t1 = cut ? L.treelet_tri_start[k + 1] : L.triangle_count;
+        spans[k] = {L.node_addr(n0), uint64_t(n1 - n0) * L.node_size_bytes, L.tri_addr(t0),
+                    uint64_t(t1 - t0) * L.tri_size_bytes};
+    }
+    return spans;
+}
+
+Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     const auto window = uint64_t(cfg.integer("sim.window_cycles"));
     if (window > 0)
         for (auto* p : {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes,
@@ -68,6 +83,22 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
     cp.node_step_instructions = int(cfg.integer("core.node_step_instructions"));
     cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
     cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
+    const std::string mode = cfg.string("traversal.mode");
+    if (mode == "packet") cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
+    cp.treelet_prefetch = cfg.boolean("traversal.treelet_prefetch");
+    if (mode == "treelet") {
+        RayBufferParams rp;
+        rp.capacity_rays = uint32_t(cfg.integer("ray_buffer.capacity_rays"));
+        rp.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
+        rp.ports = int(cfg.integer("ray_buffer.ports"));
+        rp.latency_cycles = Cycle(cfg.integer("ray_buffer.latency_cycles"));
+        rp.batch_rays = uint32_t(cfg.integer("traversal.treelet_batch_rays"));
+        rp.policy = cfg.string("traversal.treelet_scheduler") == "round_robin"
+                        ? RayBufferParams::Policy::RoundRobin
+                        : RayBufferParams::Policy::MostRays;
+        ray_buffer = std::make_unique<RayBuffer>("ray_buffer", rp, treelet_spans(layout), source);
+        ray_buffer->register_stats(stats, "ray_buffer");
+    }
     const CacheParams l1p = cache_params(cfg, "l1");
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
@@ -109,13 +140,15 @@ Chip::Chip(const Config& cfg, RayWorkSource* source) {
                                                box_units[size_t(i / box_share)].get(),
                                                triangle_units[size_t(i / tri_share)].get(), source,
                                                l1_tri.empty() ? nullptr : l1_tri.back().get()));
+        cores.back()->set_ray_buffer(ray_buffer.get());
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());
     }
     std::vector<Core*> core_ptrs;
     for (auto& c : cores) core_ptrs.push_back(c.get());
-    scheduler = std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
-                                                Cycle(cfg.integer("sim.quantum_cycles")));
+    scheduler =
+        std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
+                                        Cycle(cfg.integer("sim.quantum_cycles")), ray_buffer.get());
 }
 
 Cycle Chip::total_cycles() const {

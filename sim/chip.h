@@ -10,15 +10,18 @@
 #include "models/core.h"
 #include "models/crossbar.h"
 #include "models/dram.h"
+#include "models/ray_buffer.h"
 #include "models/stats.h"
 #include "models/unit.h"
 #include "sim/config.h"
+#include "workloads/bvh.h"
 
 namespace rtsim {
 
 class Chip {
   public:
-    Chip(const Config& cfg, RayWorkSource* source);
+    // `layout`: where the treelets are (treelet mode loads them); the chip sees only addresses.
+    Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout);
     // Cycle the last ray finished (valid after the simulation ran).
     Cycle total_cycles() const;
 
@@ -30,6 +33,7 @@ class Chip {
     std::vector<std::unique_ptr<Cache>> l1_tri;  // l1.split: per-core triangle caches
     std::unique_ptr<IdealMemory> ideal_memory;   // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
+    std::unique_ptr<RayBuffer> ray_buffer;  // traversal.mode = treelet
     std::vector<std::unique_ptr<Core>> cores;
     std::unique_ptr<CoreScheduler> scheduler;
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.

@@ -23,6 +23,7 @@
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
+#include "workloads/packet.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
 #include "workloads/trace_file.h"
@@ -53,6 +54,7 @@ Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
     bo.node_format = parse_node_format(cfg.string("bvh.node_format"), "bvh.node_format");
     bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
     bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
+    bo.treelet_bytes = uint32_t(cfg.integer("bvh.treelet_bytes"));
     BvhLayout layout;
     layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
     layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
@@ -103,11 +105,11 @@ class CountingSource : public RayWorkSource {
     explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work) override {
-        bool hit = false;
+        uint32_t hit = 0;
         const bool more = failed() ? false : produce(work, hit);
         if (!more) return false;
-        rays_by_kind[static_cast<int>(work.kind)]++;
-        if (hit) hits_by_kind[static_cast<int>(work.kind)]++;
+        rays_by_kind[static_cast<int>(work.kind)] += work.rays;
+        hits_by_kind[static_cast<int>(work.kind)] += hit;
         steps += work.steps.size();
         return true;
     }
@@ -128,7 +130,8 @@ class CountingSource : public RayWorkSource {
     bool failed() const { return !failure.empty(); }
 
   protected:
-    virtual bool produce(RayWork& work, bool& hit) = 0;
+    // Fills the next work item (a ray, or a packet of work.rays rays); `hits`: how many hit.
+    virtual bool produce(RayWork& work, uint32_t& hits) = 0;
 
     void report_progress(double fraction, const char* what) {
         if (!progress_) return;
@@ -160,6 +163,9 @@ class PrefetchingSource : public CountingSource {
   protected:
     struct Batch {
         std::vector<TraceRecord> records;
+        // Packet mode: per record (a packet), its rays and how many of them hit.
+        std::vector<uint8_t> packet_rays;
+        std::vector<uint32_t> packet_hits;
         double progress = 0;  // fraction of the work done once this batch is used
         bool last = false;    // nothing follows
         std::string error;
@@ -188,7 +194,7 @@ class PrefetchingSource : public CountingSource {
         if (pending_.valid()) pending_.wait();
     }
 
-    bool produce(RayWork& work, bool& hit) override {
+    bool produce(RayWork& work, uint32_t& hits) override {
         while (pos_ == batch_.records.size()) {
             if (!pending_.valid()) return false;
             const auto t0 = Clock::now();
@@ -208,7 +214,12 @@ class PrefetchingSource : public CountingSource {
         work.ray_id = r.ray_id;
         work.kind = r.kind;
         work.steps.swap(r.steps);
-        hit = r.prim != kInvalidPrim;
+        work.rays = 1;
+        hits = r.prim != kInvalidPrim;
+        if (pos_ <= batch_.packet_hits.size()) {
+            work.rays = batch_.packet_rays[pos_ - 1];
+            hits = batch_.packet_hits[pos_ - 1];
+        }
         return true;
     }
 
@@ -223,8 +234,10 @@ class PrefetchingSource : public CountingSource {
 // hold step streams at any time.
 class GeneratedWorkSource : public PrefetchingSource {
   public:
-    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress)
-        : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen) {
+    // packet_size > 0: runs of consecutive rays of one kind are traced as packets of up to
+    // that many rays, each packet one work item.
+    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0)
+        : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen), packet_size_(packet_size) {
         prefetch();
     }
     ~GeneratedWorkSource() override { wait(); }
@@ -235,20 +248,51 @@ class GeneratedWorkSource : public PrefetchingSource {
         std::vector<GeneratedRay> rays;
         bool more = true;
         while (rays.size() < kBatchRays && (more = gen_.next_tile(rays))) ++tiles_done_;
-        b.records.resize(rays.size());
-        for (size_t i = 0; i < rays.size(); ++i) {
-            TraceRecord& r = b.records[i];
-            r.ray_id = rays[i].id;
-            r.kind = rays[i].kind;
-            r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+        if (packet_size_ > 0) {
+            fill_packets(rays, b);
+        } else {
+            b.records.resize(rays.size());
+            for (size_t i = 0; i < rays.size(); ++i) {
+                TraceRecord& r = b.records[i];
+                r.ray_id = rays[i].id;
+                r.kind = rays[i].kind;
+                r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+            }
         }
         b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());
         b.last = !more;
     }
 
   private:
+    void fill_packets(const std::vector<GeneratedRay>& rays, Batch& b) {
+        Ray packet[kMaxPacketSize];
+        Hit hits[kMaxPacketSize];
+        PacketOptions po;
+        po.size = packet_size_;
+        PacketStats ps;
+        for (size_t i = 0; i < rays.size();) {
+            size_t e = i;
+            while (e < rays.size() && e - i < size_t(packet_size_) && rays[e].kind == rays[i].kind)
+                ++e;
+            const int n = int(e - i);
+            for (int k = 0; k < n; ++k) packet[k] = rays[i + size_t(k)].ray;
+            TraceRecord r;
+            r.ray_id = rays[i].id;
+            r.kind = rays[i].kind;
+            trace_packet(bvh_, packet, n, rays[i].query, hits, po, ps, &r.steps);
+            uint32_t hit_count = 0;
+            for (int k = 0; k < n; ++k) hit_count += hits[k].valid();
+            r.prim = hit_count ? 0 : kInvalidPrim;
+            b.records.push_back(std::move(r));
+            b.packet_rays.push_back(uint8_t(n));
+            b.packet_hits.push_back(hit_count);
+            i = e;
+        }
+    }
+
     const Bvh& bvh_;
     RayGenerator& gen_;
+    int packet_size_;
     int tiles_done_ = 0;  // touched by the helper thread only
 };
 
@@ -364,31 +408,41 @@ json scene_summary(const Scene& scene) {
             {"bounds", aabb_json(scene.bounds())}};
 }
 
-json bvh_summary(const Bvh& bvh) {
+json bvh_summary(const Bvh& bvh, bool treelet_tables) {
     const BvhQuality& q = bvh.quality;
     const BvhBuildOptions& bo = bvh.options;
     const BvhLayout& L = bvh.layout;
-    return {{"builder", bvh_builder_name(bo.builder)},
-            {"restructure_passes", bo.restructure_passes},
-            {"width", bvh.width()},
-            {"node_format", node_format_name(bo.node_format)},
-            {"sah_cost", q.sah_cost},
-            {"sah_traversal_cost", bo.traversal_cost},
-            {"sah_intersection_cost", bo.intersection_cost},
-            {"nodes", q.node_count},
-            {"inner_nodes", q.inner_count},
-            {"leaves", q.leaf_count},
-            {"max_depth", q.max_depth},
-            {"mean_leaf_size", q.mean_leaf_size},
-            {"mean_children", q.mean_children},
-            {"bytes", q.bytes},
-            {"layout",
-             {{"node_base_addr", L.node_base_addr},
-              {"node_size_bytes", L.node_size_bytes},
-              {"inner_node_count", L.inner_node_count},
-              {"triangle_base_addr", L.tri_base_addr},
-              {"triangle_size_bytes", L.tri_size_bytes},
-              {"triangle_count", L.triangle_count}}}};
+    json out = {{"builder", bvh_builder_name(bo.builder)},
+                {"restructure_passes", bo.restructure_passes},
+                {"width", bvh.width()},
+                {"node_format", node_format_name(bo.node_format)},
+                {"sah_cost", q.sah_cost},
+                {"sah_traversal_cost", bo.traversal_cost},
+                {"sah_intersection_cost", bo.intersection_cost},
+                {"nodes", q.node_count},
+                {"inner_nodes", q.inner_count},
+                {"leaves", q.leaf_count},
+                {"max_depth", q.max_depth},
+                {"mean_leaf_size", q.mean_leaf_size},
+                {"mean_children", q.mean_children},
+                {"bytes", q.bytes},
+                {"layout",
+                 {{"node_base_addr", L.node_base_addr},
+                  {"node_size_bytes", L.node_size_bytes},
+                  {"inner_node_count", L.inner_node_count},
+                  {"triangle_base_addr", L.tri_base_addr},
+                  {"triangle_size_bytes", L.tri_size_bytes},
+                  {"triangle_count", L.triangle_count},
+                  {"treelet_bytes", L.treelet_bytes},
+                  {"treelets", L.treelet_bytes ? L.treelet_count() : 0},
+                  {"treelet_node_start", L.treelet_node_start},
+                  {"treelet_tri_start", L.treelet_tri_start}}}};
+    if (!treelet_tables) {
+        // Stats keep the figures, traces the tables (a replay needs them to know treelets).
+        out["layout"].erase("treelet_node_start");
+        out["layout"].erase("treelet_tri_start");
+    }
+    return out;
 }
 
 json workload_summary(const RayGenOptions& rg, float ao_length) {
@@ -414,6 +468,15 @@ BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
         L.tri_base_addr = l.at("triangle_base_addr").get<uint64_t>();
         L.tri_size_bytes = l.at("triangle_size_bytes").get<uint32_t>();
         L.triangle_count = l.at("triangle_count").get<uint32_t>();
+        // Traces from before treelets carry no treelet fields: a layout without treelets.
+        L.treelet_bytes = l.value("treelet_bytes", 0u);
+        L.treelet_node_start = l.value("treelet_node_start", std::vector<uint32_t>());
+        L.treelet_tri_start = l.value("treelet_tri_start", std::vector<uint32_t>());
+        if (!L.index_treelets() || (L.treelet_bytes == 0) != L.treelet_node_start.empty())
+            throw InputError(fmt::format(
+                "{}: header metadata bvh.layout has treelet tables that do not cover its {} "
+                "nodes and {} triangles",
+                where, L.inner_node_count, L.triangle_count));
         return L;
     } catch (const json::exception& e) {
         throw InputError(
@@ -452,6 +515,9 @@ void check_trace_matches_config(const json& bvh, const Config& cfg, const std::s
     if (uint32_t(cfg.integer("bvh.triangle_size_bytes")) != L.tri_size_bytes)
         refuse("bvh.triangle_size_bytes", std::to_string(L.tri_size_bytes),
                std::to_string(cfg.integer("bvh.triangle_size_bytes")));
+    if (uint32_t(cfg.integer("bvh.treelet_bytes")) != L.treelet_bytes)
+        refuse("bvh.treelet_bytes", std::to_string(L.treelet_bytes),
+               std::to_string(cfg.integer("bvh.treelet_bytes")));
 }
 
 int run_command(const RunOptions& opt) {
@@ -467,6 +533,16 @@ int run_command(const RunOptions& opt) {
         throw InputError(
             fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
 
+    const std::string mode = cfg.string("traversal.mode");
+    if (mode == "treelet" && cfg.integer("bvh.treelet_bytes") == 0)
+        throw InputError(
+            "traversal.mode=treelet queues rays by treelet, but bvh.treelet_bytes is 0 (no "
+            "treelets); set it, e.g. to the L1 size in bytes");
+    if (mode == "packet" && !opt.trace_path.empty())
+        throw InputError(fmt::format(
+            "{}: a trace records single-ray traversal; traversal.mode=packet needs rays "
+            "generated on the fly (drop --trace)",
+            opt.trace_path));
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
     const auto t_prepare = Clock::now();
     json meta;  // scene, bvh and workload sections of stats.json
@@ -482,7 +558,8 @@ int run_command(const RunOptions& opt) {
         meta = {{"scene", scene_summary(*scene)},
                 {"bvh", bvh_summary(*bvh)},
                 {"workload", workload_summary(rg, gen->ao_length())}};
-        source_ptr = std::make_unique<GeneratedWorkSource>(*bvh, *gen, progress);
+        source_ptr = std::make_unique<GeneratedWorkSource>(
+            *bvh, *gen, progress, mode == "packet" ? int(cfg.integer("traversal.packet_size")) : 0);
     } else {
         reader = std::make_unique<TraceReader>(opt.trace_path);
         meta = open_trace_metadata(*reader, opt.trace_path);
@@ -492,7 +569,7 @@ int run_command(const RunOptions& opt) {
     const double prepare_seconds = std::chrono::duration<double>(Clock::now() - t_prepare).count();
     CountingSource& source = *source_ptr;
 
-    Chip chip(cfg, &source);
+    Chip chip(cfg, &source, bvh ? bvh->layout : reader->layout());
     const auto t_sim = Clock::now();
     sc_core::sc_start();
     const double sim_seconds = std::chrono::duration<double>(Clock::now() - t_sim).count();
@@ -537,6 +614,9 @@ int run_command(const RunOptions& opt) {
     out["config_files"] = cfg.files;
     out["config_overrides"] = cfg.overrides;
     for (const char* k : {"scene", "bvh", "workload"}) out[k] = meta[k];
+    if (out["bvh"].contains("layout"))  // a trace's treelet tables stay in the trace
+        for (const char* k : {"treelet_node_start", "treelet_tri_start"})
+            out["bvh"]["layout"].erase(k);
     out["rays"] = {
         {"total", total_rays}, {"by_kind", rays}, {"hits_by_kind", hits}, {"steps", source.steps}};
     out["total_cycles"] = timing["total_cycles"];

@@ -50,7 +50,7 @@ int run_command(const RunOptions& options);
 
 // Sections of stats.json and of a trace's header metadata.
 nlohmann::json scene_summary(const Scene& scene);
-nlohmann::json bvh_summary(const Bvh& bvh);
+nlohmann::json bvh_summary(const Bvh& bvh, bool treelet_tables = false);
 nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
 // The layout a bvh_summary describes; throws InputError naming `where` if it is incomplete.
 BvhLayout layout_from_summary(const nlohmann::json& bvh, const std::string& where);

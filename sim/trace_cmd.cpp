@@ -101,7 +101,7 @@ int trace_command(const TraceOptions& opt) {
                 "--packet: a trace records single-ray traversal; drop --packet with -o");
         nlohmann::json meta = {{"rtsim_version", RTSIM_VERSION},
                                {"scene", scene_summary(scene)},
-                               {"bvh", bvh_summary(bvh)}};
+                               {"bvh", bvh_summary(bvh, true)}};
         if (reader)
             meta["workload"] = {{"rays_file", opt.rays_file},
                                 {"query", opt.any_hit ? "any" : "closest"}};

@@ -223,6 +223,84 @@ BvhQuality measure(const std::vector<WideNode<W>>& nodes, const AABB& root,
     return q;
 }
 
+// Cuts the tree into treelets (Aila & Karras 2010) and lays each out contiguously. A treelet
+// grows from its root by adding the frontier node of largest surface area (the one a ray that
+// entered the treelet most likely visits next) while the budget allows; frontier nodes that do
+// not fit root later treelets, taken breadth-first so the root treelet is 0. A node's cost is
+// its record plus its leaf children's triangles, which move with it. One node over budget still
+// forms a treelet of its own.
+template <int W>
+void cut_treelets(std::vector<WideNode<W>>& nodes, std::vector<uint32_t>& prim_order,
+                  BvhLayout& L) {
+    const size_t n = nodes.size();
+    std::vector<float> area(n);
+    std::vector<uint64_t> cost(n);
+    for (size_t i = 0; i < n; ++i) {
+        AABB box;
+        cost[i] = L.node_size_bytes;
+        for (int l = 0; l < nodes[i].num; ++l) {
+            box.grow(nodes[i].box(l));
+            cost[i] += uint64_t(nodes[i].count[l]) * L.tri_size_bytes;
+        }
+        area[i] = box.surface_area();
+    }
+    std::vector<std::vector<uint32_t>> members;
+    std::vector<uint32_t> roots = {0};
+    for (size_t r = 0; r < roots.size(); ++r) {
+        std::vector<uint32_t> treelet;
+        uint64_t bytes = 0;
+        auto smaller = [&](uint32_t a, uint32_t b) { return area[a] < area[b]; };
+        std::vector<uint32_t> frontier = {roots[r]};
+        while (!frontier.empty()) {
+            std::pop_heap(frontier.begin(), frontier.end(), smaller);
+            const uint32_t i = frontier.back();
+            frontier.pop_back();
+            if (!treelet.empty() && bytes + cost[i] > L.treelet_bytes) {
+                roots.push_back(i);
+                continue;
+            }
+            treelet.push_back(i);
+            bytes += cost[i];
+            for (int l = 0; l < nodes[i].num; ++l)
+                if (!nodes[i].count[l]) {
+                    frontier.push_back(nodes[i].child[l]);
+                    std::push_heap(frontier.begin(), frontier.end(), smaller);
+                }
+        }
+        // Old indices are depth-first preorder, so sorted members are the treelet's own preorder.
+        std::sort(treelet.begin(), treelet.end());
+        members.push_back(std::move(treelet));
+    }
+    std::vector<uint32_t> new_index(n);
+    uint32_t next = 0;
+    for (const auto& t : members)
+        for (uint32_t i : t) new_index[i] = next++;
+    std::vector<WideNode<W>> out(n);
+    std::vector<uint32_t> order;
+    order.reserve(prim_order.size());
+    L.treelet_node_start.assign(1, 0);
+    L.treelet_tri_start.assign(1, 0);
+    for (const auto& t : members) {
+        for (uint32_t i : t) {
+            WideNode<W> node = nodes[i];
+            for (int l = 0; l < node.num; ++l) {
+                if (!node.count[l]) {
+                    node.child[l] = new_index[node.child[l]];
+                    continue;
+                }
+                const uint32_t first = node.child[l];
+                node.child[l] = uint32_t(order.size());
+                for (uint32_t k = 0; k < node.count[l]; ++k) order.push_back(prim_order[first + k]);
+            }
+            out[new_index[i]] = node;
+        }
+        L.treelet_node_start.push_back(L.treelet_node_start.back() + uint32_t(t.size()));
+        L.treelet_tri_start.push_back(uint32_t(order.size()));
+    }
+    nodes = std::move(out);
+    prim_order = std::move(order);
+}
+
 }  // namespace
 
 // Packs each leaf's triangles into Tri4 blocks (unused lanes stay zero; tests mask them off).
@@ -295,10 +373,31 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
             Collapser<8>(bin, bvh.nodes8, quantize).run();
             break;
     }
-    bvh.prim_order = bin.prim_order;
-    bvh.tri_verts.resize(bin.prim_order.size());
-    for (size_t s = 0; s < bin.prim_order.size(); ++s)
-        for (int c = 0; c < 3; ++c) bvh.tri_verts[s][c] = scene.v(bin.prim_order[s], c);
+    BvhLayout& L = bvh.layout;
+    L = layout_sizes;
+    if (L.node_size_bytes == 0)
+        L.node_size_bytes = quantize ? compressed_node_size_bytes(options.width)
+                                     : default_node_size_bytes(options.width);
+    bvh.prim_order = std::move(bin.prim_order);
+    L.treelet_bytes = options.treelet_bytes;
+    L.treelet_node_start.clear();
+    L.treelet_tri_start.clear();
+    if (options.treelet_bytes > 0) {
+        switch (options.width) {
+            case 2:
+                cut_treelets(bvh.nodes2, bvh.prim_order, L);
+                break;
+            case 4:
+                cut_treelets(bvh.nodes4, bvh.prim_order, L);
+                break;
+            default:
+                cut_treelets(bvh.nodes8, bvh.prim_order, L);
+                break;
+        }
+    }
+    bvh.tri_verts.resize(bvh.prim_order.size());
+    for (size_t s = 0; s < bvh.prim_order.size(); ++s)
+        for (int c = 0; c < 3; ++c) bvh.tri_verts[s][c] = scene.v(bvh.prim_order[s], c);
     switch (options.width) {
         case 2:
             build_tri_blocks(bvh.nodes2, bvh);
@@ -311,21 +410,41 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
             break;
     }
 
-    BvhLayout& L = bvh.layout;
-    L = layout_sizes;
-    if (L.node_size_bytes == 0)
-        L.node_size_bytes = quantize ? compressed_node_size_bytes(options.width)
-                                     : default_node_size_bytes(options.width);
     L.inner_node_count = static_cast<uint32_t>(options.width == 2   ? bvh.nodes2.size()
                                                : options.width == 4 ? bvh.nodes4.size()
                                                                     : bvh.nodes8.size());
     L.triangle_count = static_cast<uint32_t>(bvh.prim_order.size());
+    L.index_treelets();
     const uint64_t page = 4096;
     L.tri_base_addr = (L.node_base_addr + L.node_bytes_total() + page - 1) / page * page;
     bvh.quality.build_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     bvh.quality = measure_bvh(bvh);
     return bvh;
+}
+
+bool BvhLayout::index_treelets() {
+    node_treelet_.clear();
+    tri_treelet_.clear();
+    if (treelet_node_start.empty() && treelet_tri_start.empty()) return true;
+    auto fill = [](const std::vector<uint32_t>& start, uint32_t records,
+                   std::vector<uint32_t>& of) {
+        if (start.size() < 2 || start.front() != 0 || start.back() != records) return false;
+        of.assign(records, 0);
+        for (size_t k = 0; k + 1 < start.size(); ++k) {
+            if (start[k + 1] < start[k]) return false;
+            for (uint32_t i = start[k]; i < start[k + 1]; ++i) of[i] = uint32_t(k);
+        }
+        return true;
+    };
+    if (treelet_node_start.size() != treelet_tri_start.size() ||
+        !fill(treelet_node_start, inner_node_count, node_treelet_) ||
+        !fill(treelet_tri_start, triangle_count, tri_treelet_)) {
+        node_treelet_.clear();
+        tri_treelet_.clear();
+        return false;
+    }
+    return true;
 }
 
 }  // namespace rtsim

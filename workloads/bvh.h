@@ -9,6 +9,7 @@
 
 #include "workloads/geometry.h"
 #include "workloads/scene.h"
+#include "workloads/step.h"
 
 namespace rtsim {
 
@@ -37,6 +38,7 @@ struct BvhBuildOptions {
     int width = 2;                // children per node after collapsing: 2, 4 or 8
     int sah_buckets = 12;         // centroid buckets per axis; B-1 candidate planes are evaluated
     int max_leaf_size = 4;        // a leaf never holds more triangles than this
+    uint32_t treelet_bytes = 0;   // cut the tree into treelets of at most this (0: none)
     float traversal_cost = 1.0f;  // SAH cost of visiting an inner node, relative to...
     float intersection_cost = 1.0f;  // ...the cost of one ray-triangle test
 };
@@ -68,6 +70,38 @@ struct BvhLayout {
     }
     uint64_t node_bytes_total() const { return uint64_t(inner_node_count) * node_size_bytes; }
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
+
+    // Treelets (Aila & Karras 2010): the tree cut into connected pieces of at most
+    // treelet_bytes (nodes plus their leaves' triangles), each stored as one contiguous run of
+    // node records and one of triangle slots. Treelet k holds nodes [node_start[k],
+    // node_start[k+1]) and slots [tri_start[k], tri_start[k+1]); both have a final sentinel.
+    // Empty when the layout has no treelets: every record is in treelet 0.
+    uint32_t treelet_bytes = 0;
+    std::vector<uint32_t> treelet_node_start, treelet_tri_start;
+    uint32_t treelet_count() const {
+        return treelet_node_start.empty() ? 1 : uint32_t(treelet_node_start.size() - 1);
+    }
+    // Fills the per-record lookups from the start tables; false if the tables are inconsistent
+    // with the record counts (a damaged trace header).
+    bool index_treelets();
+    uint32_t node_treelet(uint32_t node) const {
+        return node_treelet_.empty() ? 0 : node_treelet_[node];
+    }
+    uint32_t tri_treelet(uint32_t slot) const {
+        return tri_treelet_.empty() ? 0 : tri_treelet_[slot];
+    }
+
+    Step node_step(uint32_t node, uint8_t children) const {
+        return {node_addr(node), node,     uint16_t(node_size_bytes),
+                StepKind::Node,  children, node_treelet(node)};
+    }
+    Step tri_step(uint32_t slot) const {
+        return {tri_addr(slot),     slot, uint16_t(tri_size_bytes),
+                StepKind::Triangle, 1,    tri_treelet(slot)};
+    }
+
+  private:
+    std::vector<uint32_t> node_treelet_, tri_treelet_;
 };
 
 // Binary tree, as builders produce it.

@@ -28,7 +28,8 @@ struct PacketEntry {
 
 template <int W>
 void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int n, HitQuery query,
-                     Hit* hits, uint64_t start_mask, const PacketOptions& opt, PacketStats& st) {
+                     Hit* hits, uint64_t start_mask, const PacketOptions& opt, PacketStats& st,
+                     std::vector<Step>* steps) {
     const auto& nodes = bvh.nodes<W>();
     const bool any = query == HitQuery::Any;
     uint64_t done = 0;  // any-hit rays that found their hit
@@ -45,12 +46,14 @@ void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int 
             far_hit = std::max(far_hit, hits[__builtin_ctzll(m)].t);
         if (e.tnear > far_hit * kCullScale) continue;
         if (e.count) {
+            uint8_t tested[256] = {};  // per triangle of the leaf: rays that test it
             for (uint64_t m = mask; m; m &= m - 1) {
                 const int i = __builtin_ctzll(m);
                 for (uint32_t k = 0; k < e.count; ++k) {
                     const uint32_t slot = e.child + k;
                     const auto& v = bvh.tri_verts[slot];
                     st.tri_tests++;
+                    tested[k]++;
                     if (intersect_triangle(rp[i], v[0], v[1], v[2], rays[i].tmin, hits[i])) {
                         hits[i].prim = bvh.prim_order[slot];
                         if (any) {
@@ -60,6 +63,11 @@ void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int 
                     }
                 }
             }
+            if (steps)
+                for (uint32_t k = 0; k < e.count; ++k) {
+                    steps->push_back(bvh.layout.tri_step(e.child + k));
+                    steps->back().lanes = tested[k];
+                }
             continue;
         }
         const int active = __builtin_popcountll(mask);
@@ -78,6 +86,10 @@ void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int 
             continue;
         }
         const WideNode<W>& node = nodes[e.child];
+        if (steps) {
+            steps->push_back(bvh.layout.node_step(e.child, node.num));
+            steps->back().lanes = uint8_t(active);
+        }
         st.node_visits++;
         st.active_lanes += uint64_t(active);
         st.lane_slots += uint64_t(n);
@@ -108,7 +120,7 @@ void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int 
 }  // namespace
 
 void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* hits,
-                  const PacketOptions& opt, PacketStats& st) {
+                  const PacketOptions& opt, PacketStats& st, std::vector<Step>* steps) {
     n = std::clamp(n, 0, kMaxPacketSize);
     std::vector<RayPrecomp> rp;
     rp.reserve(n);
@@ -125,13 +137,13 @@ void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* h
     if (mask) {
         switch (bvh.width()) {
             case 2:
-                traverse_packet<2>(bvh, rays, rp.data(), n, query, hits, mask, opt, st);
+                traverse_packet<2>(bvh, rays, rp.data(), n, query, hits, mask, opt, st, steps);
                 break;
             case 4:
-                traverse_packet<4>(bvh, rays, rp.data(), n, query, hits, mask, opt, st);
+                traverse_packet<4>(bvh, rays, rp.data(), n, query, hits, mask, opt, st, steps);
                 break;
             default:
-                traverse_packet<8>(bvh, rays, rp.data(), n, query, hits, mask, opt, st);
+                traverse_packet<8>(bvh, rays, rp.data(), n, query, hits, mask, opt, st, steps);
                 break;
         }
     }

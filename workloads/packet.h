@@ -37,7 +37,10 @@ struct PacketStats {
 
 // Traces rays[0, n) (n <= 64) as one packet; all share `query`. hits[i] gets what trace_ray
 // would return for rays[i] (the same t; on an exact tie possibly another primitive).
+// steps (optional) receives the packet's step stream, each step with the lanes that take part
+// (the steps of subtrees finished ray by ray after a switch are not recorded).
 void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* hits,
-                  const PacketOptions& options, PacketStats& stats);
+                  const PacketOptions& options, PacketStats& stats,
+                  std::vector<Step>* steps = nullptr);
 
 }  // namespace rtsim

@@ -18,18 +18,22 @@ struct Step {
     uint32_t id;          // inner-node record index, or leaf slot of the triangle
     uint16_t size_bytes;  // bytes fetched
     StepKind kind;
-    uint8_t count;  // Node: child boxes tested
+    uint8_t count;         // Node: child boxes tested
+    uint32_t treelet = 0;  // treelet of the record (0 when the layout has no treelets)
+    uint8_t lanes = 1;     // rays of a packet that take part (1 for a single ray)
 };
-static_assert(sizeof(Step) == 16, "Step is streamed in bulk; keep it 16 bytes");
+static_assert(sizeof(Step) == 24, "Step is streamed in bulk; keep it small");
 
 enum class RayKind : uint8_t { Primary = 0, Shadow = 1, AO = 2, Diffuse = 3, Reflection = 4 };
 constexpr int kRayKindCount = 5;
 const char* ray_kind_name(RayKind k);
 
-// One ray's work for the timing model.
+// One ray's work for the timing model (or one packet's: `rays` rays in lockstep, each step
+// with its active lanes).
 struct RayWork {
     uint32_t ray_id = 0;
     RayKind kind = RayKind::Primary;
+    uint8_t rays = 1;
     std::vector<Step> steps;
 };
 

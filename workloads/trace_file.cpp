@@ -311,16 +311,12 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
             const uint8_t b = byte();
             const int sk = b & 1;
             prev[sk] += unzigzag(varint());
-            Step& s = rec.steps[i];
-            s.kind = StepKind(sk);
-            s.count = uint8_t(b >> 1);
             const uint64_t limit = sk == 0 ? layout_.inner_node_count : layout_.triangle_count;
             if (prev[sk] < 0 || uint64_t(prev[sk]) >= limit)
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
                                        i, sk ? "triangle" : "node", prev[sk], limit));
-            s.id = uint32_t(prev[sk]);
-            s.addr = sk == 0 ? layout_.node_addr(s.id) : layout_.tri_addr(s.id);
-            s.size_bytes = uint16_t(sk == 0 ? layout_.node_size_bytes : layout_.tri_size_bytes);
+            const auto id = uint32_t(prev[sk]);
+            rec.steps[i] = sk == 0 ? layout_.node_step(id, uint8_t(b >> 1)) : layout_.tri_step(id);
         }
         const uint64_t prim = varint();
         if (prim == 0) {

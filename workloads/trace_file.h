@@ -80,6 +80,7 @@ class TraceReader {
     uint64_t file_bytes() const { return file_size_; }
     // Step addresses and sizes are derived from this layout (set it from the metadata).
     void set_layout(const BvhLayout& layout) { layout_ = layout; }
+    const BvhLayout& layout() const { return layout_; }
 
     // Decodes chunk k into out (cleared first). Throws InputError on damage.
     void read_chunk(size_t k, std::vector<TraceRecord>& out);

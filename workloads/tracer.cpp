@@ -19,12 +19,9 @@ struct NullSink {
 struct VectorSink {
     std::vector<Step>* out;
     void node(const BvhLayout& L, uint32_t index, uint8_t children) {
-        out->push_back(
-            {L.node_addr(index), index, uint16_t(L.node_size_bytes), StepKind::Node, children});
+        out->push_back(L.node_step(index, children));
     }
-    void tri(const BvhLayout& L, uint32_t slot) {
-        out->push_back({L.tri_addr(slot), slot, uint16_t(L.tri_size_bytes), StepKind::Triangle, 1});
-    }
+    void tri(const BvhLayout& L, uint32_t slot) { out->push_back(L.tri_step(slot)); }
 };
 
 struct Entry {

@@ -1,0 +1,150 @@
+#include "models/ray_buffer.h"
+
+#include <algorithm>
+#include <limits>
+
+namespace rtsim {
+
+RayBuffer::RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params,
+                     std::vector<TreeletSpan> treelets, RayWorkSource* source)
+    : sc_core::sc_module(name),
+      params_(params),
+      treelets_(std::move(treelets)),
+      source_(source),
+      entries_(params.capacity_rays),
+      queues_(std::max<size_t>(1, treelets_.size())) {
+    free_.reserve(params.capacity_rays);
+    for (uint32_t h = params.capacity_rays; h-- > 0;) free_.push_back(h);
+}
+
+// The SRAM's ports: `ports` record accesses start per cycle, each done `latency_cycles` later.
+Cycle RayBuffer::port(Cycle now) {
+    if (now > port_cycle_) {
+        port_cycle_ = now;
+        port_used_ = 0;
+    }
+    if (port_used_ == params_.ports) {
+        ++port_cycle_;
+        port_used_ = 0;
+    }
+    ++port_used_;
+    port_wait_cycles += port_cycle_ - now;
+    return port_cycle_ + params_.latency_cycles;
+}
+
+void RayBuffer::recount(uint32_t treelet, size_t before) {
+    const size_t after = queues_[treelet].size();
+    constexpr size_t kMax = std::numeric_limits<size_t>::max();
+    if (before) by_count_.erase({kMax - before, treelet});
+    if (after) by_count_.insert({kMax - after, treelet});
+    if (before && !after) nonempty_.erase(treelet);
+    if (!before && after) nonempty_.insert(treelet);
+}
+
+void RayBuffer::enqueue(uint32_t handle, uint32_t treelet, Cycle now) {
+    const size_t before = queues_[treelet].size();
+    queues_[treelet].push_back(handle);
+    recount(treelet, before);
+    // Cores that found nothing to do may now have work.
+    if (!wake_ || now < wake_cycle_) wake_cycle_ = now;
+    wake_ = true;
+}
+
+// Admits up to a batch of new rays while there is room: rays enter as cores ask for work, not
+// all at once, so admissions share the ports with the traffic around them.
+void RayBuffer::admit(Cycle now) {
+    bool blocked = false;
+    for (uint32_t n = 0; n < params_.batch_rays && !source_done_; ++n) {
+        if (free_.empty()) {
+            blocked = true;
+            break;
+        }
+        const uint32_t h = free_.back();
+        Entry& e = entries_[h];
+        if (!source_->next(e.work)) {
+            source_done_ = true;
+            break;
+        }
+        free_.pop_back();
+        e.pos = 0;
+        ++occupancy_;
+        ++admitted;
+        peak_rays = std::max<uint64_t>(peak_rays, occupancy_);
+        ++writes;
+        // A ray that misses the scene has no step; it still passes through a core to finish.
+        const uint32_t treelet = e.work.steps.empty() ? 0 : e.work.steps[0].treelet;
+        e.written = port(now);
+        enqueue(h, treelet, e.written);
+    }
+    if (blocked) ++admission_blocked;
+}
+
+bool RayBuffer::next_batch(Cycle now, uint32_t& treelet, std::deque<uint32_t>& rays) {
+    admit(now);
+    if (by_count_.empty()) return false;
+    if (params_.policy == RayBufferParams::Policy::MostRays) {
+        treelet = by_count_.begin()->second;
+    } else {
+        auto it = nonempty_.upper_bound(last_pick_);
+        treelet = it != nonempty_.end() ? *it : *nonempty_.begin();
+    }
+    last_pick_ = treelet;
+    std::deque<uint32_t>& q = queues_[treelet];
+    const size_t before = q.size();
+    const size_t take = std::min<size_t>(before, std::max<uint32_t>(1, params_.batch_rays));
+    for (size_t i = 0; i < take; ++i) {
+        rays.push_back(q.front());
+        q.pop_front();
+    }
+    recount(treelet, before);
+    ++batches;
+    batch_rays += take;
+    return true;
+}
+
+Cycle RayBuffer::read(uint32_t handle, Cycle now, RayWork& work, size_t& pos) {
+    Entry& e = entries_[handle];
+    work.steps.swap(e.work.steps);
+    work.ray_id = e.work.ray_id;
+    work.kind = e.work.kind;
+    work.rays = e.work.rays;
+    pos = e.pos;
+    ++reads;
+    return port(std::max(now, e.written));
+}
+
+Cycle RayBuffer::requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now) {
+    Entry& e = entries_[handle];
+    e.work.steps.swap(work.steps);
+    e.pos = pos;
+    ++writes;
+    ++crossings;
+    e.written = port(now);
+    enqueue(handle, treelet, e.written);
+    return e.written;
+}
+
+void RayBuffer::release(uint32_t handle) {
+    free_.push_back(handle);
+    --occupancy_;
+    // The last ray leaving lets idle cores see that everything is done.
+    if (finished()) {
+        wake_ = true;
+        wake_cycle_ = 0;
+    }
+}
+
+void RayBuffer::register_stats(StatsRegistry& reg, const std::string& block) {
+    reg.add(block, "reads", &reads, "ray records read by cores");
+    reg.add(block, "writes", &writes, "ray records written (admissions and treelet crossings)");
+    reg.add(block, "port_wait_cycles", &port_wait_cycles, "cycles accesses waited for a port");
+    reg.add(block, "peak_rays", &peak_rays, "most rays held at once");
+    reg.add(block, "admitted", &admitted, "rays that entered the buffer");
+    reg.add(block, "admission_blocked", &admission_blocked,
+            "batch requests that found the buffer full while new rays waited");
+    reg.add(block, "batches", &batches, "treelet batches handed to cores");
+    reg.add(block, "batch_rays", &batch_rays, "rays handed out in batches");
+    reg.add(block, "crossings", &crossings, "rays queued again for another treelet");
+}
+
+}  // namespace rtsim

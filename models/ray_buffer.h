@@ -1,0 +1,113 @@
+// Treelet ray buffer: an on-chip SRAM holding every ray in flight, queued by the treelet it
+// needs next (Aila & Karras 2010; Kopta et al. 2015, STRaTA), and the scheduler that hands
+// cores batches of rays from one treelet, so the treelet's data is fetched once for many rays.
+//
+// A ray enters the buffer when there is room for it (admission is the back-pressure: a full
+// buffer holds new rays back, and a ray crossing into another treelet writes its state back
+// to its own entry, so no ray is ever dropped), leaves it when it finishes, and in between
+// moves from queue to queue. Reads and writes of ray records share `ports` per cycle and take
+// `latency_cycles`. A passive block: cores call it in global time order.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <set>
+#include <string>
+#include <systemc>
+#include <utility>
+#include <vector>
+
+#include "models/core.h"
+#include "models/stats.h"
+#include "models/timing.h"
+#include "workloads/step.h"
+
+namespace rtsim {
+
+struct RayBufferParams {
+    uint32_t capacity_rays = 4096;
+    uint32_t ray_bytes = 64;  // one ray record: origin, direction, extent, hit, traversal state
+    int ports = 2;            // ray records read or written per cycle
+    Cycle latency_cycles = 2;
+    uint32_t batch_rays = 32;  // rays a core takes from one treelet's queue at once
+    enum class Policy : uint8_t {
+        MostRays,    // the treelet with the most queued rays (ties: the lowest id)
+        RoundRobin,  // the next treelet with queued rays after the one picked last
+    };
+    Policy policy = Policy::MostRays;
+};
+
+// Where a treelet's data lives: one run of node records and one of triangles.
+struct TreeletSpan {
+    uint64_t node_addr = 0, node_bytes = 0;
+    uint64_t tri_addr = 0, tri_bytes = 0;
+};
+
+class RayBuffer : public sc_core::sc_module, public WakeSource {
+  public:
+    RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params,
+              std::vector<TreeletSpan> treelets, RayWorkSource* source);
+    void register_stats(StatsRegistry& reg, const std::string& block);
+    const RayBufferParams& params() const { return params_; }
+    const TreeletSpan& span(uint32_t treelet) const { return treelets_[treelet]; }
+
+    // A batch: up to batch_rays ray handles of one treelet. Admits new rays first while there
+    // is room. False when no treelet has queued rays (`finished()` tells whether more can come).
+    bool next_batch(Cycle now, uint32_t& treelet, std::deque<uint32_t>& rays);
+    // True once the source is empty and no ray is left in the buffer.
+    bool finished() const { return source_done_ && occupancy_ == 0; }
+    // Reads ray `handle` into a core's slot (the slot owns the work until it gives it back);
+    // returns the cycle the record is there.
+    Cycle read(uint32_t handle, Cycle now, RayWork& work, size_t& pos);
+    // A ray crossing into `treelet`: its state is written back and queued there.
+    Cycle requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now);
+    // A finished ray leaves the buffer.
+    void release(uint32_t handle);
+    // Work arrived for idle cores since the last call: the cycle it arrived (cores wake then).
+    bool take_wake(Cycle& at) override {
+        if (!wake_) return false;
+        wake_ = false;
+        at = wake_cycle_;
+        return true;
+    }
+
+    uint64_t reads = 0, writes = 0;  // ray records
+    uint64_t port_wait_cycles = 0;   // cycles accesses waited for a port
+    uint64_t peak_rays = 0;          // most rays held at once
+    uint64_t admitted = 0;           // rays that entered the buffer
+    uint64_t admission_blocked = 0;  // batch requests that found it full with rays waiting outside
+    uint64_t batches = 0, batch_rays = 0;
+    uint64_t crossings = 0;  // rays queued again for another treelet
+
+  private:
+    Cycle port(Cycle now);
+    void admit(Cycle now);
+    void enqueue(uint32_t handle, uint32_t treelet, Cycle now);
+    // Keeps the scheduler's indexes in step with a queue's length changing from `before`.
+    void recount(uint32_t treelet, size_t before);
+
+    RayBufferParams params_;
+    std::vector<TreeletSpan> treelets_;
+    RayWorkSource* source_;
+    bool source_done_ = false;
+    struct Entry {
+        RayWork work;
+        size_t pos = 0;
+        Cycle written = 0;  // cycle the record was last written: it cannot be read before
+    };
+    std::vector<Entry> entries_;
+    std::vector<uint32_t> free_;
+    uint32_t occupancy_ = 0;
+    std::vector<std::deque<uint32_t>> queues_;
+    // Treelets with queued rays: by (SIZE_MAX - count, id), so the first has the most rays;
+    // and by id, for round robin.
+    std::set<std::pair<size_t, uint32_t>> by_count_;
+    std::set<uint32_t> nonempty_;
+    uint32_t last_pick_ = 0;
+    Cycle port_cycle_ = 0;
+    int port_used_ = 0;
+    bool wake_ = false;
+    Cycle wake_cycle_ = 0;
+};
+
+}  // namespace rtsim
