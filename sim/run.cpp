@@ -587,6 +587,8 @@ int run_command(const RunOptions& opt) {
     ri.box_units = int(chip.box_units.size());
     ri.triangle_units = int(chip.triangle_units.size());
     ri.dram_channels = int(cfg.integer("dram.channels"));
+    ri.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
+    for (uint64_t r : source.rays_by_kind) ri.rays += r;
     json timing = timing_report(ri);
 
     // Ray kinds reported: those the workload asked for (or, for rays from a file, those seen).
@@ -624,6 +626,9 @@ int run_command(const RunOptions& opt) {
     out["simulated_seconds"] = sim_s;
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
     for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
+    out["traversal_mode"] = mode;
+    for (const char* k : {"ray_buffer", "packets"})
+        if (timing.contains(k)) out[k] = timing[k];
     if (chip.series.rays) out["time_series"] = time_series_report(chip, ri);
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     out["host"] = {{"run_time_s", host_total},
@@ -678,12 +683,23 @@ int run_command(const RunOptions& opt) {
         const json& share = out["stalls"]["total"]["share"];
         fmt::print(
             "  slots    issue {:.1f}%, L1 {:.1f}%, L2 {:.1f}%, DRAM {:.1f}%, box unit {:.1f}%, "
-            "triangle unit "
-            "{:.1f}%, no work {:.1f}%\n",
+            "triangle unit {:.1f}%, ray buffer {:.1f}%, no work {:.1f}%\n",
             100 * share["issue"].get<double>(), 100 * share["l1"].get<double>(),
             100 * share["l2"].get<double>(), 100 * share["dram"].get<double>(),
             100 * share["box_unit"].get<double>(), 100 * share["triangle_unit"].get<double>(),
-            100 * share["no_work"].get<double>());
+            100 * share["ray_buffer"].get<double>(), 100 * share["no_work"].get<double>());
+        if (out.contains("ray_buffer")) {
+            const json& rb = out["ray_buffer"];
+            fmt::print(
+                "  treelets {} batches of {:.1f} rays, {:.2f} crossings per ray, {:.1f} MB of "
+                "treelets loaded, ray buffer {:.1f} MB moved, peak {} rays\n",
+                rb["batches"].get<uint64_t>(), rb["rays_per_batch"].get<double>(),
+                rb["crossings_per_ray"].get<double>(), rb["treelet_load_bytes"].get<double>() / 1e6,
+                rb["bytes"].get<double>() / 1e6, rb["peak_rays"].get<uint64_t>());
+        }
+        if (out.contains("packets"))
+            fmt::print("  packets  lane utilisation {:.1f}%\n",
+                       100 * out["packets"]["lane_utilization"].get<double>());
         fmt::print("  caches   L1 hit rate {:.1f}%, L2 hit rate {:.1f}%\n",
                    100 * ca["l1_total"]["hit_rate"].get<double>(),
                    100 * ca["l2"]["hit_rate"].get<double>());

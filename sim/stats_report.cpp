@@ -2,6 +2,9 @@
 
 #include <fmt/format.h>
 #include <tuple>
+#include <vector>
+
+#include "models/core.h"
 
 namespace rtsim {
 
@@ -88,7 +91,8 @@ json timing_report(const ReportInputs& in) {
 
     // Stall attribution: every ray-slot cycle charged to one cause; cycles without a ray are
     // "no_work". Per core and in total, in slot-cycles and as shares.
-    static const char* const causes[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
+    std::vector<const char*> causes;
+    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
     json stalls = json::object();
     auto stall_entry = [&](const std::string& prefix, bool one_core) {
         json e = json::object();
@@ -120,6 +124,32 @@ json timing_report(const ReportInputs& in) {
             {"gbps", gbps(s.get("crossbar.bytes"))},
             {"queue_cycles", s.get("crossbar.queue_cycles")},
             {"utilization", ratio(double(s.get("crossbar.busy_cycles")), cycles)}};
+
+    if (s.has("ray_buffer.reads")) {
+        const uint64_t accesses = s.get("ray_buffer.reads") + s.get("ray_buffer.writes");
+        const uint64_t batches = s.get("ray_buffer.batches");
+        out["ray_buffer"] = {
+            {"reads", s.get("ray_buffer.reads")},
+            {"writes", s.get("ray_buffer.writes")},
+            {"bytes", accesses * in.ray_bytes},
+            {"gbps", gbps(accesses * in.ray_bytes)},
+            {"peak_rays", s.get("ray_buffer.peak_rays")},
+            {"admission_blocked", s.get("ray_buffer.admission_blocked")},
+            {"port_wait_cycles", s.get("ray_buffer.port_wait_cycles")},
+            {"batches", batches},
+            {"rays_per_batch", ratio(double(s.get("ray_buffer.batch_rays")), double(batches))},
+            {"crossings", s.get("ray_buffer.crossings")},
+            {"crossings_per_ray", ratio(double(s.get("ray_buffer.crossings")), double(in.rays))},
+            {"treelet_loads", s.sum("core[", "treelet_loads")},
+            {"treelet_load_bytes", s.sum("core[", "treelet_load_bytes")}};
+    }
+    if (s.has("core[0].lane_slots")) {
+        const uint64_t active = s.sum("core[", "active_lanes"),
+                       slots = s.sum("core[", "lane_slots");
+        out["packets"] = {{"active_lanes", active},
+                          {"lane_slots", slots},
+                          {"lane_utilization", ratio(double(active), double(slots))}};
+    }
 
     json counters = json::object();
     for (const auto& e : s.entries()) counters[e.name] = *e.value;

@@ -223,49 +223,55 @@ BvhQuality measure(const std::vector<WideNode<W>>& nodes, const AABB& root,
     return q;
 }
 
-// Cuts the tree into treelets (Aila & Karras 2010) and lays each out contiguously. A treelet
-// grows from its root by adding the frontier node of largest surface area (the one a ray that
-// entered the treelet most likely visits next) while the budget allows; frontier nodes that do
-// not fit root later treelets, taken breadth-first so the root treelet is 0. A node's cost is
-// its record plus its leaf children's triangles, which move with it. One node over budget still
-// forms a treelet of its own.
+// Cuts the tree into treelets (Aila & Karras 2010) and lays each out contiguously. The cut is
+// Kundu & Misra's (1977) bottom-up greedy, which gives the fewest connected pieces within the
+// budget: going up the tree, a node gathers what is left of its children's pieces and, while
+// that exceeds the budget, cuts off its heaviest child piece as a treelet. A node's cost is its
+// record plus its leaf children's triangles, which move with it; a node over budget on its own
+// forms a treelet alone. Treelets are numbered in depth-first order of their roots (the root
+// treelet is 0).
 template <int W>
 void cut_treelets(std::vector<WideNode<W>>& nodes, std::vector<uint32_t>& prim_order,
                   BvhLayout& L) {
     const size_t n = nodes.size();
-    std::vector<float> area(n);
-    std::vector<uint64_t> cost(n);
-    for (size_t i = 0; i < n; ++i) {
-        AABB box;
-        cost[i] = L.node_size_bytes;
+    std::vector<uint64_t> left(n);  // a node's piece once its heavy children are cut off
+    std::vector<bool> is_root(n, false);
+    is_root[0] = true;
+    // Children have larger indices than their parent (depth-first preorder): going down the
+    // indices visits every node after its children.
+    for (size_t i = n; i-- > 0;) {
+        uint64_t w = L.node_size_bytes;
+        std::vector<std::pair<uint64_t, uint32_t>> kids;
         for (int l = 0; l < nodes[i].num; ++l) {
-            box.grow(nodes[i].box(l));
-            cost[i] += uint64_t(nodes[i].count[l]) * L.tri_size_bytes;
+            if (nodes[i].count[l]) {
+                w += uint64_t(nodes[i].count[l]) * L.tri_size_bytes;
+            } else {
+                const uint32_t c = nodes[i].child[l];
+                kids.push_back({left[c], c});
+                w += left[c];
+            }
         }
-        area[i] = box.surface_area();
+        std::sort(kids.rbegin(), kids.rend());
+        for (size_t k = 0; k < kids.size() && w > L.treelet_bytes; ++k) {
+            is_root[kids[k].second] = true;
+            w -= kids[k].first;
+        }
+        left[i] = w;
     }
+    // Members of each treelet, from its root down to the roots of the next ones.
     std::vector<std::vector<uint32_t>> members;
     std::vector<uint32_t> roots = {0};
     for (size_t r = 0; r < roots.size(); ++r) {
-        std::vector<uint32_t> treelet;
-        uint64_t bytes = 0;
-        auto smaller = [&](uint32_t a, uint32_t b) { return area[a] < area[b]; };
-        std::vector<uint32_t> frontier = {roots[r]};
-        while (!frontier.empty()) {
-            std::pop_heap(frontier.begin(), frontier.end(), smaller);
-            const uint32_t i = frontier.back();
-            frontier.pop_back();
-            if (!treelet.empty() && bytes + cost[i] > L.treelet_bytes) {
-                roots.push_back(i);
-                continue;
-            }
+        std::vector<uint32_t> treelet, stack = {roots[r]};
+        while (!stack.empty()) {
+            const uint32_t i = stack.back();
+            stack.pop_back();
             treelet.push_back(i);
-            bytes += cost[i];
-            for (int l = 0; l < nodes[i].num; ++l)
-                if (!nodes[i].count[l]) {
-                    frontier.push_back(nodes[i].child[l]);
-                    std::push_heap(frontier.begin(), frontier.end(), smaller);
-                }
+            for (int l = nodes[i].num; l-- > 0;) {
+                if (nodes[i].count[l]) continue;
+                const uint32_t c = nodes[i].child[l];
+                (is_root[c] ? roots : stack).push_back(c);
+            }
         }
         // Old indices are depth-first preorder, so sorted members are the treelet's own preorder.
         std::sort(treelet.begin(), treelet.end());
@@ -430,11 +436,11 @@ bool BvhLayout::index_treelets() {
     auto fill = [](const std::vector<uint32_t>& start, uint32_t records,
                    std::vector<uint32_t>& of) {
         if (start.size() < 2 || start.front() != 0 || start.back() != records) return false;
+        for (size_t k = 0; k + 1 < start.size(); ++k)
+            if (start[k + 1] < start[k]) return false;  // then every run lies inside [0, records)
         of.assign(records, 0);
-        for (size_t k = 0; k + 1 < start.size(); ++k) {
-            if (start[k + 1] < start[k]) return false;
+        for (size_t k = 0; k + 1 < start.size(); ++k)
             for (uint32_t i = start[k]; i < start[k + 1]; ++i) of[i] = uint32_t(k);
-        }
         return true;
     };
     if (treelet_node_start.size() != treelet_tri_start.size() ||

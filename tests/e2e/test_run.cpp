@@ -583,3 +583,109 @@ TEST(Run, SplitL1SeparatesNodesFromTriangles) {
     EXPECT_EQ(node + tri, s["caches"]["l1_total"]["accesses"].get<uint64_t>());
     EXPECT_EQ(s["caches"]["l2"]["accesses"], s["caches"]["l1_total"]["misses"]);
 }
+
+// Treelet mode: the same rays and hits as the baseline, every step run once, stall attribution
+// still accounts for every slot cycle, identical stats from a rerun and from a replayed trace.
+TEST(TreeletMode, SameWorkAsBaselineDeterministicAndReplayable) {
+    const std::string rays =
+        "--scene " RTSIM_BUNNY_OBJ " --rays primary,diffuse --res 40x40 --set bvh.width=4 ";
+    const std::string treelet =
+        "--set bvh.treelet_bytes=4096 --set traversal.mode=treelet --set "
+        "ray_buffer.capacity_rays=256 ";
+    const fs::path base = work_dir() / "base", a = work_dir() / "a", b = work_dir() / "b",
+                   replay = work_dir() / "replay", trace = work_dir() / "t.rtt";
+    ASSERT_EQ(rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
+    Result r = rtsim("run -q " + rays + treelet + "--out '" + a.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    ASSERT_EQ(rtsim("run -q " + rays + treelet + "--out '" + b.string() + "'").status, 0);
+    r = rtsim("trace -q " + rays + treelet + "-o '" + trace.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = rtsim("run -q --trace '" + trace.string() + "' --set bvh.width=4 " + treelet + "--out '" +
+              replay.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json sb = stats_of(base), sa = stats_of(a);
+    expect_complete_stats(sa);
+    EXPECT_EQ(sa["rays"]["total"], sb["rays"]["total"]);
+    EXPECT_EQ(sa["rays"]["hits_by_kind"], sb["rays"]["hits_by_kind"]);
+    EXPECT_EQ(sa["rays"]["steps"], sb["rays"]["steps"]);
+    uint64_t done = 0, steps = 0, latency = 0, charged = 0;
+    for (int c = 0; c < 8; ++c) {
+        const std::string core = fmt::format("core[{}]", c);
+        done += sa["counters"][core + ".rays"].get<uint64_t>();
+        steps += sa["counters"][core + ".steps"].get<uint64_t>();
+        latency += sa["counters"][core + ".ray_latency_cycles"].get<uint64_t>();
+        for (auto& [k, v] : sa["stalls"][core].items())
+            if (k != "no_work" && k != "slot_cycles" && k != "share") charged += v.get<uint64_t>();
+    }
+    EXPECT_EQ(done, sa["rays"]["total"].get<uint64_t>());
+    EXPECT_EQ(steps, sa["rays"]["steps"].get<uint64_t>());
+    EXPECT_EQ(charged, latency);
+    const json& rb = sa["ray_buffer"];
+    EXPECT_GT(rb["crossings"].get<uint64_t>(), 0u);
+    EXPECT_GT(rb["treelet_loads"].get<uint64_t>(), 0u);
+    EXPECT_LE(rb["peak_rays"].get<uint64_t>(), 256u);
+    EXPECT_GT(rb["admission_blocked"].get<uint64_t>(), 0u);  // 256 rays of room for ~2000
+    EXPECT_GT(sa["stalls"]["total"]["ray_buffer"].get<uint64_t>(), 0u);
+    EXPECT_EQ(without_host(sa), without_host(stats_of(b)));
+    EXPECT_EQ(sa["counters"], stats_of(replay)["counters"]);
+}
+
+TEST(TreeletMode, SchedulersAndDemandFetchRunTheSameRays) {
+    const std::string rays =
+        "--scene " RTSIM_BUNNY_OBJ
+        " --rays ao --res 32x32 --set bvh.width=8 --set bvh.treelet_bytes=8192 "
+        "--set traversal.mode=treelet ";
+    uint64_t total = 0;
+    for (const char* extra : {"--set traversal.treelet_scheduler=round_robin",
+                              "--set traversal.treelet_prefetch=false"}) {
+        const fs::path out = work_dir() / (std::string("v") + std::to_string(total));
+        const Result r = rtsim("run -q " + rays + extra + " --out '" + out.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        const json s = stats_of(out);
+        if (total) {
+            EXPECT_EQ(s["rays"]["total"].get<uint64_t>(), total);
+        }
+        total = s["rays"]["total"].get<uint64_t>();
+        if (std::string(extra).find("prefetch") != std::string::npos) {
+            EXPECT_EQ(s["ray_buffer"]["treelet_loads"].get<uint64_t>(), 0u);
+        }
+    }
+}
+
+TEST(TreeletMode, BadCombinationsAreRefused) {
+    expect_one_line_error(rtsim("run -q --res 8x8 --set traversal.mode=treelet"),
+                          "bvh.treelet_bytes is 0");
+    const fs::path trace = work_dir() / "t.rtt";
+    ASSERT_EQ(rtsim("trace -q --res 8x8 -o '" + trace.string() + "'").status, 0);
+    expect_one_line_error(
+        rtsim("run -q --trace '" + trace.string() + "' --set traversal.mode=packet"),
+        "traversal.mode=packet needs rays generated on the fly");
+    expect_one_line_error(rtsim("run -q --res 8x8 --set traversal.mode=wavefront"),
+                          "traversal.mode");
+}
+
+// Packet mode: the same rays and hits; lanes are counted and operations occupy every lane, so
+// unit work grows as utilisation falls, while node fetches are shared by the packet's rays.
+TEST(PacketMode, SameRaysFewerFetchesLaneUtilisationReported) {
+    const std::string rays = "--rays primary,diffuse --res 48x48 --set bvh.width=4 ";
+    const fs::path base = work_dir() / "base", pk = work_dir() / "packet";
+    ASSERT_EQ(rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
+    const Result r = rtsim("run -q " + rays +
+                           "--set traversal.mode=packet --set traversal.packet_size=8 --out '" +
+                           pk.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json sb = stats_of(base), sp = stats_of(pk);
+    expect_complete_stats(sp);
+    EXPECT_EQ(sp["rays"]["total"], sb["rays"]["total"]);
+    EXPECT_EQ(sp["rays"]["hits_by_kind"], sb["rays"]["hits_by_kind"]);
+    const double util = sp["packets"]["lane_utilization"];
+    EXPECT_GT(util, 0.05);
+    EXPECT_LT(util, 1.0);
+    uint64_t steps = 0;
+    for (int c = 0; c < 8; ++c)
+        steps += sp["counters"][fmt::format("core[{}].steps", c)].get<uint64_t>();
+    EXPECT_EQ(sp["packets"]["lane_slots"].get<uint64_t>(), 8 * steps);
+    EXPECT_LT(sp["bandwidth"]["l1"]["bytes"].get<uint64_t>(),
+              sb["bandwidth"]["l1"]["bytes"].get<uint64_t>());
+    EXPECT_FALSE(sb.contains("packets"));
+}

@@ -12,8 +12,8 @@ struct Blocks {
     uint64_t l1[6] = {1000, 900, 100, 10, 64000, 6400};
     uint64_t l2[6] = {100, 60, 40, 0, 6400, 2560};
     uint64_t dram[7] = {40, 2560, 80, 0, 30, 6, 4};
-    uint64_t stalls[6] = {100, 200, 300,
-                          400, 500, 600};  // one core of 3 slots: 2100 of 3000 cycles
+    uint64_t stalls[7] = {100, 200, 300, 400,
+                          500, 600, 0};  // one core of 3 slots: 2100 of 3000 cycles
     StatsRegistry reg;
     Blocks() {
         const char* unit[] = {"ops", "busy_cycles", "queue_cycles"};
@@ -26,8 +26,9 @@ struct Blocks {
         for (int i = 0; i < 6; ++i) reg.add("l1[0]", cache[i], &l1[i], "");
         for (int i = 0; i < 6; ++i) reg.add("l2", cache[i], &l2[i], "");
         for (int i = 0; i < 7; ++i) reg.add("dram", mem[i], &dram[i], "");
-        const char* cause[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
-        for (int i = 0; i < 6; ++i)
+        const char* cause[] = {"issue",    "l1",           "l2",        "dram",
+                               "box_unit", "triangle_unit", "ray_buffer"};
+        for (int i = 0; i < 7; ++i)
             reg.add("core[0]", std::string("stall_") + cause[i] + "_cycles", &stalls[i], "");
     }
 };
