@@ -29,7 +29,7 @@ struct RayBufferParams {
     uint32_t ray_bytes = 64;  // one ray record: origin, direction, extent, hit, traversal state
     int ports = 2;            // ray records read or written per cycle
     Cycle latency_cycles = 2;
-    uint32_t batch_rays = 32;  // rays a core takes from one treelet's queue at once
+    uint32_t batch_rays = 256;  // rays a core takes from one treelet's queue at once
     enum class Policy : uint8_t {
         MostRays,    // the treelet with the most queued rays (ties: the lowest id)
         RoundRobin,  // the next treelet with queued rays after the one picked last

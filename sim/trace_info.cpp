@@ -33,6 +33,7 @@ std::string bucket_label(int b) {
 
 struct KindStats {
     uint64_t rays = 0, hits = 0, nodes = 0, tris = 0;
+    uint64_t crossings = 0;  // steps into another treelet than the step before
     std::array<uint64_t, kBuckets> node_hist{}, tri_hist{};
 };
 
@@ -49,7 +50,10 @@ int trace_info_command(const std::string& path, bool as_json) {
         for (const TraceRecord& r : chunk) {
             KindStats& s = kinds[int(r.kind)];
             uint64_t nodes = 0, tris = 0;
-            for (const Step& st : r.steps) (st.kind == StepKind::Node ? nodes : tris)++;
+            for (size_t i = 0; i < r.steps.size(); ++i) {
+                (r.steps[i].kind == StepKind::Node ? nodes : tris)++;
+                if (i > 0 && r.steps[i].treelet != r.steps[i - 1].treelet) s.crossings++;
+            }
             s.rays++;
             s.hits += r.prim != kInvalidPrim;
             s.nodes += nodes;
@@ -83,6 +87,7 @@ int trace_info_command(const std::string& path, bool as_json) {
                                               {"hits", s.hits},
                                               {"node_steps", s.nodes},
                                               {"triangle_steps", s.tris},
+                                              {"treelet_crossings", s.crossings},
                                               {"nodes_per_ray_histogram", nh},
                                               {"triangles_per_ray_histogram", th}};
     }
@@ -102,15 +107,22 @@ int trace_info_command(const std::string& path, bool as_json) {
                bv.value("node_format", std::string("?")), bv["layout"].value("inner_node_count", 0),
                bv["layout"].value("node_size_bytes", 0),
                bv["layout"].value("triangle_size_bytes", 0));
+    const uint32_t treelets = bv["layout"].value("treelets", 0u);
+    if (treelets)
+        fmt::print("  treelets  {} of at most {} bytes\n", treelets,
+                   bv["layout"].value("treelet_bytes", 0u));
     fmt::print("  workload  {}\n", meta.value("workload", json::object()).dump());
     fmt::print("  rays      {}, steps {}: {:.2f} bytes per ray, {:.3f} bytes per step\n",
                reader.rays(), reader.steps(), out["bytes_per_ray"].get<double>(),
                out["bytes_per_step"].get<double>());
     for (auto& [name, s] : by_kind.items()) {
         const double rays = s["rays"].get<double>();
-        fmt::print("  {:10} {} rays, {} hits, {:.2f} nodes and {:.2f} triangles per ray\n", name,
+        fmt::print("  {:10} {} rays, {} hits, {:.2f} nodes and {:.2f} triangles per ray", name,
                    s["rays"].get<uint64_t>(), s["hits"].get<uint64_t>(),
                    s["node_steps"].get<double>() / rays, s["triangle_steps"].get<double>() / rays);
+        if (treelets)
+            fmt::print(", {:.2f} treelet crossings", s["treelet_crossings"].get<double>() / rays);
+        fmt::print("\n");
         for (const char* h : {"nodes_per_ray_histogram", "triangles_per_ray_histogram"}) {
             std::string row;
             for (const json& b : s[h])
