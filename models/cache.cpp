@@ -32,27 +32,57 @@ Cycle Cache::take_bank(uint64_t line_addr, Cycle now) {
     return start;
 }
 
-Cycle Cache::hit(uint64_t set, int way, Cycle now, Cycle lookup_done, AccessBreakdown* bd) {
+Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
     ++hits;
     if (params_.replacement == CacheParams::Replacement::Lru)
         last_use_[set * uint64_t(params_.ways) + uint64_t(way)] = ++use_clock_;  // FIFO: fill order
     const Cycle ready = fill_ready(set)[way];
     if (ready > lookup_done) ++merged_misses;
-    if (bd) {
-        bd->cycles[level_] += lookup_done - now;
-        // Waiting for a fill already in flight is time spent below this level.
-        if (ready > lookup_done)
-            bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += ready - lookup_done;
-    }
-    return std::max(lookup_done, ready);
+    return ready;
 }
 
-Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
+void Cache::Slowest::hit(Cycle lookup_done, Cycle ready) {
+    const Cycle d = std::max(lookup_done, ready);
+    if (d > done || !any) {
+        done = d;
+        any = true;
+        hit_lookup_done = lookup_done;
+        is_hit = true;
+    }
+}
+
+void Cache::Slowest::miss(Cycle d, const AccessBreakdown& line_bd) {
+    if (d > done || !any) {
+        done = d;
+        any = true;
+        is_hit = false;
+        miss_bd = line_bd;
+    }
+}
+
+void Cache::Slowest::charge(AccessBreakdown* bd, int level, Cycle now) const {
+    if (!bd) return;
+    if (is_hit) {
+        // Waiting for a fill already in flight is time spent below this level.
+        bd->cycles[level] += hit_lookup_done - now;
+        bd->cycles[std::min(level + 1, kMemLevels - 1)] += done - hit_lookup_done;
+    } else {
+        for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += miss_bd.cycles[l];
+    }
+}
+
+Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown) {
     ++accesses;
     const uint64_t set = set_of(line_addr);
     const Cycle lookup_done = take_bank(line_addr, now) + params_.hit_latency_cycles;
     const int found = find_way(set, line_addr);
-    if (found >= 0) return hit(set, found, now, lookup_done, bd);
+    if (found >= 0) {
+        const Cycle ready = hit(set, found, lookup_done);
+        slowest.hit(lookup_done, ready);
+        return std::max(lookup_done, ready);
+    }
+    AccessBreakdown line_bd;
+    AccessBreakdown* bd = breakdown ? &line_bd : nullptr;
     const uint64_t* tag = tags(set);
     const uint64_t* age = &last_use_[set * uint64_t(params_.ways)];
     // Miss: an invalid way if any, else the policy's victim.
@@ -92,6 +122,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, AccessBreakdown* bd) {
     tags(set)[victim] = line_addr;
     fill_ready(set)[victim] = ready;
     last_use_[set * uint64_t(params_.ways) + uint64_t(victim)] = ++use_clock_;
+    slowest.miss(ready, line_bd);
     return ready;
 }
 
@@ -110,47 +141,28 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
         ways[line - first] = w;
     }
     bytes_requested += size_bytes;
-    Cycle done = now;
-    AccessBreakdown slowest;
+    Slowest slowest;
     for (uint64_t line = first; line <= last; ++line) {
         ++accesses;
-        AccessBreakdown line_bd;
         const Cycle lookup_done = take_bank(line, now) + params_.hit_latency_cycles;
-        const Cycle d =
-            hit(set_of(line), ways[line - first], now, lookup_done, bd ? &line_bd : nullptr);
-        if (d > done || line == first) {
-            done = std::max(done, d);
-            slowest = line_bd;
-        }
+        slowest.hit(lookup_done, hit(set_of(line), ways[line - first], lookup_done));
     }
-    add_slowest(bd, slowest);
-    ready = done;
+    slowest.charge(bd, level_, now);
+    ready = slowest.done;
     return true;
-}
-
-void Cache::add_slowest(AccessBreakdown* to, const AccessBreakdown& slowest) {
-    if (to)
-        for (int l = 0; l < kMemLevels; ++l) to->cycles[l] += slowest.cycles[l];
 }
 
 Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
     const uint64_t first = addr >> line_shift_;
     const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
-    Cycle done = now;
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
     // to what the requester's levels already charged.
-    AccessBreakdown slowest;
-    for (uint64_t line = first; line <= last; ++line) {
-        AccessBreakdown line_bd;
-        const Cycle d = access_line(line, now, bd ? &line_bd : nullptr);
-        if (d > done || line == first) {
-            done = std::max(done, d);
-            slowest = line_bd;
-        }
-    }
-    add_slowest(bd, slowest);
-    return done;
+    Slowest slowest;
+    for (uint64_t line = first; line <= last; ++line)
+        access_line(line, now, slowest, bd != nullptr);
+    slowest.charge(bd, level_, now);
+    return std::max(now, slowest.done);
 }
 
 void Cache::register_stats(StatsRegistry& reg, const std::string& block) {

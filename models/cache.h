@@ -5,6 +5,7 @@
 // data returns; with all of them busy, the next miss waits (Little's law bounds the bandwidth).
 #pragma once
 
+#include <algorithm>
 #include <string>
 #include <systemc>
 #include <vector>
@@ -52,6 +53,11 @@ class Cache : public sc_core::sc_module, public MemoryPort {
           int level = kLevelL1);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
+    void expect(uint64_t addr, uint32_t size_bytes) const override {
+        const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+        for (uint64_t line = addr >> line_shift_; line <= last; ++line)
+            __builtin_prefetch(set_block_ + set_of(line) * 2 * uint64_t(params_.ways));
+    }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                       AccessBreakdown* breakdown = nullptr) override;
@@ -85,10 +91,20 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     }
     // Waits for the line's bank; returns the cycle the lookup starts.
     Cycle take_bank(uint64_t line_addr, Cycle now);
-    Cycle hit(uint64_t set, int way, Cycle now, Cycle lookup_done, AccessBreakdown* breakdown);
-    Cycle access_line(uint64_t line_addr, Cycle now, AccessBreakdown* breakdown);
-    // Adds the slowest line's breakdown to the request's.
-    static void add_slowest(AccessBreakdown* to, const AccessBreakdown& slowest);
+    // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
+    Cycle hit(uint64_t set, int way, Cycle lookup_done);
+    // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
+    // breakdown copied per line (copying small structs per line stalled store forwarding).
+    struct Slowest {
+        Cycle done = 0;
+        bool any = false, is_hit = true;
+        Cycle hit_lookup_done = 0;
+        AccessBreakdown miss_bd;
+        void hit(Cycle lookup_done, Cycle ready);
+        void miss(Cycle done, const AccessBreakdown& line_bd);
+        void charge(AccessBreakdown* bd, int level, Cycle now) const;
+    };
+    Cycle access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown);
 
     CacheParams params_;
     MemoryPort* next_;

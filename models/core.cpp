@@ -177,7 +177,14 @@ Cycle Core::advance(Cycle horizon) {
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
         stall_cycles[node ? kBoxUnit : kTriangleUnit] += done - fetched;
-        if (!ray_buffer_ && s.pos == s.work.steps.size()) finish_ray(s, done);
+        if (s.pos < s.work.steps.size()) {
+            // The slot's next fetch comes within a few hundred cycles: warm the host's caches
+            // with the simulator state it will look up.
+            const Step& next = s.work.steps[s.pos];
+            (next.kind == StepKind::Node ? l1_ : l1_tri_)->expect(next.addr, next.size_bytes);
+        } else if (!ray_buffer_) {
+            finish_ray(s, done);
+        }
     }
 }
 

@@ -36,6 +36,9 @@ class MemoryPort {
     // state (a private cache's hit): then sets `ready` as access() would return it and returns
     // true. Otherwise changes nothing and returns false. A requester may run a local access
     // ahead of simulated time; anything else may reach shared state and must wait for its turn.
+    // A hint that an access to these bytes will come soon (a host-side prefetch of the
+    // simulator's own state for them; no simulated effect).
+    virtual void expect(uint64_t /*addr*/, uint32_t /*size_bytes*/) const {}
     virtual bool access_local(uint64_t /*addr*/, uint32_t /*size_bytes*/, Cycle /*now*/,
                               Cycle& /*ready*/, AccessBreakdown* /*breakdown*/ = nullptr) {
         return false;

@@ -26,8 +26,8 @@ struct Blocks {
         for (int i = 0; i < 6; ++i) reg.add("l1[0]", cache[i], &l1[i], "");
         for (int i = 0; i < 6; ++i) reg.add("l2", cache[i], &l2[i], "");
         for (int i = 0; i < 7; ++i) reg.add("dram", mem[i], &dram[i], "");
-        const char* cause[] = {"issue",    "l1",           "l2",        "dram",
-                               "box_unit", "triangle_unit", "ray_buffer"};
+        const char* cause[] = {"issue",         "l1",        "l2", "dram", "box_unit",
+                               "triangle_unit", "ray_buffer"};
         for (int i = 0; i < 7; ++i)
             reg.add("core[0]", std::string("stall_") + cause[i] + "_cycles", &stalls[i], "");
     }
