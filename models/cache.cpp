@@ -37,7 +37,7 @@ Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
     if (params_.replacement == CacheParams::Replacement::Lru)
         last_use_[set * uint64_t(params_.ways) + uint64_t(way)] = ++use_clock_;  // FIFO: fill order
     const Cycle ready = fill_ready(set)[way];
-    if (ready > lookup_done) ++merged_misses;
+    merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
     return ready;
 }
 

@@ -67,10 +67,14 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
 Cycle Core::advance(Cycle horizon) {
     const size_t n = ready_.size();
     for (;;) {
+        // Branch-free: which slot is earliest changes unpredictably from step to step.
         size_t i = 0;
-        for (size_t j = 1; j < n; ++j)
-            if (ready_[j] < ready_[i]) i = j;
-        const Cycle t = ready_[i];
+        Cycle t = ready_[0];
+        for (size_t j = 1; j < n; ++j) {
+            const bool earlier = ready_[j] < t;
+            t = earlier ? ready_[j] : t;
+            i = earlier ? j : i;
+        }
         if (t >= kParkedCycle) return t;  // every slot parked or retired
         Slot& s = slots_[i];
         // Private work may run ahead of the other cores: this core's own calendars still see
