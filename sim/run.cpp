@@ -588,6 +588,7 @@ int run_command(const RunOptions& opt) {
     ri.triangle_units = int(chip.triangle_units.size());
     ri.dram_channels = int(cfg.integer("dram.channels"));
     ri.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
+    ri.ray_capacity = uint64_t(cfg.integer("ray_buffer.capacity_rays"));
     for (uint64_t r : source.rays_by_kind) ri.rays += r;
     json timing = timing_report(ri);
 

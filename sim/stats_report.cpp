@@ -129,6 +129,8 @@ json timing_report(const ReportInputs& in) {
         const uint64_t accesses = s.get("ray_buffer.reads") + s.get("ray_buffer.writes");
         const uint64_t batches = s.get("ray_buffer.batches");
         out["ray_buffer"] = {
+            {"capacity_rays", in.ray_capacity},
+            {"size_bytes", in.ray_capacity * in.ray_bytes},
             {"reads", s.get("ray_buffer.reads")},
             {"writes", s.get("ray_buffer.writes")},
             {"bytes", accesses * in.ray_bytes},

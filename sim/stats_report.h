@@ -19,8 +19,9 @@ struct ReportInputs {
     int box_units = 0, triangle_units = 0;  // unit instances (0: one per core)
     int ray_slots_per_core = 1;
     int dram_channels = 1;
-    uint32_t ray_bytes = 0;  // treelet mode: bytes of one ray-buffer record
-    uint64_t rays = 0;       // rays simulated
+    uint32_t ray_bytes = 0;     // treelet mode: bytes of one ray-buffer record
+    uint64_t ray_capacity = 0;  // treelet mode: rays the buffer holds
+    uint64_t rays = 0;          // rays simulated
 };
 
 // Sections "units", "caches", "bandwidth", "stalls", "counters" of stats.json, and

@@ -689,3 +689,14 @@ TEST(PacketMode, SameRaysFewerFetchesLaneUtilisationReported) {
               sb["bandwidth"]["l1"]["bytes"].get<uint64_t>());
     EXPECT_FALSE(sb.contains("packets"));
 }
+
+TEST(Configs, EveryCommittedConfigLoads) {
+    int checked = 0;
+    for (const auto& e : fs::directory_iterator(fs::path(RTSIM_SOURCE_DIR) / "configs")) {
+        if (e.path().extension() != ".json" || e.path().filename() == "schema.json") continue;
+        const Result r = rtsim("config --config '" + e.path().string() + "'");
+        EXPECT_EQ(r.status, 0) << e.path() << ": " << r.err;
+        ++checked;
+    }
+    EXPECT_GE(checked, 3);
+}
