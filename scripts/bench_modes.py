@@ -11,11 +11,12 @@ L2 traffic relative to the baseline. Not a test: a table to read.
                            [--scenes a.obj,b.off] [--set key=value ...]
 """
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from rtsim_run import run_stats  # noqa: E402
 
 MODES = [
     ("baseline", []),
@@ -34,12 +35,7 @@ def default_scenes(root):
 
 
 def run(rtsim, args, out):
-    cmd = [rtsim, "run", "-q", "--out", out] + args
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"bench_modes: {' '.join(cmd)} failed: {r.stderr.strip()}")
-    with open(os.path.join(out, "stats.json")) as f:
-        return json.load(f)
+    return run_stats(rtsim, args, out, "bench_modes")
 
 
 def main():

@@ -11,20 +11,16 @@ of total cycles and DRAM bytes against quantum 0 (the exact reference).
                          [--kinds primary,ao,diffuse] [--set bvh.width=8 ...]
 """
 import argparse
-import json
 import os
-import subprocess
 import sys
 import tempfile
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from rtsim_run import run_stats  # noqa: E402
+
 
 def run(rtsim, args, out):
-    cmd = [rtsim, "run", "-q", "--out", out] + args
-    r = subprocess.run(cmd, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.exit(f"bench_sim: {' '.join(cmd)} failed: {r.stderr.strip()}")
-    with open(os.path.join(out, "stats.json")) as f:
-        return json.load(f)
+    return run_stats(rtsim, args, out, "bench_sim")
 
 
 def main():
