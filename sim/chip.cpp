@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include "workloads/error.h"
+
 namespace rtsim {
 namespace {
 
@@ -84,6 +86,12 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
     cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
     const std::string mode = cfg.string("traversal.mode");
+    const int64_t treelet_cache_kib =
+        mode == "treelet" ? cfg.integer("traversal.treelet_cache_kib") : 0;
+    if (treelet_cache_kib > 0 && cfg.boolean("l1.split"))
+        throw InputError(
+            "traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
+            "l1.split to false or the treelet cache to 0");
     if (mode == "packet") cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
     cp.treelet_prefetch = cfg.boolean("traversal.treelet_prefetch");
     if (mode == "treelet") {
@@ -136,6 +144,18 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         }
         MemoryPort* memory =
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
+        if (treelet_cache_kib > 0 && !ideal_memory) {
+            // A dedicated treelet cache in front of the L1: batches load their treelet into it.
+            CacheParams tp = l1p;
+            tp.size_bytes = uint64_t(treelet_cache_kib) * 1024;
+            tp.hit_latency_cycles = Cycle(cfg.integer("traversal.treelet_cache_latency_cycles"));
+            tp.mshrs = 0;  // its misses are bounded by the L1's MSHRs
+            tp.banks = 1;
+            treelet_caches.push_back(std::make_unique<Cache>(
+                ("treelet_cache_" + std::to_string(i)).c_str(), tp, l1.back().get()));
+            treelet_caches.back()->register_stats(stats, "treelet_cache" + idx);
+            memory = treelet_caches.back().get();
+        }
         cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, memory,
                                                box_units[size_t(i / box_share)].get(),
                                                triangle_units[size_t(i / tri_share)].get(), source,

@@ -30,8 +30,9 @@ class Chip {
     std::unique_ptr<Cache> l2;
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;
-    std::vector<std::unique_ptr<Cache>> l1_tri;  // l1.split: per-core triangle caches
-    std::unique_ptr<IdealMemory> ideal_memory;   // sim.ideal_memory: the cores' only memory
+    std::vector<std::unique_ptr<Cache>> l1_tri;          // l1.split: per-core triangle caches
+    std::vector<std::unique_ptr<Cache>> treelet_caches;  // traversal.treelet_cache_kib > 0
+    std::unique_ptr<IdealMemory> ideal_memory;           // sim.ideal_memory: the cores' only memory
     std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
     std::unique_ptr<RayBuffer> ray_buffer;  // traversal.mode = treelet
     std::vector<std::unique_ptr<Core>> cores;

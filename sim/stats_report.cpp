@@ -68,6 +68,16 @@ json timing_report(const ReportInputs& in) {
     }
     cache_entry("l1_total", l1_sum("accesses"), l1_sum("hits"), l1_sum("misses"),
                 l1_sum("merged_misses"));
+    if (s.has("treelet_cache[0].accesses")) {
+        for (int i = 0; i < in.cores; ++i) {
+            const std::string b = fmt::format("treelet_cache[{}]", i);
+            cache_entry(b, s.get(b + ".accesses"), s.get(b + ".hits"), s.get(b + ".misses"),
+                        s.get(b + ".merged_misses"));
+        }
+        auto tc = [&](const std::string& c) { return s.sum("treelet_cache[", c); };
+        cache_entry("treelet_cache_total", tc("accesses"), tc("hits"), tc("misses"),
+                    tc("merged_misses"));
+    }
     cache_entry("l2", s.get("l2.accesses"), s.get("l2.hits"), s.get("l2.misses"),
                 s.get("l2.merged_misses"));
     out["caches"] = caches;

@@ -700,3 +700,26 @@ TEST(Configs, EveryCommittedConfigLoads) {
     }
     EXPECT_GE(checked, 3);
 }
+
+// A dedicated treelet cache takes the batch loads: the rays' fetches hit there.
+TEST(TreeletMode, DedicatedTreeletCacheServesTheBatches) {
+    const fs::path out = work_dir() / "tc";
+    const Result r =
+        rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
+              "/configs/treelet.json' --rays ao --res 32x32 "
+              "--set traversal.treelet_prefetch=true --set traversal.treelet_cache_kib=16 "
+              "--out '" +
+              out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    ASSERT_TRUE(s["caches"].contains("treelet_cache_total"));
+    // Its hits never reach the L1: the L1 sees only its misses and the treelet loads.
+    EXPECT_GT(s["caches"]["treelet_cache_total"]["hits"].get<uint64_t>(), 0u);
+    EXPECT_LT(s["caches"]["l1_total"]["accesses"].get<uint64_t>(),
+              s["caches"]["treelet_cache_total"]["accesses"].get<uint64_t>());
+    EXPECT_GT(s["ray_buffer"]["treelet_loads"].get<uint64_t>(), 0u);
+    expect_one_line_error(rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
+                                "/configs/treelet.json' --res 8x8 --set "
+                                "traversal.treelet_cache_kib=8 --set l1.split=true"),
+                          "treelet_cache_kib");
+}
