@@ -71,6 +71,23 @@ void Cache::Slowest::charge(AccessBreakdown* bd, int level, Cycle now) const {
     }
 }
 
+// The earliest-free MSHR (the heap's root) now frees at `ready`, which is never earlier: one
+// sift-down instead of a pop and a push.
+void Cache::replace_earliest_mshr(Cycle ready) {
+    Cycle* h = mshr_free_.data();
+    const size_t n = mshr_free_.size();
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && h[c + 1] < h[c]) ++c;
+        if (h[c] >= ready) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = ready;
+}
+
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown) {
     ++accesses;
     const uint64_t set = set_of(line_addr);
@@ -96,9 +113,14 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool b
             rng_ ^= rng_ << 17;
             victim = int(rng_ % uint64_t(params_.ways));
         } else {
+            // Branch-free: which way is oldest is unpredictable.
             victim = 0;
-            for (int w = 1; w < params_.ways; ++w)
-                if (age[w] < age[victim]) victim = w;
+            uint64_t oldest = age[0];
+            for (int w = 1; w < params_.ways; ++w) {
+                const bool older = age[w] < oldest;
+                oldest = older ? age[w] : oldest;
+                victim = older ? w : victim;
+            }
         }
     }
     ++misses;
@@ -109,16 +131,12 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool b
     Cycle issue_at = lookup_done;
     const bool limited = !mshr_free_.empty();
     if (limited) {
-        std::pop_heap(mshr_free_.begin(), mshr_free_.end(), std::greater<Cycle>());
-        issue_at = std::max(lookup_done, mshr_free_.back());
+        issue_at = std::max(lookup_done, mshr_free_[0]);
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
-    if (limited) {
-        mshr_free_.back() = ready;
-        std::push_heap(mshr_free_.begin(), mshr_free_.end(), std::greater<Cycle>());
-    }
+    if (limited) replace_earliest_mshr(ready);
     tags(set)[victim] = line_addr;
     fill_ready(set)[victim] = ready;
     last_use_[set * uint64_t(params_.ways) + uint64_t(victim)] = ++use_clock_;

@@ -89,6 +89,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         for (int w = 0; w < params_.ways; ++w) found = t[w] == line_addr ? w : found;
         return found;
     }
+    void replace_earliest_mshr(Cycle ready);
     // Waits for the line's bank; returns the cycle the lookup starts.
     Cycle take_bank(uint64_t line_addr, Cycle now);
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.

@@ -8,12 +8,20 @@ namespace rtsim {
 Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
     : sc_core::sc_module(name), bytes_per_cycle_(bytes_per_cycle), next_(next_level) {}
 
+namespace {
+// std::ceil for the non-negative cycle counts here, without a libm call on every transfer.
+Cycle ceil_cycles(double x) {
+    const auto whole = static_cast<Cycle>(x);
+    return whole + (static_cast<double>(whole) < x);
+}
+}  // namespace
+
 Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     const double start = std::max(static_cast<double>(now), next_free_);
     const double transfer = size_bytes / bytes_per_cycle_;
     next_free_ = start + transfer;
-    const auto wait = static_cast<Cycle>(std::ceil(start)) - now;
-    const auto crossing = static_cast<Cycle>(std::ceil(transfer));
+    const auto wait = ceil_cycles(start) - now;
+    const auto crossing = ceil_cycles(transfer);
     ++transfers;
     bytes += size_bytes;
     busy_cycles += crossing;
