@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <queue>
 #include <utility>
 
 namespace rtsim {
@@ -229,39 +228,43 @@ CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> co
 }
 
 void CoreScheduler::run() {
-    using Entry = std::pair<Cycle, size_t>;  // (cycle of the next shared work, core index)
-    std::priority_queue<Entry, std::vector<Entry>, std::greater<Entry>> ready;
-    for (size_t i = 0; i < cores_.size(); ++i) ready.push({0, i});
-    std::vector<size_t> parked;  // cores waiting for work that may still come
+    // Per core: the cycle of its next shared work; kParkedCycle while it waits for work,
+    // kNeverCycle once retired. A few cores: a branch-free scan for the earliest and the next
+    // earliest beats a heap.
+    const size_t n = cores_.size();
+    std::vector<Cycle> next(n, 0);
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
-    while (!ready.empty()) {
-        const Entry e = ready.top();
-        ready.pop();
-        if (e.first >= kernel_cycle + kKernelSyncCycles) {
+    for (;;) {
+        size_t c = 0;
+        Cycle first = kNeverCycle, second = kNeverCycle;
+        for (size_t i = 0; i < n; ++i) {
+            const Cycle t = next[i];
+            const bool earliest = t < first;  // ties: the lower index, so runs are deterministic
+            second = earliest ? first : std::min(second, t);
+            first = earliest ? t : first;
+            c = earliest ? i : c;
+        }
+        if (first >= kParkedCycle) break;  // all retired (parked cores are woken by work)
+        if (first >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
-            wait(cycles_to_time(e.first - kernel_cycle));
+            wait(cycles_to_time(first - kernel_cycle));
             resumed = std::chrono::steady_clock::now();
-            kernel_cycle = e.first;
+            kernel_cycle = first;
         }
-        // Ties go to the lower core index (the heap's order), so runs are deterministic.
-        const Cycle others = ready.empty() ? kNeverCycle : ready.top().first;
-        const Cycle horizon =
-            others >= kNeverCycle - quantum_cycles_ ? kNeverCycle : others + quantum_cycles_;
-        const Cycle next = cores_[e.second]->advance(horizon);
-        if (next == kParkedCycle)
-            parked.push_back(e.second);
-        else if (next != kNeverCycle)
-            ready.push({next, e.second});
+        const Cycle horizon = second >= kParkedCycle || second >= kNeverCycle - quantum_cycles_
+                                  ? kNeverCycle
+                                  : second + quantum_cycles_;
+        next[c] = cores_[c]->advance(horizon);
         Cycle at;
-        if (wake_ && wake_->take_wake(at) && !parked.empty()) {
-            at = std::max(at, e.first);  // never behind the order already served
-            for (size_t c : parked) {
-                cores_[c]->wake(at);
-                ready.push({at, c});
-            }
-            parked.clear();
+        if (wake_ && wake_->take_wake(at)) {
+            at = std::max(at, first);  // never behind the order already served
+            for (size_t i = 0; i < n; ++i)
+                if (next[i] == kParkedCycle) {
+                    cores_[i]->wake(at);
+                    next[i] = at;
+                }
         }
     }
     host_busy_seconds_ +=
