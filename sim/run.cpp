@@ -238,6 +238,7 @@ class GeneratedWorkSource : public PrefetchingSource {
     // that many rays, each packet one work item.
     GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0)
         : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen), packet_size_(packet_size) {
+        gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
     ~GeneratedWorkSource() override { wait(); }
@@ -256,7 +257,12 @@ class GeneratedWorkSource : public PrefetchingSource {
                 TraceRecord& r = b.records[i];
                 r.ray_id = rays[i].id;
                 r.kind = rays[i].kind;
-                r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+                if (rays[i].traced) {  // the generator traced it already, for its hit
+                    r.steps = std::move(rays[i].steps);
+                    r.prim = rays[i].prim;
+                } else {
+                    r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+                }
             }
         }
         b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());

@@ -207,7 +207,21 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
     const bool need_hits = opt_.wants(RayKind::Shadow) || opt_.wants(RayKind::AO) ||
                            opt_.wants(RayKind::Diffuse) || opt_.wants(RayKind::Reflection);
     auto emit = [&](const Ray& r, RayKind kind, HitQuery q) {
-        out.push_back({r, next_id_++, kind, q});
+        GeneratedRay& g = out.emplace_back();
+        g.ray = r;
+        g.id = next_id_++;
+        g.kind = kind;
+        g.query = q;
+    };
+    // Traces a ray whose hit starts further rays; an emitted one keeps the trace when asked.
+    auto trace_for_hit = [&](const Ray& r, bool emitted) {
+        GeneratedRay* g = emitted && record_steps_ ? &out.back() : nullptr;
+        const Hit h = trace_ray(bvh_, r, HitQuery::Closest, g ? &g->steps : nullptr);
+        if (g) {
+            g->traced = true;
+            g->prim = h.prim;
+        }
+        return h;
     };
 
     std::vector<SurfacePoint> hits;
@@ -224,7 +238,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
                 const Ray r = camera_.generate(x + jx, y + jy, opt_.width, opt_.height);
                 if (opt_.wants(RayKind::Primary)) emit(r, RayKind::Primary, HitQuery::Closest);
                 if (!need_hits) continue;
-                const Hit h = trace_ray(bvh_, r, HitQuery::Closest);
+                const Hit h = trace_for_hit(r, opt_.wants(RayKind::Primary));
                 SurfacePoint sp;
                 if (h.valid() && surface_point(r, h, stream, sp)) hits.push_back(sp);
             }
@@ -271,7 +285,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
                 r.dir = cosine_direction(s.n, random2(opt_.seed, s.stream, kDiffuse, depth));
                 emit(r, RayKind::Diffuse, HitQuery::Closest);
                 if (depth + 1 == opt_.diffuse_depth) continue;  // the last bounce needs no hit
-                const Hit h = trace_ray(bvh_, r, HitQuery::Closest);
+                const Hit h = trace_for_hit(r, true);
                 SurfacePoint sp;
                 if (h.valid() && surface_point(r, h, s.stream, sp)) next.push_back(sp);
             }

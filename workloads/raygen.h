@@ -57,6 +57,11 @@ struct GeneratedRay {
     uint32_t id;
     RayKind kind;
     HitQuery query;
+    // With RayGenerator::set_record_steps: rays the generator traced anyway (primaries and
+    // diffuse bounces whose hits start further rays) carry that trace, so it is not redone.
+    bool traced = false;
+    uint32_t prim = kInvalidPrim;
+    std::vector<Step> steps;
 };
 
 // Emits, per tile: primary rays; then from their hits shadow rays (to a point light, or to a
@@ -68,6 +73,8 @@ class RayGenerator {
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
     // Appends the next tile's rays to out; false when every tile is done.
     bool next_tile(std::vector<GeneratedRay>& out);
+    // Rays the generator traces to find hits keep their step streams (see GeneratedRay).
+    void set_record_steps(bool record) { record_steps_ = record; }
     int tile_count() const { return tiles_x_ * tiles_y_; }
     const Camera& camera() const { return camera_; }
     float ao_length() const { return ao_length_; }
@@ -77,6 +84,7 @@ class RayGenerator {
     Vec3 light_edge_v() const { return light_v_; }
 
   private:
+    bool record_steps_ = false;
     struct SurfacePoint {
         Vec3 p, n;        // offset origin; normal facing the incoming ray
         Vec3 incoming;    // direction of the ray that found it
