@@ -51,8 +51,9 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     const RayBufferParams& params() const { return params_; }
     const TreeletSpan& span(uint32_t treelet) const { return treelets_[treelet]; }
 
-    // A batch: up to batch_rays ray handles of one treelet. Admits new rays first while there
-    // is room. False when no treelet has queued rays (`finished()` tells whether more can come).
+    // A batch: up to batch_rays ray handles of one treelet, which leave its queue. First admits
+    // up to batch_rays new rays while there is room. False when no treelet has queued rays
+    // (`finished()` tells whether more can come).
     bool next_batch(Cycle now, uint32_t& treelet, std::deque<uint32_t>& rays);
     // True once the source is empty and no ray is left in the buffer.
     bool finished() const { return source_done_ && occupancy_ == 0; }
