@@ -690,11 +690,14 @@ int run_command(const RunOptions& opt) {
         const json& share = out["stalls"]["total"]["share"];
         fmt::print(
             "  slots    issue {:.1f}%, L1 {:.1f}%, L2 {:.1f}%, DRAM {:.1f}%, box unit {:.1f}%, "
-            "triangle unit {:.1f}%, ray buffer {:.1f}%, no work {:.1f}%\n",
+            "triangle unit {:.1f}%{}, no work {:.1f}%\n",
             100 * share["issue"].get<double>(), 100 * share["l1"].get<double>(),
             100 * share["l2"].get<double>(), 100 * share["dram"].get<double>(),
             100 * share["box_unit"].get<double>(), 100 * share["triangle_unit"].get<double>(),
-            100 * share["ray_buffer"].get<double>(), 100 * share["no_work"].get<double>());
+            out.contains("ray_buffer")
+                ? fmt::format(", ray buffer {:.1f}%", 100 * share["ray_buffer"].get<double>())
+                : std::string(),
+            100 * share["no_work"].get<double>());
         if (out.contains("ray_buffer")) {
             const json& rb = out["ray_buffer"];
             fmt::print(
