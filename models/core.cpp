@@ -19,24 +19,17 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
       tri_(triangle_unit),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
-      ready_(slots_.size(), 0) {}
+      ready_(slots_.size(), 0) {
+    issue_port_.per_cycle = params.issue_width;
+}
 
-// Issues `instructions` instructions ready at t through the core's shared issue port
-// (issue_width per cycle); returns when the step's fetch can start.
+// Issues `instructions` (at least 1) instructions ready at t through the core's shared issue
+// port (issue_width per cycle); returns when the step's fetch can start.
 Cycle Core::issue(Cycle t, int instructions) {
-    if (t > issue_cycle_) {
-        issue_cycle_ = t;
-        issued_in_cycle_ = 0;
-    }
-    for (int i = 0; i < instructions; ++i) {
-        if (issued_in_cycle_ == params_.issue_width) {
-            ++issue_cycle_;
-            issued_in_cycle_ = 0;
-        }
-        ++issued_in_cycle_;
-        if (i == 0) issue_stall_cycles += issue_cycle_ - t;  // waiting for the first issue slot
-    }
-    return issue_cycle_ + params_.issue_latency_cycles;
+    Cycle last = issue_port_.take(t);
+    issue_stall_cycles += last - t;  // waiting for the first issue slot
+    for (int i = 1; i < instructions; ++i) last = issue_port_.take(t);
+    return last + params_.issue_latency_cycles;
 }
 
 void Core::finish_ray(Slot& s, Cycle done) {
@@ -143,8 +136,7 @@ Cycle Core::advance(Cycle horizon) {
         if (t > horizon && params_.units_shared) return t;
         // Issue, then try the fetch as a private hit; a fetch that needs a shared level waits
         // for its turn with the issue port as it was.
-        const Cycle saved_issue_cycle = issue_cycle_;
-        const int saved_issued = issued_in_cycle_;
+        const PortCalendar saved_port = issue_port_;
         const uint64_t saved_issue_stall = issue_stall_cycles;
         const Cycle issued =
             issue(t, node ? params_.node_step_instructions : params_.triangle_step_instructions);
@@ -155,8 +147,7 @@ Cycle Core::advance(Cycle horizon) {
             // (Resumed, the slot is still this core's earliest and the port the same, so it
             // issues at the same cycle.)
             if (issued > horizon) {
-                issue_cycle_ = saved_issue_cycle;
-                issued_in_cycle_ = saved_issued;
+                issue_port_ = saved_port;
                 issue_stall_cycles = saved_issue_stall;
                 s.fetch_is_shared = true;
                 return issued;

@@ -125,8 +125,7 @@ class Core : public sc_core::sc_module {
     uint32_t batch_treelet_ = 0;
     uint32_t loaded_treelet_ = ~0u;
     TimeSeries* rays_series_ = nullptr;
-    Cycle issue_cycle_ = 0;
-    int issued_in_cycle_ = 0;
+    PortCalendar issue_port_;
 };
 
 // Runs a set of cores in global time order: the cores' one SystemC process. It keeps the cores

@@ -13,23 +13,16 @@ RayBuffer::RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params
       source_(source),
       entries_(params.capacity_rays),
       queues_(std::max<size_t>(1, treelets_.size())) {
+    ports_.per_cycle = params.ports;
     free_.reserve(params.capacity_rays);
     for (uint32_t h = params.capacity_rays; h-- > 0;) free_.push_back(h);
 }
 
 // The SRAM's ports: `ports` record accesses start per cycle, each done `latency_cycles` later.
 Cycle RayBuffer::port(Cycle now) {
-    if (now > port_cycle_) {
-        port_cycle_ = now;
-        port_used_ = 0;
-    }
-    if (port_used_ == params_.ports) {
-        ++port_cycle_;
-        port_used_ = 0;
-    }
-    ++port_used_;
-    port_wait_cycles += port_cycle_ - now;
-    return port_cycle_ + params_.latency_cycles;
+    const Cycle start = ports_.take(now);
+    port_wait_cycles += start - now;
+    return start + params_.latency_cycles;
 }
 
 void RayBuffer::recount(uint32_t treelet, size_t before) {

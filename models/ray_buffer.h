@@ -105,8 +105,7 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     std::set<std::pair<size_t, uint32_t>> by_count_;
     std::set<uint32_t> nonempty_;
     uint32_t last_pick_ = 0;
-    Cycle port_cycle_ = 0;
-    int port_used_ = 0;
+    PortCalendar ports_;
     bool wake_ = false;
     Cycle wake_cycle_ = 0;
 };

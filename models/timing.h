@@ -16,6 +16,27 @@ inline Cycle now_cycles() {
     return static_cast<Cycle>(sc_core::sc_time_stamp().to_seconds() * 1e9 + 0.5);
 }
 
+// A resource that starts at most `per_cycle` operations each cycle, first come first served: a
+// core's issue port, an SRAM's ports. Requests arrive in non-decreasing `ready` order.
+struct PortCalendar {
+    int per_cycle = 1;
+    Cycle cycle = 0;  // the latest cycle with an operation started
+    int used = 0;     // operations started in it
+    // Starts one operation ready at `ready`; returns the cycle it starts.
+    Cycle take(Cycle ready) {
+        if (ready > cycle) {
+            cycle = ready;
+            used = 0;
+        }
+        if (used == per_cycle) {
+            ++cycle;
+            used = 0;
+        }
+        ++used;
+        return cycle;
+    }
+};
+
 // A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
 // that returns the cycle the data is available. Requests must arrive in non-decreasing time
 // order per level (the cores' scheduler keeps them so, to within its quantum).
