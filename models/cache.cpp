@@ -146,8 +146,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool b
 
 bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                          AccessBreakdown* bd) {
-    const uint64_t first = addr >> line_shift_;
-    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+    const auto [first, last] = line_range(addr, size_bytes);
     // Find every line before touching any state: a request with one missing line is not local.
     constexpr uint64_t kMaxLines = 16;
     int ways[kMaxLines];
@@ -172,8 +171,7 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
 
 Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
-    const uint64_t first = addr >> line_shift_;
-    const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
+    const auto [first, last] = line_range(addr, size_bytes);
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
     // to what the requester's levels already charged.
     Slowest slowest;

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <string>
 #include <systemc>
+#include <utility>
 #include <vector>
 
 #include "models/stats.h"
@@ -54,9 +55,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
     void expect(uint64_t addr, uint32_t size_bytes) const override {
-        const uint64_t last = (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_;
-        for (uint64_t line = addr >> line_shift_; line <= last; ++line)
-            __builtin_prefetch(set_block_ + set_of(line) * 2 * uint64_t(params_.ways));
+        const auto [first, last] = line_range(addr, size_bytes);
+        for (uint64_t line = first; line <= last; ++line) __builtin_prefetch(tags(set_of(line)));
     }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
@@ -80,6 +80,13 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     static constexpr uint64_t kNoTag = ~uint64_t(0);  // no line address reaches this
     uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
     uint64_t* tags(uint64_t set) { return set_block_ + set * 2 * uint64_t(params_.ways); }
+    const uint64_t* tags(uint64_t set) const {
+        return set_block_ + set * 2 * uint64_t(params_.ways);
+    }
+    // First and last line address a request touches.
+    std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
+        return {addr >> line_shift_, (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_};
+    }
     Cycle* fill_ready(uint64_t set) { return tags(set) + params_.ways; }
     // The way holding `line_addr` in `set`, or -1. Scans every way without an early exit: a
     // data-dependent exit mispredicts on most lookups, the extra compares cost less.
