@@ -440,13 +440,11 @@ json bvh_summary(const Bvh& bvh, bool treelet_tables) {
                   {"triangle_size_bytes", L.tri_size_bytes},
                   {"triangle_count", L.triangle_count},
                   {"treelet_bytes", L.treelet_bytes},
-                  {"treelets", L.treelet_bytes ? L.treelet_count() : 0},
-                  {"treelet_node_start", L.treelet_node_start},
-                  {"treelet_tri_start", L.treelet_tri_start}}}};
-    if (!treelet_tables) {
-        // Stats keep the figures, traces the tables (a replay needs them to know treelets).
-        out["layout"].erase("treelet_node_start");
-        out["layout"].erase("treelet_tri_start");
+                  {"treelets", L.treelet_bytes ? L.treelet_count() : 0}}}};
+    // Stats keep the figures, traces also the tables (a replay needs them to know treelets).
+    if (treelet_tables) {
+        out["layout"]["treelet_node_start"] = L.treelet_node_start;
+        out["layout"]["treelet_tri_start"] = L.treelet_tri_start;
     }
     return out;
 }
