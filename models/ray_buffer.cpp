@@ -27,11 +27,14 @@ Cycle RayBuffer::port(Cycle now) {
 
 void RayBuffer::recount(uint32_t treelet, size_t before) {
     const size_t after = queues_[treelet].size();
-    constexpr size_t kMax = std::numeric_limits<size_t>::max();
-    if (before) by_count_.erase({kMax - before, treelet});
-    if (after) by_count_.insert({kMax - after, treelet});
-    if (before && !after) nonempty_.erase(treelet);
-    if (!before && after) nonempty_.insert(treelet);
+    if (params_.policy == RayBufferParams::Policy::MostRays) {
+        constexpr size_t kMax = std::numeric_limits<size_t>::max();
+        if (before) by_count_.erase({kMax - before, treelet});
+        if (after) by_count_.insert({kMax - after, treelet});
+    } else {
+        if (before && !after) nonempty_.erase(treelet);
+        if (!before && after) nonempty_.insert(treelet);
+    }
 }
 
 void RayBuffer::enqueue(uint32_t handle, uint32_t treelet, Cycle now) {
@@ -74,10 +77,11 @@ void RayBuffer::admit(Cycle now) {
 
 bool RayBuffer::next_batch(Cycle now, uint32_t& treelet, std::deque<uint32_t>& rays) {
     admit(now);
-    if (by_count_.empty()) return false;
     if (params_.policy == RayBufferParams::Policy::MostRays) {
+        if (by_count_.empty()) return false;
         treelet = by_count_.begin()->second;
     } else {
+        if (nonempty_.empty()) return false;
         auto it = nonempty_.upper_bound(last_pick_);
         treelet = it != nonempty_.end() ? *it : *nonempty_.begin();
     }

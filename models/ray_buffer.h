@@ -100,8 +100,8 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     std::vector<uint32_t> free_;
     uint32_t occupancy_ = 0;
     std::vector<std::deque<uint32_t>> queues_;
-    // Treelets with queued rays: by (SIZE_MAX - count, id), so the first has the most rays;
-    // and by id, for round robin.
+    // Treelets with queued rays, indexed for the policy in use: by (SIZE_MAX - count, id) for
+    // most rays (the first has the most), by id for round robin.
     std::set<std::pair<size_t, uint32_t>> by_count_;
     std::set<uint32_t> nonempty_;
     uint32_t last_pick_ = 0;
