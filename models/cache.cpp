@@ -23,13 +23,14 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
 
-Cycle Cache::take_bank(uint64_t line_addr, Cycle now) {
+Cycle Cache::look_up(uint64_t line_addr, Cycle now) {
+    ++accesses;
     // One lookup per bank per cycle; waiting for the bank is charged to this level.
     Cycle& bank = bank_free_[line_addr & bank_mask_];
     const Cycle start = std::max(now, bank);
     bank = start + 1;
     bank_conflict_cycles += start - now;
-    return start;
+    return start + params_.hit_latency_cycles;
 }
 
 Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
@@ -89,9 +90,8 @@ void Cache::replace_earliest_mshr(Cycle ready) {
 }
 
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown) {
-    ++accesses;
     const uint64_t set = set_of(line_addr);
-    const Cycle lookup_done = take_bank(line_addr, now) + params_.hit_latency_cycles;
+    const Cycle lookup_done = look_up(line_addr, now);
     const int found = find_way(set, line_addr);
     if (found >= 0) {
         const Cycle ready = hit(set, found, lookup_done);
@@ -151,7 +151,7 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
     constexpr uint64_t kMaxLines = 16;
     int ways[kMaxLines];
     if (last - first >= kMaxLines) return false;
-    for (uint64_t line = first; line <= last; ++line) __builtin_prefetch(tags(set_of(line)));
+    expect(addr, size_bytes);  // the sets' loads overlap instead of one after another
     for (uint64_t line = first; line <= last; ++line) {
         const int w = find_way(set_of(line), line);
         if (w < 0) return false;
@@ -160,8 +160,7 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
     bytes_requested += size_bytes;
     Slowest slowest;
     for (uint64_t line = first; line <= last; ++line) {
-        ++accesses;
-        const Cycle lookup_done = take_bank(line, now) + params_.hit_latency_cycles;
+        const Cycle lookup_done = look_up(line, now);
         slowest.hit(lookup_done, hit(set_of(line), ways[line - first], lookup_done));
     }
     slowest.charge(bd, level_, now);

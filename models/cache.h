@@ -97,8 +97,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         return found;
     }
     void replace_earliest_mshr(Cycle ready);
-    // Waits for the line's bank; returns the cycle the lookup starts.
-    Cycle take_bank(uint64_t line_addr, Cycle now);
+    // Counts a line lookup and waits for its bank; returns the cycle the lookup is done.
+    Cycle look_up(uint64_t line_addr, Cycle now);
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
     Cycle hit(uint64_t set, int way, Cycle lookup_done);
     // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
