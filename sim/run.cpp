@@ -276,10 +276,8 @@ class GeneratedWorkSource : public PrefetchingSource {
         PacketOptions po;
         po.size = packet_size_;
         PacketStats ps;
-        for (size_t i = 0; i < rays.size();) {
-            size_t e = i;
-            while (e < rays.size() && e - i < size_t(packet_size_) && rays[e].kind == rays[i].kind)
-                ++e;
+        for (const auto& [i, e] :
+             packet_runs(rays.size(), packet_size_, [&](size_t k) { return rays[k].kind; })) {
             const int n = int(e - i);
             for (int k = 0; k < n; ++k) packet[k] = rays[i + size_t(k)].ray;
             TraceRecord r;
@@ -292,7 +290,6 @@ class GeneratedWorkSource : public PrefetchingSource {
             b.records.push_back(std::move(r));
             b.packet_rays.push_back(uint8_t(n));
             b.packet_hits.push_back(hit_count);
-            i = e;
         }
     }
 

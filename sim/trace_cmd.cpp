@@ -155,14 +155,7 @@ int trace_command(const TraceOptions& opt) {
         counters.assign(n, TraceCounters());
         const auto ts = std::chrono::steady_clock::now();
         if (opt.packet > 0) {
-            // Packets: runs of consecutive rays of one kind, at most opt.packet long.
-            packets.clear();
-            for (size_t i = 0; i < n;) {
-                size_t e = i + 1;
-                while (e < n && e - i < size_t(opt.packet) && batch.kinds[e] == batch.kinds[i]) ++e;
-                packets.push_back({i, e});
-                i = e;
-            }
+            packets = packet_runs(n, opt.packet, [&](size_t i) { return batch.kinds[i]; });
             packet_stats.assign(packets.size(), PacketStats());
             PacketOptions po;
             po.size = opt.packet;

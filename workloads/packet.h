@@ -6,6 +6,8 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
+#include <vector>
 
 #include "workloads/bvh.h"
 #include "workloads/tracer.h"
@@ -34,6 +36,20 @@ struct PacketStats {
     }
     void add(const PacketStats& o);
 };
+
+// Groups rays 0..n-1 into packets: runs [first, last) of consecutive rays of one kind
+// (`kind_of(i)`), at most `size` long.
+template <class KindOf>
+std::vector<std::pair<size_t, size_t>> packet_runs(size_t n, int size, KindOf kind_of) {
+    std::vector<std::pair<size_t, size_t>> runs;
+    for (size_t i = 0; i < n;) {
+        size_t e = i + 1;
+        while (e < n && e - i < size_t(size) && kind_of(e) == kind_of(i)) ++e;
+        runs.push_back({i, e});
+        i = e;
+    }
+    return runs;
+}
 
 // Traces rays[0, n) (n <= 64) as one packet; all share `query`. hits[i] gets what trace_ray
 // would return for rays[i] (the same t; on an exact tie possibly another primitive).
