@@ -286,7 +286,6 @@ class GeneratedWorkSource : public PrefetchingSource {
             trace_packet(bvh_, packet, n, rays[i].query, hits, po, ps, &r.steps);
             uint32_t hit_count = 0;
             for (int k = 0; k < n; ++k) hit_count += hits[k].valid();
-            r.prim = hit_count ? 0 : kInvalidPrim;
             b.records.push_back(std::move(r));
             b.packet_rays.push_back(uint8_t(n));
             b.packet_hits.push_back(hit_count);
