@@ -8,6 +8,8 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "support/scratch_dir.h"
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -18,16 +20,8 @@ struct Result {
     std::string out, err;
 };
 
-fs::path work_dir() {
-    static const fs::path d = [] {
-        fs::path p = fs::temp_directory_path() /
-                     ("rtsim_e2e_" + std::to_string(::getpid()) + "_" +
-                      ::testing::UnitTest::GetInstance()->current_test_info()->name());
-        fs::remove_all(p);
-        fs::create_directories(p);
-        return p;
-    }();
-    return d;
+const fs::path& work_dir() {
+    return rtsim::test::scratch_dir();
 }
 
 std::string slurp(const fs::path& p) {
@@ -37,7 +31,7 @@ std::string slurp(const fs::path& p) {
     return ss.str();
 }
 
-Result rtsim(const std::string& args) {
+Result run_rtsim(const std::string& args) {
     const fs::path out = work_dir() / "stdout.txt", err = work_dir() / "stderr.txt";
     const std::string cmd = fmt::format("'{}' {} >'{}' 2>'{}' </dev/null", RTSIM_BINARY, args,
                                         out.string(), err.string());
@@ -90,7 +84,7 @@ json without_host(json s) {
 
 TEST(Run, DefaultSceneWritesCompleteStats) {
     const fs::path out = work_dir() / "default";
-    const Result r = rtsim(fmt::format("run --out '{}'", out.string()));
+    const Result r = run_rtsim(fmt::format("run --out '{}'", out.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
     expect_complete_stats(s);
@@ -104,8 +98,8 @@ TEST(Run, Glmark2BunnyWithSecondaryRays) {
     ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
     const fs::path out = work_dir() / "bunny";
     const Result r =
-        rtsim(fmt::format("run --scene {} --rays primary,shadow,ao --res 64x64 --out '{}'",
-                          RTSIM_BUNNY_OBJ, out.string()));
+        run_rtsim(fmt::format("run --scene {} --rays primary,shadow,ao --res 64x64 --out '{}'",
+                              RTSIM_BUNNY_OBJ, out.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
     expect_complete_stats(s);
@@ -117,10 +111,10 @@ TEST(Run, Glmark2BunnyWithSecondaryRays) {
 TEST(Run, SameInputsGiveIdenticalSimulatedStats) {
     const std::string args = "run --rays primary,ao --res 48x48 --seed 7 --set core.count=3";
     const fs::path a = work_dir() / "a", b = work_dir() / "b", c = work_dir() / "c";
-    ASSERT_EQ(rtsim(args + " --out '" + a.string() + "'").status, 0);
-    ASSERT_EQ(rtsim(args + " --out '" + b.string() + "'").status, 0);
-    ASSERT_EQ(rtsim("run --rays primary,ao --res 48x48 --seed 8 --set core.count=3 --out '" +
-                    c.string() + "'")
+    ASSERT_EQ(run_rtsim(args + " --out '" + a.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(args + " --out '" + b.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim("run --rays primary,ao --res 48x48 --seed 8 --set core.count=3 --out '" +
+                        c.string() + "'")
                   .status,
               0);
     const json sa = stats_of(a), sb = stats_of(b), sc = stats_of(c);
@@ -134,7 +128,7 @@ TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
     // and every L1 miss is one L2 access.
     ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ));
     const fs::path out = work_dir() / "tiny";
-    const Result r = rtsim(
+    const Result r = run_rtsim(
         fmt::format("run --scene {} --rays ao --res 64x64 --set l1.size_kib=1 --set l1.ways=2 "
                     "--set l2.size_kib=16 --set l2.line_bytes=128 --out '{}'",
                     RTSIM_BUNNY_OBJ, out.string()));
@@ -150,10 +144,10 @@ TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
 
 TEST(Run, BiggerCachesNeverMoveMoreDramBytes) {
     const fs::path small = work_dir() / "small", big = work_dir() / "big";
-    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=64 --out '" + small.string() + "'").status,
-              0);
-    ASSERT_EQ(rtsim("run --res 64x64 --set l2.size_kib=4096 --out '" + big.string() + "'").status,
-              0);
+    ASSERT_EQ(
+        run_rtsim("run --res 64x64 --set l2.size_kib=64 --out '" + small.string() + "'").status, 0);
+    ASSERT_EQ(
+        run_rtsim("run --res 64x64 --set l2.size_kib=4096 --out '" + big.string() + "'").status, 0);
     EXPECT_LT(stats_of(big)["bandwidth"]["dram"]["bytes"].get<uint64_t>(),
               stats_of(small)["bandwidth"]["dram"]["bytes"].get<uint64_t>());
 }
@@ -162,40 +156,42 @@ TEST(Run, BrokenConfigExitsTwoWithOneLine) {
     const fs::path cfg = work_dir() / "broken.json";
     std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";
     const fs::path out = work_dir() / "never";
-    const Result r = rtsim(fmt::format("run --config '{}' --out '{}'", cfg.string(), out.string()));
+    const Result r =
+        run_rtsim(fmt::format("run --config '{}' --out '{}'", cfg.string(), out.string()));
     expect_one_line_error(r, cfg.string() + ": l1.size_kib");
     EXPECT_FALSE(fs::exists(out / "stats.json"));
 }
 
 TEST(Run, MissingSceneExitsTwoWithOneLine) {
     const fs::path out = work_dir() / "never";
-    const Result r = rtsim(fmt::format("run --scene /no/such/mesh.obj --out '{}'", out.string()));
+    const Result r =
+        run_rtsim(fmt::format("run --scene /no/such/mesh.obj --out '{}'", out.string()));
     expect_one_line_error(r, "/no/such/mesh.obj: scene file not found");
     EXPECT_FALSE(fs::exists(out / "stats.json"));
 }
 
 TEST(Run, BadCommandLinesExitTwo) {
-    expect_one_line_error(rtsim("run --res 0x5"), "--res");
-    expect_one_line_error(rtsim("run --rays primary,bogus"), "unknown ray kind 'bogus'");
-    expect_one_line_error(rtsim("run --set nope=1"), "unknown key");
-    EXPECT_EQ(rtsim("run --no-such-flag").status, 2);
-    EXPECT_EQ(rtsim("").status, 2);
-    EXPECT_EQ(rtsim("frobnicate").status, 2);
+    expect_one_line_error(run_rtsim("run --res 0x5"), "--res");
+    expect_one_line_error(run_rtsim("run --rays primary,bogus"), "unknown ray kind 'bogus'");
+    expect_one_line_error(run_rtsim("run --set nope=1"), "unknown key");
+    EXPECT_EQ(run_rtsim("run --no-such-flag").status, 2);
+    EXPECT_EQ(run_rtsim("").status, 2);
+    EXPECT_EQ(run_rtsim("frobnicate").status, 2);
 }
 
 TEST(Run, HelpOnEveryCommand) {
     for (const char* c : {"--help", "run --help", "config --help"}) {
-        const Result r = rtsim(c);
+        const Result r = run_rtsim(c);
         EXPECT_EQ(r.status, 0) << c;
         EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
     }
-    const Result run_help = rtsim("run --help");
+    const Result run_help = run_rtsim("run --help");
     for (const char* opt : {"--config", "--set", "--scene", "--rays", "--res", "--seed", "--out"})
         EXPECT_NE(run_help.out.find(opt), std::string::npos) << opt;
 }
 
 TEST(Run, ConfigCommandPrintsEffectiveConfig) {
-    const Result r = rtsim(fmt::format(
+    const Result r = run_rtsim(fmt::format(
         "config --config {}/configs/small_caches.json --set l1.ways=2", RTSIM_SOURCE_DIR));
     ASSERT_EQ(r.status, 0) << r.err;
     const json c = json::parse(r.out);
@@ -229,8 +225,8 @@ void diff_json(const json& a, const json& b, const std::string& path,
 TEST(Golden, CornellSmall) {
     const fs::path out = work_dir() / "golden";
     const Result r =
-        rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" +
-              out.string() + "'");
+        run_rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" +
+                  out.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     json s = stats_of(out);
     s.erase("host");
@@ -271,8 +267,8 @@ TEST(Trace, ExternalRaysHitPrimitivesInFileOrder) {
                                             {0.7f, 0.2f, 1, 0, 0, 0, -1, 0.5f},  // too short
                                         });
     const fs::path csv = work_dir() / "hits.csv";
-    const Result r = rtsim(fmt::format("trace -q --scene '{}' --rays-file '{}' --hits '{}'",
-                                       obj.string(), rays, csv.string()));
+    const Result r = run_rtsim(fmt::format("trace -q --scene '{}' --rays-file '{}' --hits '{}'",
+                                           obj.string(), rays, csv.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     std::istringstream in(slurp(csv));
     std::string line;
@@ -300,9 +296,11 @@ TEST(Trace, IdenticalOutputForAnyThreadCount) {
                    d = work_dir() / "d.bin";
     const std::string args = "trace -q --rays primary,ao,diffuse,reflection,shadow --res 64x64 ";
     ASSERT_EQ(
-        rtsim(args + "-j 1 --hits '" + a.string() + "' --hits-bin '" + b.string() + "'").status, 0);
+        run_rtsim(args + "-j 1 --hits '" + a.string() + "' --hits-bin '" + b.string() + "'").status,
+        0);
     ASSERT_EQ(
-        rtsim(args + "-j 2 --hits '" + c.string() + "' --hits-bin '" + d.string() + "'").status, 0);
+        run_rtsim(args + "-j 2 --hits '" + c.string() + "' --hits-bin '" + d.string() + "'").status,
+        0);
     const std::string ca = slurp(a);
     EXPECT_GT(std::count(ca.begin(), ca.end(), '\n'), 64 * 64);
     EXPECT_EQ(ca, slurp(c));
@@ -312,13 +310,13 @@ TEST(Trace, IdenticalOutputForAnyThreadCount) {
 TEST(Trace, GeneratedRaysReplayFromFileGiveSameHits) {
     const fs::path rays = work_dir() / "gen.bin", h1 = work_dir() / "h1.csv",
                    h2 = work_dir() / "h2.csv";
-    ASSERT_EQ(rtsim("trace -q --rays primary,reflection --res 32x32 --write-rays '" +
-                    rays.string() + "' --hits '" + h1.string() + "'")
+    ASSERT_EQ(run_rtsim("trace -q --rays primary,reflection --res 32x32 --write-rays '" +
+                        rays.string() + "' --hits '" + h1.string() + "'")
                   .status,
               0);
-    ASSERT_EQ(
-        rtsim("trace -q --rays-file '" + rays.string() + "' --hits '" + h2.string() + "'").status,
-        0);
+    ASSERT_EQ(run_rtsim("trace -q --rays-file '" + rays.string() + "' --hits '" + h2.string() + "'")
+                  .status,
+              0);
     EXPECT_EQ(slurp(h1), slurp(h2));  // all closest-hit queries, ids in emission order
 }
 
@@ -327,7 +325,8 @@ TEST(Trace, BadRayFileExitsTwoAndWritesNothing) {
     const std::string rays = write_rays(work_dir() / "bad.bin",
                                         {{0, 0, 0, 0, 0, 0, 1, inf}, {0, 0, 0, 0, 0, 0, 0, inf}});
     const fs::path csv = work_dir() / "never.csv";
-    const Result r = rtsim(fmt::format("trace --rays-file '{}' --hits '{}'", rays, csv.string()));
+    const Result r =
+        run_rtsim(fmt::format("trace --rays-file '{}' --hits '{}'", rays, csv.string()));
     expect_one_line_error(r, "ray 1 (byte 32): zero direction");
     EXPECT_FALSE(fs::exists(csv));
     EXPECT_FALSE(fs::exists(csv.string() + ".tmp"));
@@ -335,11 +334,11 @@ TEST(Trace, BadRayFileExitsTwoAndWritesNothing) {
 
 TEST(Trace, PacketsReportUtilisationAndKeepHits) {
     const fs::path a = work_dir() / "single.csv", b = work_dir() / "packets.csv";
-    ASSERT_EQ(rtsim("trace -q --rays primary,ao --res 48x48 --hits '" + a.string() + "'").status,
-              0);
+    ASSERT_EQ(
+        run_rtsim("trace -q --rays primary,ao --res 48x48 --hits '" + a.string() + "'").status, 0);
     const Result r =
-        rtsim("trace --rays primary,ao --res 48x48 --packet 16 --packet-switch 0.25 --hits '" +
-              b.string() + "'");
+        run_rtsim("trace --rays primary,ao --res 48x48 --packet 16 --packet-switch 0.25 --hits '" +
+                  b.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("lane utilisation"), std::string::npos) << r.out;
     // Same rays, same hit or miss per ray. (AO rays are any-hit queries: which hit is found first
@@ -353,21 +352,22 @@ TEST(Trace, PacketsReportUtilisationAndKeepHits) {
         return rows;
     };
     EXPECT_EQ(hit_or_miss(slurp(a)), hit_or_miss(slurp(b)));
-    expect_one_line_error(rtsim("trace --packet 65"), "--packet");
+    expect_one_line_error(run_rtsim("trace --packet 65"), "--packet");
     expect_one_line_error(
-        rtsim("trace --chunk-rays 0 -o '" + (work_dir() / "never.rtt").string() + "'"),
+        run_rtsim("trace --chunk-rays 0 -o '" + (work_dir() / "never.rtt").string() + "'"),
         "--chunk-rays");
-    expect_one_line_error(rtsim("trace --packet 8 --packet-switch 2"), "--packet-switch");
+    expect_one_line_error(run_rtsim("trace --packet 8 --packet-switch 2"), "--packet-switch");
 }
 
 TEST(TraceFileRun, RecordThenReplayGivesIdenticalStats) {
     const fs::path rtt = work_dir() / "frame.rtt", live = work_dir() / "live",
                    replay = work_dir() / "replay";
     const std::string rays = "--rays primary,shadow,ao,diffuse --res 40x40 --set bvh.width=4";
-    ASSERT_EQ(rtsim("trace -q " + rays + " --chunk-rays 500 -o '" + rtt.string() + "'").status, 0);
-    ASSERT_EQ(rtsim("run -q " + rays + " --out '" + live.string() + "'").status, 0);
-    const Result r = rtsim("run --set bvh.width=4 --trace '" + rtt.string() + "' --out '" +
-                           replay.string() + "'");
+    ASSERT_EQ(run_rtsim("trace -q " + rays + " --chunk-rays 500 -o '" + rtt.string() + "'").status,
+              0);
+    ASSERT_EQ(run_rtsim("run -q " + rays + " --out '" + live.string() + "'").status, 0);
+    const Result r = run_rtsim("run --set bvh.width=4 --trace '" + rtt.string() + "' --out '" +
+                               replay.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("replayed from"), std::string::npos);
     const json a = stats_of(live), b = stats_of(replay);
@@ -377,26 +377,29 @@ TEST(TraceFileRun, RecordThenReplayGivesIdenticalStats) {
 
 TEST(TraceFileRun, MismatchedLayoutOrOptionsAreRefused) {
     const fs::path rtt = work_dir() / "w8.rtt";
-    ASSERT_EQ(rtsim("trace -q --res 16x16 --set bvh.width=8 -o '" + rtt.string() + "'").status, 0);
-    expect_one_line_error(rtsim("run --trace '" + rtt.string() + "'"), "recorded with bvh.width=8");
-    expect_one_line_error(rtsim("run --set bvh.width=8 --set bvh.node_format=compressed --trace '" +
-                                rtt.string() + "'"),
-                          "bvh.node_format");
+    ASSERT_EQ(run_rtsim("trace -q --res 16x16 --set bvh.width=8 -o '" + rtt.string() + "'").status,
+              0);
+    expect_one_line_error(run_rtsim("run --trace '" + rtt.string() + "'"),
+                          "recorded with bvh.width=8");
     expect_one_line_error(
-        rtsim("run --set bvh.width=8 --scene builtin:sphere --trace '" + rtt.string() + "'"),
+        run_rtsim("run --set bvh.width=8 --set bvh.node_format=compressed --trace '" +
+                  rtt.string() + "'"),
+        "bvh.node_format");
+    expect_one_line_error(
+        run_rtsim("run --set bvh.width=8 --scene builtin:sphere --trace '" + rtt.string() + "'"),
         "--scene: cannot be combined with --trace");
-    EXPECT_EQ(rtsim("run --set bvh.width=8 --trace '" + rtt.string() + "' -o '" +
-                    (work_dir() / "ok").string() + "'")
+    EXPECT_EQ(run_rtsim("run --set bvh.width=8 --trace '" + rtt.string() + "' -o '" +
+                        (work_dir() / "ok").string() + "'")
                   .status,
               0);
 }
 
 TEST(TraceFileRun, BadTracesExitTwoNamingTheDamage) {
     const fs::path rtt = work_dir() / "good.rtt";
-    ASSERT_EQ(
-        rtsim("trace -q --rays primary,ao --res 32x32 --chunk-rays 300 -o '" + rtt.string() + "'")
-            .status,
-        0);
+    ASSERT_EQ(run_rtsim("trace -q --rays primary,ao --res 32x32 --chunk-rays 300 -o '" +
+                        rtt.string() + "'")
+                  .status,
+              0);
     const std::string bytes = slurp(rtt);
     auto damaged = [&](const std::string& name, std::string b) {
         const fs::path p = work_dir() / name;
@@ -404,31 +407,33 @@ TEST(TraceFileRun, BadTracesExitTwoNamingTheDamage) {
         return p.string();
     };
     expect_one_line_error(
-        rtsim("run --trace '" + damaged("trunc.rtt", bytes.substr(0, bytes.size() - 100)) + "'"),
+        run_rtsim("run --trace '" + damaged("trunc.rtt", bytes.substr(0, bytes.size() - 100)) +
+                  "'"),
         "footer missing");
     std::string flipped = bytes;
     flipped[bytes.size() / 2] ^= 0x20;
-    const Result r = rtsim("run --trace '" + damaged("flip.rtt", flipped) + "'");
+    const Result r = run_rtsim("run --trace '" + damaged("flip.rtt", flipped) + "'");
     expect_one_line_error(r, "chunk");
     std::string magic = bytes;
     magic[0] = 'X';
-    expect_one_line_error(rtsim("trace-info '" + damaged("magic.rtt", magic) + "'"), "wrong magic");
+    expect_one_line_error(run_rtsim("trace-info '" + damaged("magic.rtt", magic) + "'"),
+                          "wrong magic");
     std::string version = bytes;
     version[8] = 7;
-    expect_one_line_error(rtsim("trace-info '" + damaged("version.rtt", version) + "'"),
+    expect_one_line_error(run_rtsim("trace-info '" + damaged("version.rtt", version) + "'"),
                           "unknown trace format version 7");
-    expect_one_line_error(rtsim("trace-info '" + (work_dir() / "none.rtt").string() + "'"),
+    expect_one_line_error(run_rtsim("trace-info '" + (work_dir() / "none.rtt").string() + "'"),
                           "cannot open");
     EXPECT_FALSE(fs::exists(work_dir() / "never"));
 }
 
 TEST(TraceFileRun, TraceInfoAndPythonReaderAgree) {
     const fs::path rtt = work_dir() / "info.rtt";
-    ASSERT_EQ(rtsim("trace -q --rays primary,ao,reflection --res 24x24 --chunk-rays 100 -o '" +
-                    rtt.string() + "'")
+    ASSERT_EQ(run_rtsim("trace -q --rays primary,ao,reflection --res 24x24 --chunk-rays 100 -o '" +
+                        rtt.string() + "'")
                   .status,
               0);
-    const Result info = rtsim("trace-info --json '" + rtt.string() + "'");
+    const Result info = run_rtsim("trace-info --json '" + rtt.string() + "'");
     ASSERT_EQ(info.status, 0) << info.err;
     const json ours = json::parse(info.out);
     const fs::path py_out = work_dir() / "py.json";
@@ -443,14 +448,14 @@ TEST(TraceFileRun, TraceInfoAndPythonReaderAgree) {
     for (const char* kind : {"primary", "ao", "reflection"})
         for (const char* f : {"rays", "hits", "node_steps", "triangle_steps"})
             EXPECT_EQ(ours["by_kind"][kind][f], theirs["by_kind"][kind][f]) << kind << " " << f;
-    const Result text = rtsim("trace-info '" + rtt.string() + "'");
+    const Result text = run_rtsim("trace-info '" + rtt.string() + "'");
     EXPECT_NE(text.out.find("bytes per step"), std::string::npos);
     EXPECT_NE(text.out.find("nodes "), std::string::npos);
 }
 
 TEST(Run, StallAttributionAccountsForEverySlotCycle) {
     const fs::path out = work_dir() / "stalls";
-    const Result r = rtsim(
+    const Result r = run_rtsim(
         "run -q --rays primary,ao --res 48x48 --set core.count=3 --set core.ray_slots=5 "
         "--set box_unit.width=2 --set bvh.width=8 --out '" +
         out.string() + "'");
@@ -483,9 +488,9 @@ TEST(Run, StallAttributionAccountsForEverySlotCycle) {
 
 TEST(Run, TimeSeriesAddUpToTheTotals) {
     const fs::path out = work_dir() / "series", plain = work_dir() / "plain";
-    ASSERT_EQ(rtsim("run -q --rays primary,ao --res 40x40 --set sim.window_cycles=5000 --set "
-                    "clock_ghz=2 --out '" +
-                    out.string() + "'")
+    ASSERT_EQ(run_rtsim("run -q --rays primary,ao --res 40x40 --set sim.window_cycles=5000 --set "
+                        "clock_ghz=2 --out '" +
+                        out.string() + "'")
                   .status,
               0);
     const json s = stats_of(out);
@@ -508,8 +513,8 @@ TEST(Run, TimeSeriesAddUpToTheTotals) {
     EXPECT_NEAR(box_busy, s["units"]["box_unit_total"]["busy_cycles"].get<double>(),
                 1e-6 * box_busy + 1);
     // Off by default: no series, and the same simulated result.
-    ASSERT_EQ(rtsim("run -q --rays primary,ao --res 40x40 --set clock_ghz=2 --out '" +
-                    plain.string() + "'")
+    ASSERT_EQ(run_rtsim("run -q --rays primary,ao --res 40x40 --set clock_ghz=2 --out '" +
+                        plain.string() + "'")
                   .status,
               0);
     const json p = stats_of(plain);
@@ -520,10 +525,10 @@ TEST(Run, TimeSeriesAddUpToTheTotals) {
 TEST(Run, IdealModesBoundTheAchievedRate) {
     const fs::path real = work_dir() / "real", ideal = work_dir() / "ideal";
     const std::string rays = "run -q --rays primary,ao --res 40x40 ";
-    const Result r = rtsim(rays + "--bound --out '" + real.string() + "'");
+    const Result r = run_rtsim(rays + "--bound --out '" + real.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
-    ASSERT_EQ(rtsim(rays + "--set sim.ideal_memory=true --set sim.ideal_units=true --out '" +
-                    ideal.string() + "'")
+    ASSERT_EQ(run_rtsim(rays + "--set sim.ideal_memory=true --set sim.ideal_units=true --out '" +
+                        ideal.string() + "'")
                   .status,
               0);
     const json s = stats_of(real), i = stats_of(ideal);
@@ -544,10 +549,10 @@ TEST(Run, UnitsSharedAmongCoresContend) {
     const fs::path own = work_dir() / "own", shared = work_dir() / "shared",
                    again = work_dir() / "again";
     const std::string base = "run -q --rays primary,ao --res 40x40 ";
-    ASSERT_EQ(rtsim(base + "--out '" + own.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(base + "--out '" + own.string() + "'").status, 0);
     const std::string share = "--set box_unit.shared_by=4 --set triangle_unit.shared_by=3 ";
-    ASSERT_EQ(rtsim(base + share + "--out '" + shared.string() + "'").status, 0);
-    ASSERT_EQ(rtsim(base + share + "--out '" + again.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(base + share + "--out '" + shared.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(base + share + "--out '" + again.string() + "'").status, 0);
     const json a = stats_of(own), b = stats_of(shared);
     EXPECT_TRUE(b["units"].contains("box_unit[1]"));
     EXPECT_FALSE(b["units"].contains("box_unit[2]"));      // 8 cores, 4 per box unit
@@ -563,7 +568,7 @@ TEST(Run, UnitsSharedAmongCoresContend) {
 
 TEST(Run, SplitL1SeparatesNodesFromTriangles) {
     const fs::path out = work_dir() / "split";
-    const Result r = rtsim(
+    const Result r = run_rtsim(
         "run -q --rays primary,ao --res 40x40 --set l1.split=true --set l1.size_kib=4 "
         "--set crossbar.bytes_per_cycle=0 --out '" +
         out.string() + "'");
@@ -594,14 +599,14 @@ TEST(TreeletMode, SameWorkAsBaselineDeterministicAndReplayable) {
         "ray_buffer.capacity_rays=256 ";
     const fs::path base = work_dir() / "base", a = work_dir() / "a", b = work_dir() / "b",
                    replay = work_dir() / "replay", trace = work_dir() / "t.rtt";
-    ASSERT_EQ(rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
-    Result r = rtsim("run -q " + rays + treelet + "--out '" + a.string() + "'");
+    ASSERT_EQ(run_rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
+    Result r = run_rtsim("run -q " + rays + treelet + "--out '" + a.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
-    ASSERT_EQ(rtsim("run -q " + rays + treelet + "--out '" + b.string() + "'").status, 0);
-    r = rtsim("trace -q " + rays + treelet + "-o '" + trace.string() + "'");
+    ASSERT_EQ(run_rtsim("run -q " + rays + treelet + "--out '" + b.string() + "'").status, 0);
+    r = run_rtsim("trace -q " + rays + treelet + "-o '" + trace.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
-    r = rtsim("run -q --trace '" + trace.string() + "' --set bvh.width=4 " + treelet + "--out '" +
-              replay.string() + "'");
+    r = run_rtsim("run -q --trace '" + trace.string() + "' --set bvh.width=4 " + treelet +
+                  "--out '" + replay.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     const json sb = stats_of(base), sa = stats_of(a);
     expect_complete_stats(sa);
@@ -639,7 +644,7 @@ TEST(TreeletMode, SchedulersAndDemandFetchRunTheSameRays) {
     for (const char* extra : {"--set traversal.treelet_scheduler=round_robin",
                               "--set traversal.treelet_prefetch=false"}) {
         const fs::path out = work_dir() / (std::string("v") + std::to_string(total));
-        const Result r = rtsim("run -q " + rays + extra + " --out '" + out.string() + "'");
+        const Result r = run_rtsim("run -q " + rays + extra + " --out '" + out.string() + "'");
         ASSERT_EQ(r.status, 0) << r.err;
         const json s = stats_of(out);
         if (total) {
@@ -653,14 +658,14 @@ TEST(TreeletMode, SchedulersAndDemandFetchRunTheSameRays) {
 }
 
 TEST(TreeletMode, BadCombinationsAreRefused) {
-    expect_one_line_error(rtsim("run -q --res 8x8 --set traversal.mode=treelet"),
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set traversal.mode=treelet"),
                           "bvh.treelet_bytes is 0");
     const fs::path trace = work_dir() / "t.rtt";
-    ASSERT_EQ(rtsim("trace -q --res 8x8 -o '" + trace.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim("trace -q --res 8x8 -o '" + trace.string() + "'").status, 0);
     expect_one_line_error(
-        rtsim("run -q --trace '" + trace.string() + "' --set traversal.mode=packet"),
+        run_rtsim("run -q --trace '" + trace.string() + "' --set traversal.mode=packet"),
         "traversal.mode=packet needs rays generated on the fly");
-    expect_one_line_error(rtsim("run -q --res 8x8 --set traversal.mode=wavefront"),
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set traversal.mode=wavefront"),
                           "traversal.mode");
 }
 
@@ -669,10 +674,10 @@ TEST(TreeletMode, BadCombinationsAreRefused) {
 TEST(PacketMode, SameRaysFewerFetchesLaneUtilisationReported) {
     const std::string rays = "--rays primary,diffuse --res 48x48 --set bvh.width=4 ";
     const fs::path base = work_dir() / "base", pk = work_dir() / "packet";
-    ASSERT_EQ(rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
-    const Result r = rtsim("run -q " + rays +
-                           "--set traversal.mode=packet --set traversal.packet_size=8 --out '" +
-                           pk.string() + "'");
+    ASSERT_EQ(run_rtsim("run -q " + rays + "--out '" + base.string() + "'").status, 0);
+    const Result r = run_rtsim("run -q " + rays +
+                               "--set traversal.mode=packet --set traversal.packet_size=8 --out '" +
+                               pk.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     const json sb = stats_of(base), sp = stats_of(pk);
     expect_complete_stats(sp);
@@ -694,7 +699,7 @@ TEST(Configs, EveryCommittedConfigLoads) {
     int checked = 0;
     for (const auto& e : fs::directory_iterator(fs::path(RTSIM_SOURCE_DIR) / "configs")) {
         if (e.path().extension() != ".json" || e.path().filename() == "schema.json") continue;
-        const Result r = rtsim("config --config '" + e.path().string() + "'");
+        const Result r = run_rtsim("config --config '" + e.path().string() + "'");
         EXPECT_EQ(r.status, 0) << e.path() << ": " << r.err;
         ++checked;
     }
@@ -705,11 +710,11 @@ TEST(Configs, EveryCommittedConfigLoads) {
 TEST(TreeletMode, DedicatedTreeletCacheServesTheBatches) {
     const fs::path out = work_dir() / "tc";
     const Result r =
-        rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
-              "/configs/treelet.json' --rays ao --res 32x32 "
-              "--set traversal.treelet_prefetch=true --set traversal.treelet_cache_kib=16 "
-              "--out '" +
-              out.string() + "'");
+        run_rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
+                  "/configs/treelet.json' --rays ao --res 32x32 "
+                  "--set traversal.treelet_prefetch=true --set traversal.treelet_cache_kib=16 "
+                  "--out '" +
+                  out.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
     ASSERT_TRUE(s["caches"].contains("treelet_cache_total"));
@@ -718,8 +723,8 @@ TEST(TreeletMode, DedicatedTreeletCacheServesTheBatches) {
     EXPECT_LT(s["caches"]["l1_total"]["accesses"].get<uint64_t>(),
               s["caches"]["treelet_cache_total"]["accesses"].get<uint64_t>());
     EXPECT_GT(s["ray_buffer"]["treelet_loads"].get<uint64_t>(), 0u);
-    expect_one_line_error(rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
-                                "/configs/treelet.json' --res 8x8 --set "
-                                "traversal.treelet_cache_kib=8 --set l1.split=true"),
+    expect_one_line_error(run_rtsim("run -q --config '" + std::string(RTSIM_SOURCE_DIR) +
+                                    "/configs/treelet.json' --res 8x8 --set "
+                                    "traversal.treelet_cache_kib=8 --set l1.split=true"),
                           "treelet_cache_kib");
 }

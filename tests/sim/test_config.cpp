@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "sim/config.h"
+#include "support/scratch_dir.h"
 #include "workloads/error.h"
 
 namespace fs = std::filesystem;
@@ -13,13 +14,8 @@ using nlohmann::json;
 
 namespace {
 
-fs::path temp_dir() {
-    static const fs::path d = [] {
-        fs::path p = fs::temp_directory_path() / ("rtsim_cfg_" + std::to_string(::getpid()));
-        fs::create_directories(p);
-        return p;
-    }();
-    return d;
+const fs::path& temp_dir() {
+    return test::scratch_dir();
 }
 
 std::string write_cfg(const std::string& name, const std::string& text) {

@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "support/input_error.h"
+#include "support/scratch_dir.h"
 #include "workloads/error.h"
 #include "workloads/ray_file.h"
 
@@ -16,8 +17,7 @@ namespace fs = std::filesystem;
 namespace {
 
 std::string write_bytes(const std::string& name, const std::string& bytes) {
-    const fs::path p =
-        fs::temp_directory_path() / ("rtsim_rays_" + std::to_string(::getpid()) + "_" + name);
+    const fs::path p = test::scratch_dir() / name;
     std::ofstream(p, std::ios::binary) << bytes;
     return p.string();
 }

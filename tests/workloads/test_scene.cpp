@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "support/input_error.h"
+#include "support/scratch_dir.h"
 #include "workloads/error.h"
 #include "workloads/scene.h"
 
@@ -13,8 +14,7 @@ using namespace rtsim;
 namespace {
 
 std::string write_temp(const std::string& name, const std::string& text) {
-    const fs::path p =
-        fs::temp_directory_path() / ("rtsim_test_" + std::to_string(::getpid()) + "_" + name);
+    const fs::path p = test::scratch_dir() / name;
     std::ofstream(p, std::ios::binary) << text;
     return p.string();
 }

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "support/input_error.h"
+#include "support/scratch_dir.h"
 #include "workloads/error.h"
 #include "workloads/trace_file.h"
 
@@ -53,8 +54,7 @@ std::vector<TraceRecord> random_records(int n, uint32_t seed) {
 }
 
 std::string temp_path(const std::string& name) {
-    return (fs::temp_directory_path() / ("rtsim_trace_" + std::to_string(::getpid()) + "_" + name))
-        .string();
+    return (test::scratch_dir() / name).string();
 }
 
 std::string write_trace(const std::string& name, const std::vector<TraceRecord>& recs,
