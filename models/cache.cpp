@@ -17,20 +17,24 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     last_use_.assign(params_.sets() * params_.ways, 0);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
-    bank_free_.assign(size_t(std::max(1, params_.banks)), 0);
-    bank_mask_ = bank_free_.size() - 1;  // a power of two (config validates)
+    banks_.assign(size_t(std::max(1, params_.banks)), ReservationCalendar(1));
+    bank_mask_ = banks_.size() - 1;  // a power of two (config validates)
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
 
-Cycle Cache::look_up(uint64_t line_addr, Cycle now) {
-    ++accesses;
-    // One lookup per bank per cycle; waiting for the bank is charged to this level.
-    Cycle& bank = bank_free_[line_addr & bank_mask_];
-    const Cycle start = std::max(now, bank);
-    bank = start + 1;
-    bank_conflict_cycles += start - now;
-    return start + params_.hit_latency_cycles;
+void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
+    const uint64_t lines = last - first + 1;
+    accesses += lines;
+    // One lookup per bank per cycle; waiting for the bank is charged to this level. Lookups
+    // come out of time order (a miss above waited for an MSHR): a bank is a calendar.
+    const uint64_t nb = banks_.size();
+    for (uint64_t k = 0; k < std::min(lines, nb); ++k) {
+        const Cycle span = (lines - k + nb - 1) / nb;  // lines k, k + nb, ... share a bank
+        const Cycle start = banks_[(first + k) & bank_mask_].reserve(now, span);
+        bank_conflict_cycles += span * (start - now) + span * (span - 1) / 2;
+        for (Cycle j = 0; j < span; ++j) done[k + j * nb] = start + j + params_.hit_latency_cycles;
+    }
 }
 
 Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
@@ -89,9 +93,9 @@ void Cache::replace_earliest_mshr(Cycle ready) {
     h[i] = ready;
 }
 
-Cycle Cache::access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown) {
+Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
+                         bool breakdown) {
     const uint64_t set = set_of(line_addr);
-    const Cycle lookup_done = look_up(line_addr, now);
     const int found = find_way(set, line_addr);
     if (found >= 0) {
         const Cycle ready = hit(set, found, lookup_done);
@@ -158,9 +162,11 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
         ways[line - first] = w;
     }
     bytes_requested += size_bytes;
+    Cycle done[kMaxLines];
+    look_up(first, last, now, done);
     Slowest slowest;
     for (uint64_t line = first; line <= last; ++line) {
-        const Cycle lookup_done = look_up(line, now);
+        const Cycle lookup_done = done[line - first];
         slowest.hit(lookup_done, hit(set_of(line), ways[line - first], lookup_done));
     }
     slowest.charge(bd, level_, now);
@@ -173,9 +179,11 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
     const auto [first, last] = line_range(addr, size_bytes);
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
     // to what the requester's levels already charged.
+    if (lookup_done_.size() < last - first + 1) lookup_done_.resize(last - first + 1);
+    look_up(first, last, now, lookup_done_.data());
     Slowest slowest;
     for (uint64_t line = first; line <= last; ++line)
-        access_line(line, now, slowest, bd != nullptr);
+        access_line(line, now, lookup_done_[line - first], slowest, bd != nullptr);
     slowest.charge(bd, level_, now);
     return std::max(now, slowest.done);
 }

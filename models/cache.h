@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -64,6 +65,10 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
+    // The earliest cycle a lookup may still come at (the requesters' floor).
+    void follow(const TimeFloor* floor) {
+        for (auto& bank : banks_) bank.follow(floor);
+    }
 
     uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
     uint64_t hits = 0;
@@ -97,8 +102,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         return found;
     }
     void replace_earliest_mshr(Cycle ready);
-    // Counts a line lookup and waits for its bank; returns the cycle the lookup is done.
-    Cycle look_up(uint64_t line_addr, Cycle now);
+    // Counts the lookups of lines first..last and waits for their banks, each of which reads
+    // its lines of the request back to back; done[k]: the cycle line first + k is looked up.
+    void look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done);
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
     Cycle hit(uint64_t set, int way, Cycle lookup_done);
     // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
@@ -112,14 +118,15 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         void miss(Cycle done, const AccessBreakdown& line_bd);
         void charge(AccessBreakdown* bd, int level, Cycle now) const;
     };
-    Cycle access_line(uint64_t line_addr, Cycle now, Slowest& slowest, bool breakdown);
+    Cycle access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
+                      bool breakdown);
 
     CacheParams params_;
     MemoryPort* next_;
     int level_;
-    std::vector<Cycle> mshr_free_;          // per MSHR: cycle its miss completes
-    std::vector<Cycle> bank_free_;          // per bank: next cycle it starts a lookup
-    uint64_t rng_ = 0x9E3779B97F4A7C15ull;  // random replacement: deterministic xorshift state
+    std::vector<Cycle> mshr_free_;            // per MSHR: cycle its miss completes
+    std::vector<ReservationCalendar> banks_;  // per bank: the cycles it starts a lookup
+    uint64_t rng_ = 0x9E3779B97F4A7C15ull;    // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
     std::vector<uint64_t> set_storage_;  // per set: tags (kNoTag: invalid), then fill cycles
     uint64_t* set_block_ = nullptr;      // set_storage_ aligned to a host cache line
@@ -128,6 +135,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t set_mask_;
     uint32_t line_shift_;
     uint64_t use_clock_ = 0;
+    std::vector<Cycle> lookup_done_;  // scratch for requests of many lines
 };
 
 }  // namespace rtsim

@@ -41,6 +41,7 @@ void Core::finish_ray(Slot& s, Cycle done) {
 }
 
 void Core::wake(Cycle at) {
+    at = std::max(at, floor_.cycle);  // never behind the core's own floor
     for (Cycle& r : ready_)
         if (r == kParkedCycle) r = at;
 }
@@ -56,7 +57,7 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
     loaded_treelet_ = treelet;
 }
 
-Cycle Core::advance(Cycle horizon) {
+Cycle Core::advance(Cycle horizon, Cycle others_floor) {
     const size_t n = ready_.size();
     for (;;) {
         // Branch-free: which slot is earliest changes unpredictably from step to step.
@@ -68,6 +69,9 @@ Cycle Core::advance(Cycle horizon) {
             i = earlier ? j : i;
         }
         if (t >= kParkedCycle) return t;  // every slot parked or retired
+        // Every later request of this core comes at t or after.
+        floor_.cycle = t;
+        if (shared_floor_) shared_floor_->cycle = std::min(t, others_floor);
         Slot& s = slots_[i];
         // Private work may run ahead of the other cores: this core's own calendars still see
         // its requests in time order, because it always runs its earliest slot.
@@ -215,6 +219,7 @@ CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> co
       cores_(std::move(cores)),
       quantum_cycles_(quantum_cycles),
       wake_(wake) {
+    for (Core* core : cores_) core->set_shared_floor(&floor_);
     SC_THREAD(run);
 }
 
@@ -237,6 +242,13 @@ void CoreScheduler::run() {
             c = earliest ? i : c;
         }
         if (first >= kParkedCycle) break;  // all retired (parked cores are woken by work)
+        // Parked cores wake no earlier than `first`, retired ones send nothing: the shared
+        // floor is the earliest among the running cores', which the advancing core updates.
+        Cycle others_floor = kNeverCycle;
+        for (size_t i = 0; i < n; ++i) {
+            const bool other = next[i] < kParkedCycle && i != c;
+            others_floor = other ? std::min(others_floor, cores_[i]->floor()->cycle) : others_floor;
+        }
         if (first >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
@@ -247,7 +259,7 @@ void CoreScheduler::run() {
         const Cycle horizon = second >= kParkedCycle || second >= kNeverCycle - quantum_cycles_
                                   ? kNeverCycle
                                   : second + quantum_cycles_;
-        next[c] = cores_[c]->advance(horizon);
+        next[c] = cores_[c]->advance(horizon, others_floor);
         Cycle at;
         if (wake_ && wake_->take_wake(at)) {
             at = std::max(at, first);  // never behind the order already served

@@ -16,6 +16,7 @@
 #include <systemc>
 #include <vector>
 
+#include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
 #include "models/unit.h"
@@ -76,9 +77,15 @@ class Core : public sc_core::sc_module {
     // `horizon`. Returns the cycle of the next shared work; kParkedCycle when every slot waits
     // for work that may still come; kNeverCycle once every slot has retired (the work queue is
     // empty and all rays are done).
-    Cycle advance(Cycle horizon);
+    // `others_floor`: the earliest cycle the other cores may still send a request at; with this
+    // core's own, it keeps the shared blocks' floor (set_shared_floor) current as the core runs.
+    Cycle advance(Cycle horizon, Cycle others_floor = kNeverCycle);
+    void set_shared_floor(TimeFloor* shared) { shared_floor_ = shared; }
     // Parked slots look for work again from cycle `at`.
     void wake(Cycle at);
+    // The earliest cycle this core may still send a request at (its earliest slot's): the floor
+    // its private blocks (L1s, own units) follow.
+    const TimeFloor* floor() const { return &floor_; }
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
     // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
@@ -126,6 +133,8 @@ class Core : public sc_core::sc_module {
     uint32_t loaded_treelet_ = ~0u;
     TimeSeries* rays_series_ = nullptr;
     PortCalendar issue_port_;
+    TimeFloor floor_;
+    TimeFloor* shared_floor_ = nullptr;
 };
 
 // Runs a set of cores in global time order: the cores' one SystemC process. It keeps the cores
@@ -143,6 +152,8 @@ class CoreScheduler : public sc_core::sc_module {
                   WakeSource* wake = nullptr);
     // Host seconds the process ran (not simulated statistics: for the host section).
     double host_busy_seconds() const { return host_busy_seconds_; }
+    // The earliest cycle any core may still send a request at: the floor shared blocks follow.
+    const TimeFloor* floor() const { return &floor_; }
 
   private:
     void run();
@@ -150,6 +161,8 @@ class CoreScheduler : public sc_core::sc_module {
     Cycle quantum_cycles_;
     WakeSource* wake_;
     double host_busy_seconds_ = 0;
+    TimeFloor floor_;
+    TimeFloor* shared_floor_ = nullptr;
 };
 
 }  // namespace rtsim

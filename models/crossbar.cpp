@@ -6,7 +6,10 @@
 namespace rtsim {
 
 Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
-    : sc_core::sc_module(name), bytes_per_cycle_(bytes_per_cycle), next_(next_level) {}
+    : sc_core::sc_module(name),
+      bytes_per_cycle_(bytes_per_cycle),
+      link_(bytes_per_cycle),
+      next_(next_level) {}
 
 namespace {
 // std::ceil for the non-negative cycle counts here, without a libm call on every transfer.
@@ -17,14 +20,12 @@ Cycle ceil_cycles(double x) {
 }  // namespace
 
 Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    const double start = std::max(static_cast<double>(now), next_free_);
-    const double transfer = size_bytes / bytes_per_cycle_;
-    next_free_ = start + transfer;
-    const auto wait = ceil_cycles(start) - now;
-    const auto crossing = ceil_cycles(transfer);
+    const auto [first, end] = link_.transfer(now, size_bytes);
+    const Cycle wait = first - now;
+    const Cycle crossing = end - first;
     ++transfers;
     bytes += size_bytes;
-    busy_cycles += crossing;
+    busy_cycles += ceil_cycles(size_bytes / bytes_per_cycle_);
     queue_cycles += wait;
     const Cycle ready = next_->access(addr, size_bytes, now + wait, bd);
     if (bd) bd->cycles[kLevelL2] += wait + crossing;

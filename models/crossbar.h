@@ -7,6 +7,7 @@
 #include <string>
 #include <systemc>
 
+#include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -18,6 +19,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
+    void follow(const TimeFloor* floor) { link_.follow(floor); }
 
     uint64_t transfers = 0;
     uint64_t bytes = 0;
@@ -26,8 +28,8 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
 
   private:
     double bytes_per_cycle_;
+    BandwidthCalendar link_;
     MemoryPort* next_;
-    double next_free_ = 0.0;
 };
 
 }  // namespace rtsim

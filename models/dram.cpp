@@ -9,11 +9,11 @@ Dram::Dram(sc_core::sc_module_name name, const DramParams& params)
     : sc_core::sc_module(name),
       params_(params),
       banks_(size_t(std::max(1, params.channels)) * size_t(std::max(1, params.banks))),
-      bus_free_(size_t(std::max(1, params.channels)), 0.0) {}
+      buses_(size_t(std::max(1, params.channels)), BandwidthCalendar(params.bytes_per_cycle)) {}
 
 Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     const uint64_t block = addr / params_.row_bytes;
-    const auto channels = uint64_t(bus_free_.size());
+    const auto channels = uint64_t(buses_.size());
     const uint64_t channel = block % channels;
     const uint64_t bank_index = (block / channels) % uint64_t(params_.banks);
     const uint64_t row = block / (channels * uint64_t(params_.banks));
@@ -37,18 +37,15 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
 
     const uint32_t bursts = (size_bytes + params_.burst_bytes - 1) / params_.burst_bytes;
     const uint32_t moved = std::max(1u, bursts) * params_.burst_bytes;
-    double& bus = bus_free_[channel];
-    const double bus_start = std::max(static_cast<double>(data_ready), bus);
-    const double transfer = moved / params_.bytes_per_cycle;
-    bus = bus_start + transfer;
+    // Reads from different banks reach the bus out of order: the bus is a calendar.
+    const auto [bus_start, bus_end] = buses_[channel].transfer(data_ready, moved);
     ++reads;
     bytes += moved;
-    if (bytes_series_) bytes_series_->add(static_cast<uint64_t>(bus_start), moved);
-    busy_cycles += static_cast<uint64_t>(std::ceil(transfer));
-    queue_cycles += (start - now) +
-                    static_cast<uint64_t>(std::ceil(bus_start - static_cast<double>(data_ready)));
+    if (bytes_series_) bytes_series_->add(bus_start, moved);
+    busy_cycles += static_cast<uint64_t>(std::ceil(moved / params_.bytes_per_cycle));
+    queue_cycles += (start - now) + (bus_start - data_ready);
     // Data is usable once its last byte has crossed the bus and the controller latency passed.
-    const Cycle done = static_cast<Cycle>(std::ceil(bus)) + params_.latency_cycles;
+    const Cycle done = bus_end + params_.latency_cycles;
     if (bd) bd->cycles[kLevelDram] += done - now;
     return done;
 }

@@ -10,6 +10,7 @@
 #include <systemc>
 #include <vector>
 
+#include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -33,6 +34,9 @@ class Dram : public sc_core::sc_module, public MemoryPort {
                  AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* bytes) { bytes_series_ = bytes; }
+    void follow(const TimeFloor* floor) {
+        for (auto& bus : buses_) bus.follow(floor);
+    }
     const DramParams& params() const { return params_; }
 
     uint64_t reads = 0;
@@ -48,8 +52,8 @@ class Dram : public sc_core::sc_module, public MemoryPort {
         Cycle ready = 0;  // next cycle it accepts a command
     };
     DramParams params_;
-    std::vector<Bank> banks_;       // channels * banks
-    std::vector<double> bus_free_;  // per channel; fractional, so 12.8 bytes per cycle is exact
+    std::vector<Bank> banks_;               // channels * banks
+    std::vector<BandwidthCalendar> buses_;  // per channel
     TimeSeries* bytes_series_ = nullptr;
 };
 

@@ -5,14 +5,14 @@
 namespace rtsim {
 
 PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params)
-    : sc_core::sc_module(name), params_(params), next_free_(static_cast<size_t>(params.count), 0) {}
+    : sc_core::sc_module(name), params_(params), calendar_(params.count) {}
 
 Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
     const Cycle n =
         Cycle(std::max(1, (items + params_.width - 1) / params_.width)) * Cycle(std::max(1, rays));
-    auto it = std::min_element(next_free_.begin(), next_free_.end());
-    const Cycle start = params_.unlimited ? ready : std::max(ready, *it);
-    if (!params_.unlimited) *it = start + n * params_.interval_cycles;
+    // The n operations run back to back on one pipeline.
+    const Cycle start =
+        params_.unlimited ? ready : calendar_.reserve(ready, n * params_.interval_cycles);
     ops += n;
     busy_cycles += n * params_.interval_cycles;
     if (busy_series_) busy_series_->add(start, n * params_.interval_cycles);

@@ -7,6 +7,7 @@
 #include <systemc>
 #include <vector>
 
+#include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -27,9 +28,12 @@ class PipelinedUnit : public sc_core::sc_module {
     PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params);
     // Issues the operations for `items` items (ceil(items / width), back to back on one pipeline)
     // that are ready at `ready`, `rays` times over (the lanes of a packet); returns the cycle
-    // the last result is available. Arbitration is first come, first served, onto the pipeline
-    // that frees first.
+    // the last result is available. Operations need not come in `ready` order: each takes the
+    // earliest cycles from `ready` on where a pipeline is free (first come, first served by
+    // the time operands arrive, to within operations already booked).
     Cycle issue(Cycle ready, int items = 1, int rays = 1);
+    // No operation will come ready before `floor` (its users' earliest cycle).
+    void follow(const TimeFloor* floor) { calendar_.follow(floor); }
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* busy_cycles) { busy_series_ = busy_cycles; }
     const UnitParams& params() const { return params_; }
@@ -40,7 +44,7 @@ class PipelinedUnit : public sc_core::sc_module {
 
   private:
     UnitParams params_;
-    std::vector<Cycle> next_free_;  // per pipeline: first cycle it accepts a new operation
+    ReservationCalendar calendar_;  // issue slots of the pipelines, cycle by cycle
     TimeSeries* busy_series_ = nullptr;
 };
 

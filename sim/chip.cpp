@@ -163,12 +163,31 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         cores.back()->set_ray_buffer(ray_buffer.get());
         cores.back()->register_stats(stats, "core" + idx);
         cores.back()->set_series(series.rays.get());
+        // A core's private blocks forget what lies behind its own earliest slot.
+        const TimeFloor* own = cores.back()->floor();
+        l1.back()->follow(own);
+        if (!l1_tri.empty()) l1_tri.back()->follow(own);
+        if (!treelet_caches.empty()) treelet_caches.back()->follow(own);
+        if (box_share == 1) box_units[size_t(i)]->follow(own);
+        if (tri_share == 1) triangle_units[size_t(i)]->follow(own);
     }
     std::vector<Core*> core_ptrs;
     for (auto& c : cores) core_ptrs.push_back(c.get());
     scheduler =
         std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
                                         Cycle(cfg.integer("sim.quantum_cycles")), ray_buffer.get());
+    // Shared blocks forget what lies behind the earliest core.
+    const TimeFloor* shared = scheduler->floor();
+    l2->follow(shared);
+    dram->follow(shared);
+    if (crossbar) crossbar->follow(shared);
+    if (box_share > 1)
+        for (auto& u : box_units) u->follow(shared);
+    if (tri_share > 1)
+        for (auto& u : triangle_units) u->follow(shared);
+    g_calendar_late_requests = 0;  // one chip per run; counted from here
+    stats.add("sim", "late_requests", &g_calendar_late_requests,
+              "requests that came before their block's time floor (a model bug if not 0)");
 }
 
 Cycle Chip::total_cycles() const {

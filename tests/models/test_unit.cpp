@@ -58,3 +58,13 @@ TEST(PipelinedUnit, UnlimitedNeverQueues) {
     EXPECT_EQ(u.queue_cycles, 0u);
     EXPECT_EQ(u.busy_cycles, 30u);
 }
+
+// Operations reach a unit in the order the simulator meets them, not the order their operands
+// arrive: one waiting on DRAM must not hold up one whose data is already there.
+TEST(PipelinedUnit, AnOperationReadyEarlierDoesNotQueueBehindALaterOne) {
+    PipelinedUnit u(sc_core::sc_gen_unique_name("u"), UnitParams{1, 8, 1});
+    EXPECT_EQ(u.issue(300), 308u);
+    EXPECT_EQ(u.issue(10), 18u);
+    EXPECT_EQ(u.issue(300), 309u);  // this one does wait: cycle 300 is taken
+    EXPECT_EQ(u.queue_cycles, 1u);
+}

@@ -1,0 +1,93 @@
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "models/calendar.h"
+
+using namespace rtsim;
+
+TEST(ReservationCalendar, EarlyRequestsFillGapsLeftByLaterOnes) {
+    ReservationCalendar c(1);
+    EXPECT_EQ(c.reserve(100, 1), 100u);  // a DRAM miss books far ahead...
+    EXPECT_EQ(c.reserve(10, 1), 10u);    // ...and an L1 hit still goes first
+    EXPECT_EQ(c.reserve(100, 1), 101u);
+    EXPECT_EQ(c.reserve(8, 3), 11u);  // cycles 8, 9 are free but 10 is not: the span moves on
+    EXPECT_EQ(c.reserve(8, 2), 8u);
+}
+
+TEST(ReservationCalendar, CapacityIsUsersPerCycle) {
+    ReservationCalendar c(2);
+    EXPECT_EQ(c.reserve(0, 1), 0u);
+    EXPECT_EQ(c.reserve(0, 1), 0u);
+    EXPECT_EQ(c.reserve(0, 1), 1u);
+    EXPECT_EQ(c.reserve(0, 4), 1u);  // cycle 1 has one user, 2..4 none
+    EXPECT_EQ(c.reserve(1, 1), 2u);
+}
+
+// An independent, deliberately simple model: a map of per-cycle counts searched cycle by cycle.
+TEST(ReservationCalendar, MatchesASimpleModelOnRandomRequests) {
+    for (int capacity : {1, 2, 3}) {
+        std::mt19937 rng(uint32_t(7 + capacity));
+        ReservationCalendar c(capacity);
+        std::map<Cycle, int> used;
+        Cycle floor = 0;
+        for (int i = 0; i < 20000; ++i) {
+            floor += rng() % 3;
+            const Cycle ready = floor + rng() % 300;  // up to 300 cycles out of order
+            const Cycle span = 1 + rng() % 3;
+            Cycle start = ready;
+            for (Cycle k = 0; k < span; ++k)
+                if (used[start + k] >= capacity) {
+                    start += k + 1;
+                    k = Cycle(-1);
+                }
+            for (Cycle k = 0; k < span; ++k) ++used[start + k];
+            ASSERT_EQ(c.reserve(ready, span), start) << "request " << i;
+        }
+    }
+}
+
+TEST(ReservationCalendar, FollowingAFloorKeepsTheRingSmall) {
+    TimeFloor floor;
+    ReservationCalendar c(1);
+    c.follow(&floor);
+    const uint64_t late_before = g_calendar_late_requests;
+    for (Cycle t = 0; t < 1000000; t += 2) {
+        floor.cycle = t;
+        c.reserve(t + (t % 7) * 40, 1);  // up to 240 cycles ahead of the floor
+    }
+    EXPECT_LE(c.ring_cycles(), 512u);
+    EXPECT_EQ(g_calendar_late_requests, late_before);
+    // A request behind the floor breaks the promise: served at the floor, and counted.
+    floor.cycle = 2000000;
+    EXPECT_EQ(c.reserve(floor.cycle - 50, 1), floor.cycle);
+    EXPECT_EQ(g_calendar_late_requests, late_before + 1);
+}
+
+TEST(ReservationCalendar, WithoutAFloorTheRingGrowsAndForgetsNothing) {
+    ReservationCalendar c(1);
+    for (Cycle t = 0; t < 5000; ++t) c.reserve(t, 1);
+    EXPECT_GE(c.ring_cycles(), 5000u);
+    EXPECT_EQ(c.reserve(0, 1), 5000u);  // every cycle before is still booked
+}
+
+TEST(BandwidthCalendar, FractionalRatesAreExactOverTime) {
+    BandwidthCalendar link(12.8);
+    Cycle end = 0;
+    for (int i = 0; i < 10; ++i) end = link.transfer(0, 64).second;
+    EXPECT_EQ(end, 50u);  // 640 bytes / 12.8 bytes per cycle
+}
+
+TEST(BandwidthCalendar, TransfersShareCyclesAsAFluid) {
+    BandwidthCalendar link(48.0);
+    EXPECT_EQ(link.transfer(0, 64), std::make_pair(Cycle(0), Cycle(2)));  // 48 + 16 bytes
+    EXPECT_EQ(link.transfer(0, 64), std::make_pair(Cycle(1), Cycle(3)));  // 32 left in cycle 1
+}
+
+TEST(BandwidthCalendar, EarlyTransfersSlipIntoGaps) {
+    BandwidthCalendar link(64.0);
+    EXPECT_EQ(link.transfer(100, 128), std::make_pair(Cycle(100), Cycle(102)));
+    EXPECT_EQ(link.transfer(0, 64), std::make_pair(Cycle(0), Cycle(1)));
+    EXPECT_EQ(link.transfer(99, 128), std::make_pair(Cycle(99), Cycle(103)));  // around 100-101
+}
