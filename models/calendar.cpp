@@ -38,6 +38,14 @@ Cycle settle(Ring& ring, const TimeFloor* floor, Cycle& full_until, Cycle ready)
 
 Cycle ReservationCalendar::reserve(Cycle ready, Cycle span) {
     Cycle start = settle(ring_, floor_, full_until_, ready);
+    if (start >= ring_.end() && start + span - ring_.base() <= ring_.size()) {
+        // Nothing booked from here on (requests mostly come in order): no search.
+        ring_.zero(ring_.end(), start);
+        for (Cycle c = start; c < start + span; ++c) ring_.at(c) = 1;
+        ring_.set_end(start + span);
+        if (full_until_ == start && capacity_ == 1) full_until_ = start + span;
+        return start;
+    }
     // Slide past any full cycle inside the candidate span; cycles from the end on are empty.
     for (Cycle c = start; c < start + span && c < ring_.end(); ++c)
         if (ring_.at(c) >= capacity_) start = c + 1;

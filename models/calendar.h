@@ -10,6 +10,7 @@
 // long, so it lives in the host's caches.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <utility>
 #include <vector>
@@ -43,10 +44,20 @@ class CycleRing {
     void extend(Cycle end) {
         if (end <= end_) return;
         if (end - base_ > counts_.size()) grow(end - base_);
-        for (Cycle c = end_; c < end; ++c) at(c) = 0;
+        zero(end_, end);
         end_ = end;
     }
+    // Empties cycles [from, to), which hold no live cycle's count (at most the ring's size).
+    void zero(Cycle from, Cycle to) {
+        if (from >= to) return;
+        const Cycle a = from & mask_, n = to - from;
+        const Cycle first = std::min<Cycle>(n, counts_.size() - a);  // up to the ring's end
+        std::fill_n(counts_.begin() + Cycle(a), first, Count(0));
+        std::fill_n(counts_.begin(), n - first, Count(0));
+    }
     size_t size() const { return counts_.size(); }
+    // For a caller that wrote the cycles from end() to `end` itself (they fit the ring).
+    void set_end(Cycle end) { end_ = end; }
 
   private:
     void grow(Cycle cycles);
