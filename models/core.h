@@ -137,12 +137,13 @@ class Core : public sc_core::sc_module {
     TimeFloor* shared_floor_ = nullptr;
 };
 
-// Runs a set of cores in global time order: the cores' one SystemC process. It keeps the cores
-// in a min-heap by the cycle of their next shared work and advances the earliest up to the
-// next one's cycle (plus the quantum), so shared blocks see requests in time order at the cost
-// of a heap operation rather than a kernel event. SystemC time follows the earliest core,
-// synchronised every `kKernelSyncCycles` (nothing else in the chip is an active process; the
-// kernel's time serves progress reports and sc_stop).
+// Runs a set of cores in global time order: the cores' one SystemC process. It picks the core
+// whose next shared work is earliest and advances it up to the next one's cycle (plus the
+// quantum), so shared blocks see requests in time order at the cost of a scan of the cores'
+// next cycles rather than a kernel event. It also keeps the shared blocks' time floor (the
+// earliest cycle any running core may still send a request at). SystemC time follows the
+// earliest core, synchronised every `kKernelSyncCycles` (nothing else in the chip is an active
+// process; the kernel's time serves progress reports and sc_stop).
 class CoreScheduler : public sc_core::sc_module {
   public:
     SC_HAS_PROCESS(CoreScheduler);

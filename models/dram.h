@@ -3,7 +3,9 @@
 // tRP + tRCD + tCAS on a row conflict; a bank takes its next column command tCCD after the last
 // (so reads to an open row pipeline); the data then crosses the channel's bus at
 // bytes_per_cycle (the bandwidth cap); latency_cycles covers the controller and interconnect.
-// Passive, like the caches: each bank and bus knows the cycle it is next free.
+// Passive, like the caches: each bank knows the cycle it next takes a command (a bank serves
+// requests in the order they come, as its open row is state); each bus is a calendar, since
+// reads from different banks reach it out of order.
 #pragma once
 
 #include <string>
