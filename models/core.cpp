@@ -228,7 +228,9 @@ void CoreScheduler::run() {
     // kNeverCycle once retired. A few cores: a branch-free scan for the earliest and the next
     // earliest beats a heap.
     const size_t n = cores_.size();
-    std::vector<Cycle> next(n, 0);
+    // A member, not a local: sc_stop() mid-run (a damaged trace) never unwinds this stack.
+    next_.assign(n, 0);
+    Cycle* next = next_.data();
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
     for (;;) {

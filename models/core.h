@@ -163,6 +163,7 @@ class CoreScheduler : public sc_core::sc_module {
     WakeSource* wake_;
     double host_busy_seconds_ = 0;
     TimeFloor floor_;
+    std::vector<Cycle> next_;  // per core: the cycle of its next shared work
     TimeFloor* shared_floor_ = nullptr;
 };
 
