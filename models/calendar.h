@@ -103,7 +103,6 @@ class BandwidthCalendar {
     // Moves `bytes` from `ready` on; returns the cycle the first byte moves and the cycle after
     // the last one did.
     std::pair<Cycle, Cycle> transfer(Cycle ready, uint64_t bytes);
-    size_t ring_cycles() const { return ring_.size(); }
 
   private:
     // Fixed point in 1/10000 byte: rates given to four decimals (12.8 bytes per cycle) are exact.
