@@ -27,45 +27,48 @@ struct TimeFloor {
 };
 
 namespace detail {
-// A counter per cycle of [base, end); later cycles are empty, earlier ones forgotten.
-template <typename Count>
+// A count per cycle of [base, end); all other cycles count zero. A cell holds its cycle beside
+// the count, so a cell left from an earlier lap reads as zero: nothing is ever cleared, and a
+// block that books nothing costs nothing however much time passes.
+template <int kCountBits>
 class CycleRing {
   public:
+    static constexpr uint64_t kMaxCount = (uint64_t(1) << kCountBits) - 1;
     CycleRing();
-    Count& at(Cycle c) { return counts_[c & mask_]; }
+    uint64_t count(Cycle c) const {
+        const uint64_t cell = cells_[c & mask_];
+        return (cell >> kCountBits) == c ? cell & kMaxCount : 0;
+    }
+    void set(Cycle c, uint64_t n) { cells_[c & mask_] = (c << kCountBits) | n; }
     Cycle base() const { return base_; }
     Cycle end() const { return end_; }
+    size_t size() const { return cells_.size(); }
     void forget_before(Cycle floor) {
         if (floor <= base_) return;
         base_ = floor;
         if (end_ < base_) end_ = base_;
     }
-    // Makes the cycles up to `end` (exclusive) part of the ring, empty.
+    // Cycles up to `end` (exclusive) may be booked: grows the ring if they don't fit.
     void extend(Cycle end) {
         if (end <= end_) return;
-        if (end - base_ > counts_.size()) grow(end - base_);
-        zero(end_, end);
+        if (end - base_ > cells_.size()) grow(end - base_);
         end_ = end;
     }
-    // Empties cycles [from, to), which hold no live cycle's count (at most the ring's size).
-    void zero(Cycle from, Cycle to) {
-        if (from >= to) return;
-        const Cycle a = from & mask_, n = to - from;
-        const Cycle first = std::min<Cycle>(n, counts_.size() - a);  // up to the ring's end
-        std::fill_n(counts_.begin() + Cycle(a), first, Count(0));
-        std::fill_n(counts_.begin(), n - first, Count(0));
-    }
-    size_t size() const { return counts_.size(); }
-    // For a caller that wrote the cycles from end() to `end` itself (they fit the ring).
-    void set_end(Cycle end) { end_ = end; }
 
   private:
     void grow(Cycle cycles);
-    std::vector<Count> counts_;
+    std::vector<uint64_t> cells_;  // cycle << kCountBits | count
     Cycle mask_;
     Cycle base_ = 0, end_ = 0;
 };
+
+constexpr int kBandwidthCountBits = 27;
+extern const TimeFloor g_no_floor;  // a floor that never rises: remember everything
 }  // namespace detail
+
+// Calendars count cycles below this (2^37: 137 s of simulated time at 1 GHz); a run that goes
+// past it is refused.
+constexpr Cycle kCalendarCycleLimit = Cycle(1) << (64 - detail::kBandwidthCountBits);
 
 // Requests served before the floor they follow, as if ready at it: a broken promise of the
 // caller, counted over all calendars so runs can check it never happens (stats: sim.late_requests).
@@ -80,17 +83,28 @@ class ReservationCalendar {
     explicit ReservationCalendar(int capacity = 1)
         : capacity_(uint32_t(capacity > 0 ? capacity : 1)) {}
     // Forget the cycles before `floor->cycle` as it rises (nullptr: remember everything).
-    void follow(const TimeFloor* floor) { floor_ = floor; }
+    void follow(const TimeFloor* floor) { floor_ = floor ? floor : &detail::g_no_floor; }
     // Reserves one user for [start, start + span) with the earliest start >= ready at which
     // every cycle of the span has a free user; returns start. span >= 1.
-    Cycle reserve(Cycle ready, Cycle span);
+    Cycle reserve(Cycle ready, Cycle span) {
+        ring_.forget_before(floor_->cycle);
+        if (ready < ring_.base()) {
+            ++g_calendar_late_requests;
+            ready = ring_.base();
+        }
+        if (ready < ring_.end()) return reserve_among_bookings(ready, span);
+        // Nothing booked from `ready` on (requests mostly come in order): no search.
+        ring_.extend(ready + span);
+        for (Cycle c = ready; c < ready + span; ++c) ring_.set(c, 1);
+        return ready;
+    }
     size_t ring_cycles() const { return ring_.size(); }
 
   private:
+    Cycle reserve_among_bookings(Cycle ready, Cycle span);
     uint32_t capacity_;
-    const TimeFloor* floor_ = nullptr;
-    detail::CycleRing<uint16_t> ring_;
-    Cycle full_until_ = 0;  // every cycle of [base, full_until_) is full: searches start here
+    const TimeFloor* floor_ = &detail::g_no_floor;
+    detail::CycleRing<16> ring_;  // cycles below 2^48
 };
 
 // A link moving `bytes_per_cycle` (fractional allowed) as a fluid: a transfer takes what is left
@@ -99,18 +113,36 @@ class ReservationCalendar {
 class BandwidthCalendar {
   public:
     explicit BandwidthCalendar(double bytes_per_cycle);
-    void follow(const TimeFloor* floor) { floor_ = floor; }
+    void follow(const TimeFloor* floor) { floor_ = floor ? floor : &detail::g_no_floor; }
     // Moves `bytes` from `ready` on; returns the cycle the first byte moves and the cycle after
     // the last one did.
-    std::pair<Cycle, Cycle> transfer(Cycle ready, uint64_t bytes);
+    std::pair<Cycle, Cycle> transfer(Cycle ready, uint64_t bytes) {
+        ring_.forget_before(floor_->cycle);
+        if (ready < ring_.base()) {
+            ++g_calendar_late_requests;
+            ready = ring_.base();
+        }
+        const uint64_t units = std::max<uint64_t>(bytes, 1) * kUnitsPerByte;
+        if (ready < ring_.end()) return transfer_among_bookings(ready, units);
+        // An idle link from `ready` on: whole cycles, then the rest.
+        const Cycle whole = units / capacity_units_;
+        const uint32_t rest = uint32_t(units % capacity_units_);
+        const Cycle end = ready + whole + (rest > 0);
+        ring_.extend(end);
+        for (Cycle c = ready; c < ready + whole; ++c) ring_.set(c, capacity_units_);
+        if (rest) ring_.set(end - 1, rest);
+        return {ready, end};
+    }
 
   private:
-    // Fixed point in 1/10000 byte: rates given to four decimals (12.8 bytes per cycle) are exact.
-    static constexpr uint64_t kUnitsPerByte = 10000;
+    std::pair<Cycle, Cycle> transfer_among_bookings(Cycle ready, uint64_t units);
+    // Fixed point in 1/1000 byte: rates given to three decimals (12.8 bytes per cycle) are exact,
+    // and up to 134 kB per cycle fit a cell's count.
+    static constexpr uint64_t kUnitsPerByte = 1000;
     uint32_t capacity_units_;
-    const TimeFloor* floor_ = nullptr;
-    detail::CycleRing<uint32_t> ring_;
-    Cycle full_until_ = 0;
+    const TimeFloor* floor_ = &detail::g_no_floor;
+    detail::CycleRing<detail::kBandwidthCountBits> ring_;
+    Cycle full_until_ = 0;  // every cycle of [base, full_until_) is full: searches start here
 };
 
 }  // namespace rtsim

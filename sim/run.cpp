@@ -15,6 +15,7 @@
 #include <future>
 #include <nlohmann/json.hpp>
 #include <systemc>
+#include <utility>
 
 #include "sim/chip.h"
 #include "sim/config.h"
@@ -176,8 +177,12 @@ class PrefetchingSource : public CountingSource {
 
     // Derived constructors start the first batch; derived destructors call wait() first, so
     // fill() never runs on a half-destroyed object.
-    void prefetch() {
-        pending_ = std::async(std::launch::async, [this] {
+    // `used`: the batch just consumed, destroyed on the helper thread, which allocated its
+    // step vectors (a free on another thread's arena costs the simulation thread a lock).
+    void prefetch() { prefetch(Batch{}); }
+    void prefetch(Batch used) {
+        pending_ = std::async(std::launch::async, [this, used = std::move(used)]() mutable {
+            used = Batch();
             Batch b;
             try {
                 fill(b);
@@ -198,7 +203,7 @@ class PrefetchingSource : public CountingSource {
         while (pos_ == batch_.records.size()) {
             if (!pending_.valid()) return false;
             const auto t0 = Clock::now();
-            batch_ = pending_.get();
+            Batch used = std::exchange(batch_, pending_.get());
             functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
             pos_ = 0;
             if (!batch_.error.empty()) {
@@ -208,7 +213,14 @@ class PrefetchingSource : public CountingSource {
                 return false;
             }
             report_progress(batch_.progress, unit_);
-            if (!batch_.last) prefetch();
+            if (!batch_.last) prefetch(std::move(used));
+        }
+        // The next rays' steps were written on the helper thread: start moving them into this
+        // core's caches before a ray slot needs them.
+        if (pos_ + kPrefetchAheadRays < batch_.records.size()) {
+            const auto& ahead = batch_.records[pos_ + kPrefetchAheadRays].steps;
+            const char* p = reinterpret_cast<const char*>(ahead.data());
+            for (size_t b = 0; b < ahead.size() * sizeof(Step); b += 64) __builtin_prefetch(p + b);
         }
         TraceRecord& r = batch_.records[pos_++];
         work.ray_id = r.ray_id;
@@ -224,6 +236,7 @@ class PrefetchingSource : public CountingSource {
     }
 
   private:
+    static constexpr size_t kPrefetchAheadRays = 4;
     const char* unit_;
     std::future<Batch> pending_;
     Batch batch_;
@@ -575,6 +588,11 @@ int run_command(const RunOptions& opt) {
     const double sim_seconds = std::chrono::duration<double>(Clock::now() - t_sim).count();
     source.finish_progress();
     if (source.failed()) return report_failure(source.failure, source.failure_is_input);
+    if (chip.total_cycles() >= kCalendarCycleLimit)
+        return report_failure(fmt::format("simulated time reached {} cycles, past the {} cycles "
+                                          "the timing models can count",
+                                          chip.total_cycles(), kCalendarCycleLimit),
+                              false);
 
     ReportInputs ri;
     ri.stats = &chip.stats;

@@ -48,6 +48,8 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
         test::FixedLatencyMemory mem(50);
         Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
         ReferenceLru ref(p.sets(), ways, 64);
+        TimeFloor floor;  // requests come in time order: the bank forgets what is behind
+        c.follow(&floor);
         std::mt19937_64 rng(ways);
         // A mix of a hot region (hits) and a cold sweep (conflict and capacity misses).
         uint64_t ref_hits = 0, ref_misses = 0;
@@ -56,6 +58,7 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
             const uint64_t addr = (rng() % 4 == 0) ? (rng() % (1 << 20)) : (rng() % (6 * 1024));
             const uint64_t aligned = addr & ~uint64_t(63);
             (ref.access(aligned) ? ref_hits : ref_misses)++;
+            floor.cycle = t;
             c.access(aligned, 64, t);
             t += 1000;  // fills complete between accesses: pure hit/miss behaviour
         }
