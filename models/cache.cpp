@@ -19,6 +19,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     banks_.assign(size_t(std::max(1, params_.banks)), ReservationCalendar(1));
     bank_mask_ = banks_.size() - 1;  // a power of two (config validates)
+    while ((uint64_t(1) << bank_shift_) < banks_.size()) ++bank_shift_;
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
 }
@@ -30,7 +31,8 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
     // come out of time order (a miss above waited for an MSHR): a bank is a calendar.
     const uint64_t nb = banks_.size();
     for (uint64_t k = 0; k < std::min(lines, nb); ++k) {
-        const Cycle span = (lines - k + nb - 1) / nb;  // lines k, k + nb, ... share a bank
+        const Cycle span =
+            (lines - k + nb - 1) >> bank_shift_;  // lines k, k + nb, ... share a bank
         const Cycle start = banks_[(first + k) & bank_mask_].reserve(now, span);
         bank_conflict_cycles += span * (start - now) + span * (span - 1) / 2;
         for (Cycle j = 0; j < span; ++j) done[k + j * nb] = start + j + params_.hit_latency_cycles;
@@ -106,10 +108,12 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
     AccessBreakdown* bd = breakdown ? &line_bd : nullptr;
     const uint64_t* tag = tags(set);
     const uint64_t* age = &last_use_[set * uint64_t(params_.ways)];
-    // Miss: an invalid way if any, else the policy's victim.
+    // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
+    // ones a later stamp, so the oldest stamp is the first invalid way when there is one.
     int victim = -1;
-    for (int w = 0; w < params_.ways && victim < 0; ++w)
-        if (tag[w] == kNoTag) victim = w;
+    if (params_.replacement == CacheParams::Replacement::Random)
+        for (int w = 0; w < params_.ways && victim < 0; ++w)
+            if (tag[w] == kNoTag) victim = w;
     if (victim < 0) {
         if (params_.replacement == CacheParams::Replacement::Random) {
             rng_ ^= rng_ << 13;

@@ -132,6 +132,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t* set_block_ = nullptr;      // set_storage_ aligned to a host cache line
     std::vector<uint64_t> last_use_;     // per set and way: LRU use or FIFO fill stamp
     uint64_t bank_mask_ = 0;
+    uint32_t bank_shift_ = 0;  // log2 of the bank count
     uint64_t set_mask_;
     uint32_t line_shift_;
     uint64_t use_clock_ = 0;

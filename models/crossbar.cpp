@@ -25,7 +25,11 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
     const Cycle crossing = end - first;
     ++transfers;
     bytes += size_bytes;
-    busy_cycles += ceil_cycles(size_bytes / bytes_per_cycle_);
+    if (size_bytes != last_size_bytes_) {  // nearly always a line: one division per size
+        last_size_bytes_ = size_bytes;
+        last_busy_cycles_ = ceil_cycles(size_bytes / bytes_per_cycle_);
+    }
+    busy_cycles += last_busy_cycles_;
     queue_cycles += wait;
     const Cycle ready = next_->access(addr, size_bytes, now + wait, bd);
     if (bd) bd->cycles[kLevelL2] += wait + crossing;

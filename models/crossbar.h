@@ -29,6 +29,8 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
   private:
     double bytes_per_cycle_;
     BandwidthCalendar link_;
+    uint32_t last_size_bytes_ = 0;
+    Cycle last_busy_cycles_ = 0;
     MemoryPort* next_;
 };
 

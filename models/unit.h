@@ -3,6 +3,7 @@
 // A passive resource calendar: it has no process and costs nothing while idle.
 #pragma once
 
+#include <array>
 #include <string>
 #include <systemc>
 #include <vector>
@@ -45,6 +46,8 @@ class PipelinedUnit : public sc_core::sc_module {
   private:
     UnitParams params_;
     ReservationCalendar calendar_;  // issue slots of the pipelines, cycle by cycle
+    std::array<uint16_t, 257>
+        ops_for_items_{};  // operations for 0..256 items (a BVH node's children)
     TimeSeries* busy_series_ = nullptr;
 };
 
