@@ -2,26 +2,48 @@
 
 #include <algorithm>
 #include <functional>
+#include <stdexcept>
+#include <string>
 
 namespace rtsim {
 
 Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
              int level)
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
-    const uint64_t words = params_.sets() * 2 * uint64_t(params_.ways);
-    set_storage_.assign(words + 8, 0);
-    set_block_ = set_storage_.data();
-    while (reinterpret_cast<uintptr_t>(set_block_) % 64) ++set_block_;
+    block_bytes_ = 16 * uint64_t(params_.ways);
+    set_storage_.assign(params_.sets() * block_bytes_ / 8 + 8, 0);
+    set_blocks_ = reinterpret_cast<char*>(set_storage_.data());
+    while (reinterpret_cast<uintptr_t>(set_blocks_) % 64) set_blocks_ += 8;
     for (uint64_t set = 0; set < params_.sets(); ++set)
         std::fill(tags(set), tags(set) + params_.ways, kNoTag);
-    last_use_.assign(params_.sets() * params_.ways, 0);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
+    while ((uint64_t(1) << set_shift_) < params_.sets()) ++set_shift_;
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     banks_.assign(size_t(std::max(1, params_.banks)), ReservationCalendar(1));
     bank_mask_ = banks_.size() - 1;  // a power of two (config validates)
     while ((uint64_t(1) << bank_shift_) < banks_.size()) ++bank_shift_;
     line_shift_ = 0;
     while ((1u << line_shift_) < params_.line_bytes) ++line_shift_;
+    const uint64_t top_tag = ((params_.address_limit_bytes - 1) >> line_shift_) >> set_shift_;
+    if (top_tag >= kNoTag)
+        throw std::invalid_argument(
+            std::string(name) + ": addresses up to " + std::to_string(params_.address_limit_bytes) +
+            " bytes need tags wider than 32 bits with this cache's sets and lines");
+}
+
+// Stamps only order the ways of a set: replacing them by their rank within the set keeps every
+// decision the same, and frees the 32-bit counter for another four billion uses.
+void Cache::renumber_stamps() {
+    const auto ways = size_t(params_.ways);
+    std::vector<size_t> order(ways);
+    for (uint64_t set = 0; set < params_.sets(); ++set) {
+        uint32_t* st = stamps(set);
+        for (size_t w = 0; w < ways; ++w) order[w] = w;
+        std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return st[a] < st[b]; });
+        uint32_t rank = 0;
+        for (size_t w : order) st[w] = st[w] == 0 ? 0 : ++rank;  // invalid ways keep stamp 0
+    }
+    use_clock_ = uint32_t(ways);
 }
 
 void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
@@ -42,7 +64,7 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
 Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
     ++hits;
     if (params_.replacement == CacheParams::Replacement::Lru)
-        last_use_[set * uint64_t(params_.ways) + uint64_t(way)] = ++use_clock_;  // FIFO: fill order
+        stamps(set)[way] = next_stamp();  // FIFO: fill order
     const Cycle ready = fill_ready(set)[way];
     merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
     return ready;
@@ -106,8 +128,8 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
     }
     AccessBreakdown line_bd;
     AccessBreakdown* bd = breakdown ? &line_bd : nullptr;
-    const uint64_t* tag = tags(set);
-    const uint64_t* age = &last_use_[set * uint64_t(params_.ways)];
+    const uint32_t* tag = tags(set);
+    const uint32_t* age = stamps(set);
     // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
     // ones a later stamp, so the oldest stamp is the first invalid way when there is one.
     int victim = -1;
@@ -123,7 +145,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
         } else {
             // Branch-free: which way is oldest is unpredictable.
             victim = 0;
-            uint64_t oldest = age[0];
+            uint32_t oldest = age[0];
             for (int w = 1; w < params_.ways; ++w) {
                 const bool older = age[w] < oldest;
                 oldest = older ? age[w] : oldest;
@@ -145,9 +167,9 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
     if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
     if (limited) replace_earliest_mshr(ready);
-    tags(set)[victim] = line_addr;
+    tags(set)[victim] = tag_of(line_addr);
     fill_ready(set)[victim] = ready;
-    last_use_[set * uint64_t(params_.ways) + uint64_t(victim)] = ++use_clock_;
+    stamps(set)[victim] = next_stamp();
     slowest.miss(ready, line_bd);
     return ready;
 }

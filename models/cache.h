@@ -6,6 +6,9 @@
 #pragma once
 
 #include <algorithm>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 #include <string>
 #include <systemc>
 #include <utility>
@@ -26,6 +29,9 @@ struct CacheParams {
     enum class Replacement : uint8_t { Lru, Fifo, Random };
     Replacement replacement = Replacement::Lru;
     int banks = 1;  // line-interleaved banks, each starting one lookup per cycle
+    // Addresses stay below this: tags are stored in 32 bits (the constructor refuses a cache
+    // whose tags would not fit).
+    uint64_t address_limit_bytes = uint64_t(1) << 36;
 
     uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
 };
@@ -57,7 +63,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
                  AccessBreakdown* breakdown = nullptr) override;
     void expect(uint64_t addr, uint32_t size_bytes) const override {
         const auto [first, last] = line_range(addr, size_bytes);
-        for (uint64_t line = first; line <= last; ++line) __builtin_prefetch(tags(set_of(line)));
+        for (uint64_t line = first; line <= last; ++line)
+            __builtin_prefetch(set_block(set_of(line)));
     }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
@@ -66,6 +73,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
     // The earliest cycle a lookup may still come at (the requesters' floor).
+    // Tests: start the replacement stamps' counter here (to see it wrap).
+    void set_stamp_clock(uint32_t stamp) { use_clock_ = stamp; }
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
     }
@@ -80,27 +89,54 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     uint64_t bank_conflict_cycles = 0;  // cycles lookups waited for their bank
 
   private:
-    // A set's tags and fill cycles share one block (one host cache line for 4 ways), so a hit
-    // touches one line; replacement ages live apart, read only to choose a victim.
-    static constexpr uint64_t kNoTag = ~uint64_t(0);  // no line address reaches this
+    // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
+    // FIFO fill order), then their fill cycles; 64 bytes for 4 ways, so a lookup touches one
+    // host cache line, which the core prefetches (expect) well before it looks up.
+    static constexpr uint32_t kNoTag = ~uint32_t(0);
     uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
-    uint64_t* tags(uint64_t set) { return set_block_ + set * 2 * uint64_t(params_.ways); }
-    const uint64_t* tags(uint64_t set) const {
-        return set_block_ + set * 2 * uint64_t(params_.ways);
+    uint32_t tag_of(uint64_t line_addr) const { return uint32_t(line_addr >> set_shift_); }
+    char* set_block(uint64_t set) { return set_blocks_ + set * block_bytes_; }
+    const char* set_block(uint64_t set) const { return set_blocks_ + set * block_bytes_; }
+    uint32_t* tags(uint64_t set) { return reinterpret_cast<uint32_t*>(set_block(set)); }
+    uint32_t* stamps(uint64_t set) { return tags(set) + params_.ways; }
+    Cycle* fill_ready(uint64_t set) {
+        return reinterpret_cast<Cycle*>(set_block(set) + 8 * uint64_t(params_.ways));
     }
     // First and last line address a request touches.
     std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
         return {addr >> line_shift_, (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_};
     }
-    Cycle* fill_ready(uint64_t set) { return tags(set) + params_.ways; }
-    // The way holding `line_addr` in `set`, or -1. Scans every way without an early exit: a
-    // data-dependent exit mispredicts on most lookups, the extra compares cost less.
+    // The way holding `line_addr` in its set, or -1. Compares every way without an early exit:
+    // a data-dependent exit mispredicts on most lookups, the extra compares cost less.
     int find_way(uint64_t set, uint64_t line_addr) {
-        const uint64_t* t = tags(set);
+        const uint32_t* t = tags(set);
+        const uint32_t tag = tag_of(line_addr);
+#ifdef __SSE2__
+        if (params_.ways % 4 == 0) {  // four tags per compare; a tag is in at most one way
+            const __m128i key = _mm_set1_epi32(int(tag));
+            for (int base = 0; base < params_.ways; base += 32) {
+                const int n = std::min(32, params_.ways - base);
+                uint32_t hits = 0;
+                for (int w = 0; w < n; w += 4) {
+                    const __m128i four =
+                        _mm_load_si128(reinterpret_cast<const __m128i*>(t + base + w));
+                    const int eq = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(four, key)));
+                    hits |= uint32_t(eq) << w;
+                }
+                if (hits) return base + __builtin_ctz(hits);
+            }
+            return -1;
+        }
+#endif
         int found = -1;
-        for (int w = 0; w < params_.ways; ++w) found = t[w] == line_addr ? w : found;
+        for (int w = 0; w < params_.ways; ++w) found = t[w] == tag ? w : found;
         return found;
     }
+    uint32_t next_stamp() {
+        if (use_clock_ == ~uint32_t(0)) renumber_stamps();
+        return ++use_clock_;
+    }
+    void renumber_stamps();
     void replace_earliest_mshr(Cycle ready);
     // Counts the lookups of lines first..last and waits for their banks, each of which reads
     // its lines of the request back to back; done[k]: the cycle line first + k is looked up.
@@ -128,14 +164,15 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     std::vector<ReservationCalendar> banks_;  // per bank: the cycles it starts a lookup
     uint64_t rng_ = 0x9E3779B97F4A7C15ull;    // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
-    std::vector<uint64_t> set_storage_;  // per set: tags (kNoTag: invalid), then fill cycles
-    uint64_t* set_block_ = nullptr;      // set_storage_ aligned to a host cache line
-    std::vector<uint64_t> last_use_;     // per set and way: LRU use or FIFO fill stamp
+    std::vector<uint64_t> set_storage_;  // the sets' blocks (a tag of kNoTag: an invalid way)
+    char* set_blocks_ = nullptr;         // set_storage_ aligned to a host cache line
+    uint64_t block_bytes_ = 0;
+    uint32_t set_shift_ = 0;  // log2 of the set count: a tag is the line address above it
     uint64_t bank_mask_ = 0;
     uint32_t bank_shift_ = 0;  // log2 of the bank count
     uint64_t set_mask_;
     uint32_t line_shift_;
-    uint64_t use_clock_ = 0;
+    uint32_t use_clock_ = 0;          // the last stamp given; stamps are renumbered before it wraps
     std::vector<Cycle> lookup_done_;  // scratch for requests of many lines
 };
 

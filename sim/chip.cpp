@@ -7,8 +7,12 @@
 namespace rtsim {
 namespace {
 
-CacheParams cache_params(const Config& cfg, const std::string& level) {
+CacheParams cache_params(const Config& cfg, const std::string& level, const BvhLayout& layout) {
     CacheParams p;
+    // Every fetch lies in the layout's node records or triangles.
+    p.address_limit_bytes = std::max(layout.node_addr(layout.inner_node_count),
+                                     layout.tri_addr(layout.triangle_count)) +
+                            1;
     p.size_bytes = uint64_t(cfg.integer(level + ".size_kib")) * 1024;
     p.ways = int(cfg.integer(level + ".ways"));
     p.line_bytes = uint32_t(cfg.integer(level + ".line_bytes"));
@@ -67,7 +71,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     dram = std::make_unique<Dram>("dram", dp);
     dram->register_stats(stats, "dram");
     dram->set_series(series.dram_bytes.get());
-    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2"), dram.get(), kLevelL2);
+    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2", layout), dram.get(), kLevelL2);
     l2->register_stats(stats, "l2");
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
@@ -107,7 +111,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         ray_buffer = std::make_unique<RayBuffer>("ray_buffer", rp, treelet_spans(layout), source);
         ray_buffer->register_stats(stats, "ray_buffer");
     }
-    const CacheParams l1p = cache_params(cfg, "l1");
+    const CacheParams l1p = cache_params(cfg, "l1", layout);
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
     UnitParams tp = unit_params(cfg, "triangle_unit");

@@ -14,15 +14,18 @@ namespace {
 // Deliberately simple LRU reference: one list of line addresses per set, most recent first.
 class ReferenceLru {
   public:
-    ReferenceLru(uint64_t sets, int ways, uint32_t line)
-        : sets_(sets), ways_(ways), line_(line), lists_(sets) {}
+    // lru false: FIFO (a hit leaves the order as it is).
+    ReferenceLru(uint64_t sets, int ways, uint32_t line, bool lru = true)
+        : sets_(sets), ways_(ways), line_(line), lru_(lru), lists_(sets) {}
     bool access(uint64_t addr) {
         const uint64_t line = addr / line_;
         auto& l = lists_[line % sets_];
         for (auto it = l.begin(); it != l.end(); ++it)
             if (*it == line) {
-                l.erase(it);
-                l.push_front(line);
+                if (lru_) {
+                    l.erase(it);
+                    l.push_front(line);
+                }
                 return true;
             }
         l.push_front(line);
@@ -34,6 +37,7 @@ class ReferenceLru {
     uint64_t sets_;
     int ways_;
     uint32_t line_;
+    bool lru_;
     std::vector<std::list<uint64_t>> lists_;
 };
 
@@ -67,6 +71,36 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
         EXPECT_EQ(c.accesses, 200000u);
         EXPECT_EQ(mem.addrs.size(), ref_misses);
         EXPECT_EQ(c.fill_bytes, ref_misses * 64);
+    }
+}
+
+// Replacement stamps are 32 bits: when their counter wraps they are renumbered per set, and
+// every decision stays the reference's.
+TEST(Cache, ReplacementStampsSurviveTheirCounterWrapping) {
+    for (auto policy : {CacheParams::Replacement::Lru, CacheParams::Replacement::Fifo}) {
+        CacheParams p;
+        p.size_bytes = 4 * 1024;
+        p.ways = 4;
+        p.replacement = policy;
+        test::FixedLatencyMemory mem(50);
+        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+        c.set_stamp_clock(~uint32_t(0) - 5000);  // wraps after 5,000 stamps, several times over
+        const bool lru = policy == CacheParams::Replacement::Lru;
+        ReferenceLru ref(p.sets(), p.ways, 64, lru);
+        TimeFloor floor;
+        c.follow(&floor);
+        std::mt19937_64 rng(3);
+        uint64_t ref_hits = 0;
+        Cycle t = 0;
+        for (int i = 0; i < 40000; ++i) {
+            const uint64_t addr = (rng() % (16 * 1024)) & ~uint64_t(63);
+            ref_hits += ref.access(addr);
+            floor.cycle = t;
+            c.access(addr, 64, t);
+            t += 1000;
+            if (i % 9000 == 8999) c.set_stamp_clock(~uint32_t(0) - 100);
+        }
+        EXPECT_EQ(c.hits, ref_hits) << (lru ? "lru" : "fifo");
     }
 }
 
