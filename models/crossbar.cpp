@@ -20,9 +20,10 @@ Cycle ceil_cycles(double x) {
 }  // namespace
 
 Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    const auto [first, end] = link_.transfer(now, size_bytes);
-    const Cycle wait = first - now;
-    const Cycle crossing = end - first;
+    // Requests are small and cross at once; the line crosses when the L2 returns it (a line the
+    // L2 fetches from DRAM holds no bandwidth while it waits).
+    const Cycle returned = next_->access(addr, size_bytes, now, bd);
+    const auto [first, end] = link_.transfer(returned, size_bytes);
     ++transfers;
     bytes += size_bytes;
     if (size_bytes != last_size_bytes_) {  // nearly always a line: one division per size
@@ -30,10 +31,9 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
         last_busy_cycles_ = ceil_cycles(size_bytes / bytes_per_cycle_);
     }
     busy_cycles += last_busy_cycles_;
-    queue_cycles += wait;
-    const Cycle ready = next_->access(addr, size_bytes, now + wait, bd);
-    if (bd) bd->cycles[kLevelL2] += wait + crossing;
-    return ready + crossing;
+    queue_cycles += first - returned;
+    if (bd) bd->cycles[kLevelL2] += end - returned;  // waiting for the link, then crossing
+    return end;
 }
 
 void Crossbar::register_stats(StatsRegistry& reg, const std::string& block) {

@@ -1,7 +1,8 @@
 // The on-chip network between the cores' L1s and the shared L2: a crossbar with a per-cycle
-// bandwidth. Each request reserves its line's transfer at the time it is made (so bandwidth is
-// capped however requests interleave) and its data arrives one transfer time after the L2
-// returns it. Waiting for the crossbar is charged to the L2 level in stall attribution.
+// bandwidth, carrying lines from the L2 to the L1s. A request (a few bytes) crosses at once; its
+// line takes the link when the L2 returns it, as a fluid share of each cycle's bytes (so the cap
+// holds however returns interleave, and a line returned early slips into gaps left by later
+// ones). Waiting for the link and crossing it are charged to the L2 level in stall attribution.
 #pragma once
 
 #include <string>

@@ -234,3 +234,36 @@ TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {
     EXPECT_EQ(x.access(0, 64, 1000, &bd), 1000u + 30 + 2);  // idle: latency plus crossing only
     EXPECT_EQ(bd.cycles[kLevelL2], 2u);
 }
+
+namespace {
+// Lines at or above `slow_from` take `slow` cycles (a DRAM miss in the L2), others `fast`.
+class TwoSpeedMemory : public MemoryPort {
+  public:
+    TwoSpeedMemory(uint64_t slow_from, Cycle fast, Cycle slow)
+        : slow_from_(slow_from), fast_(fast), slow_(slow) {}
+    Cycle access(uint64_t addr, uint32_t, Cycle now, AccessBreakdown* bd) override {
+        const Cycle latency = addr >= slow_from_ ? slow_ : fast_;
+        if (bd) bd->cycles[kLevelDram] += latency;
+        return now + latency;
+    }
+
+  private:
+    uint64_t slow_from_;
+    Cycle fast_, slow_;
+};
+}  // namespace
+
+// A line crosses when the L2 returns it: a line waiting for DRAM holds no bandwidth, and lines
+// returned in another order than requested cross in the order they come back.
+TEST(Crossbar, LinesCrossWhenTheL2ReturnsThem) {
+    TwoSpeedMemory l2(0x10000, 30, 300);
+    Crossbar x("xbar_returns", 16.0, &l2);  // a line crosses in 4 cycles
+    AccessBreakdown slow_bd, fast_bd;
+    EXPECT_EQ(x.access(0x10000, 64, 0, &slow_bd), 304u);  // requested first, back last
+    EXPECT_EQ(x.access(0x0, 64, 1, &fast_bd), 35u);       // not queued behind the DRAM miss
+    EXPECT_EQ(x.access(0x40, 64, 2, nullptr), 36u + 3);   // back at 32: waits for the link
+    EXPECT_EQ(x.queue_cycles, 3u);
+    // The breakdown adds up to the latency: the level below's cycles, then the crossing.
+    EXPECT_EQ(slow_bd.cycles[kLevelDram] + slow_bd.cycles[kLevelL2], 304u);
+    EXPECT_EQ(fast_bd.cycles[kLevelL2], 4u);
+}
