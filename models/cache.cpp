@@ -52,6 +52,12 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
     // One lookup per bank per cycle; waiting for the bank is charged to this level. Lookups
     // come out of time order (a miss above waited for an MSHR): a bank is a calendar.
     const uint64_t nb = banks_.size();
+    if (nb == 1 || lines == 1) {  // one bank reads the lines back to back (the common cases)
+        const Cycle start = banks_[first & bank_mask_].reserve(now, lines);
+        bank_conflict_cycles += lines * (start - now) + lines * (lines - 1) / 2;
+        for (Cycle j = 0; j < lines; ++j) done[j] = start + j + params_.hit_latency_cycles;
+        return;
+    }
     for (uint64_t k = 0; k < std::min(lines, nb); ++k) {
         const Cycle span =
             (lines - k + nb - 1) >> bank_shift_;  // lines k, k + nb, ... share a bank
@@ -127,7 +133,13 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
         return std::max(lookup_done, ready);
     }
     AccessBreakdown line_bd;
-    AccessBreakdown* bd = breakdown ? &line_bd : nullptr;
+    const Cycle ready = fill(set, line_addr, now, lookup_done, breakdown ? &line_bd : nullptr);
+    slowest.miss(ready, line_bd);
+    return ready;
+}
+
+Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done,
+                  AccessBreakdown* bd) {
     const uint32_t* tag = tags(set);
     const uint32_t* age = stamps(set);
     // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
@@ -170,7 +182,6 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
     tags(set)[victim] = tag_of(line_addr);
     fill_ready(set)[victim] = ready;
     stamps(set)[victim] = next_stamp();
-    slowest.miss(ready, line_bd);
     return ready;
 }
 
@@ -203,6 +214,19 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
 Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
     const auto [first, last] = line_range(addr, size_bytes);
+    if (first == last) {  // one line (every request from the level above): no slowest to find
+        Cycle lookup_done;
+        look_up(first, first, now, &lookup_done);
+        const uint64_t set = set_of(first);
+        const int found = find_way(set, first);
+        if (found < 0) return fill(set, first, now, lookup_done, bd);
+        const Cycle ready = std::max(lookup_done, hit(set, found, lookup_done));
+        if (bd) {  // waiting for a fill already in flight is time spent below this level
+            bd->cycles[level_] += lookup_done - now;
+            bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += ready - lookup_done;
+        }
+        return ready;
+    }
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
     // to what the requester's levels already charged.
     if (lookup_done_.size() < last - first + 1) lookup_done_.resize(last - first + 1);

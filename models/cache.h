@@ -156,6 +156,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     };
     Cycle access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                       bool breakdown);
+    // A miss: picks a victim, waits for an MSHR, fetches the line from the next level (adding
+    // its cycles to `bd`); returns the cycle the line is there.
+    Cycle fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done, AccessBreakdown* bd);
 
     CacheParams params_;
     MemoryPort* next_;
