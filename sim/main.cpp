@@ -4,6 +4,7 @@
 #include <cstdlib>
 #include <systemc>
 
+#include "sim/compare.h"
 #include "sim/config.h"
 #include "sim/errors.h"
 #include "sim/run.h"
@@ -49,6 +50,15 @@ int main_impl(int argc, char** argv) {
     info_cmd->add_option("file", info_path, "Trace file (.rtt)")->required();
     info_cmd->add_flag("--json", info_json, "Print the summary as JSON");
 
+    rtsim::CompareOptions compare;
+    CLI::App* compare_cmd = app.add_subcommand(
+        "compare", "Compare runs: their stats.json figures side by side, relative to the first");
+    compare_cmd->add_option("stats", compare.paths, "stats.json files, or run folders holding one")
+        ->required();
+    compare_cmd->add_option("--labels", compare.labels, "A label per run (default A, B, C, ...)")
+        ->delimiter(',');
+    compare_cmd->add_option("--json", compare.json_path, "Also write the comparison as JSON");
+
     std::string cfg_path;
     std::vector<std::string> cfg_sets;
     bool cfg_doc = false;
@@ -83,6 +93,7 @@ int main_impl(int argc, char** argv) {
             return rtsim::trace_command(trace);
         }
         if (*info_cmd) return rtsim::trace_info_command(info_path, info_json);
+        if (*compare_cmd) return rtsim::compare_command(compare);
         if (*cfg_cmd) {
             if (cfg_doc) {
                 fmt::print("{}", rtsim::config_reference_markdown());

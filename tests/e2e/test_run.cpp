@@ -186,7 +186,7 @@ TEST(Run, BadCommandLinesExitTwo) {
 }
 
 TEST(Run, HelpOnEveryCommand) {
-    for (const char* c : {"--help", "run --help", "config --help"}) {
+    for (const char* c : {"--help", "run --help", "config --help", "compare --help"}) {
         const Result r = run_rtsim(c);
         EXPECT_EQ(r.status, 0) << c;
         EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -733,4 +733,48 @@ TEST(TreeletMode, DedicatedTreeletCacheServesTheBatches) {
                                     "/configs/treelet.json' --res 8x8 --set "
                                     "traversal.treelet_cache_kib=8 --set l1.split=true"),
                           "treelet_cache_kib");
+}
+
+// Two designs on the same rays, compared as an architect would.
+TEST(Compare, TwoRunsSideBySide) {
+    const fs::path a = work_dir() / "compare_small_l1";
+    const fs::path b = work_dir() / "compare_big_l1";
+    const std::string args = "run -q --rays primary,ao --res 32x32 --set core.count=2";
+    ASSERT_EQ(run_rtsim(args + " --set l1.size_kib=4 --out '" + a.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(args + " --set l1.size_kib=64 --out '" + b.string() + "'").status, 0);
+    const fs::path table = work_dir() / "compare.json";
+    const Result r =
+        run_rtsim(fmt::format("compare '{}' '{}/stats.json' --labels small,big --json '{}'",
+                              a.string(), b.string(), table.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("config: l1.size_kib"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("4 | 64"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find("big vs small"), std::string::npos) << r.out;
+    // Only the L1 size differs: the JSON lists that one setting, and the bigger L1 hits more.
+    const json j = json::parse(std::ifstream(table));
+    EXPECT_EQ(j["differences"].size(), 1u) << j["differences"].dump();
+    const json sa = stats_of(a), sb = stats_of(b);
+    bool found = false;
+    for (const auto& m : j["metrics"]) {
+        if (m["name"] != "L1 hit rate") continue;
+        found = true;
+        EXPECT_DOUBLE_EQ(m["values"][0].get<double>(),
+                         sa["caches"]["l1_total"]["hit_rate"].get<double>());
+        EXPECT_DOUBLE_EQ(m["values"][1].get<double>(),
+                         sb["caches"]["l1_total"]["hit_rate"].get<double>());
+        EXPECT_GT(m["relative"][1].get<double>(), 0.0);
+    }
+    EXPECT_TRUE(found);
+}
+
+TEST(Compare, BadInputExitsTwoWithOneLineAndWritesNothing) {
+    const fs::path other = work_dir() / "not_stats.json";
+    std::ofstream(other) << "{\"hello\": 1}";
+    const fs::path table = work_dir() / "never.json";
+    expect_one_line_error(run_rtsim(fmt::format("compare '{}' '{}' --json '{}'", other.string(),
+                                                other.string(), table.string())),
+                          other.string() + ": not an rtsim stats.json");
+    EXPECT_FALSE(fs::exists(table));
+    expect_one_line_error(run_rtsim(fmt::format("compare '{}'", other.string())), "at least two");
+    EXPECT_EQ(run_rtsim("compare").status, 2);
 }

@@ -1,0 +1,291 @@
+#include "sim/compare.h"
+
+#include <fmt/format.h>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <sstream>
+
+#include "workloads/error.h"
+#include "workloads/output_file.h"
+
+namespace rtsim {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+
+// The number at `pointer` (a JSON pointer such as /bandwidth/dram/bytes), or NaN.
+double number_at(const json& j, const char* pointer) {
+    const json::json_pointer p(pointer);
+    if (!j.contains(p)) return kNone;
+    const json& v = j.at(p);
+    return v.is_number() ? v.get<double>() : kNone;
+}
+
+// `field` averaged over the sections of `group` whose name starts with `prefix` ("box_unit[").
+double mean_over(const json& j, const char* group, const std::string& prefix, const char* field) {
+    if (!j.contains(group) || !j[group].is_object()) return kNone;
+    double sum = 0;
+    int n = 0;
+    for (const auto& [name, section] : j[group].items())
+        if (name.rfind(prefix, 0) == 0 && section.is_object() && section.contains(field) &&
+            section[field].is_number()) {
+            sum += section[field].get<double>();
+            ++n;
+        }
+    return n ? sum / n : kNone;
+}
+
+double per_ray(const json& j, const char* pointer) {
+    const double rays = number_at(j, "/rays/total");
+    return rays > 0 ? number_at(j, pointer) / rays : kNone;
+}
+
+// "a.b.c" -> value text, for every leaf of a config object.
+void flatten(const json& j, const std::string& prefix, std::map<std::string, std::string>& out) {
+    if (j.is_object()) {
+        for (const auto& [k, v] : j.items()) flatten(v, prefix.empty() ? k : prefix + "." + k, out);
+    } else {
+        out[prefix] = j.is_string() ? j.get<std::string>() : j.dump();
+    }
+}
+
+struct Metric {
+    const char* name;
+    Comparison::Relative relative;
+    bool percent;
+    std::function<double(const json&)> value;
+};
+
+std::vector<Metric> metrics() {
+    using R = Comparison::Relative;
+    auto at = [](const char* p) { return [p](const json& j) { return number_at(j, p); }; };
+    auto share = [](const char* cause) {
+        const std::string p = std::string("/stalls/total/share/") + cause;
+        return [p](const json& j) { return number_at(j, p.c_str()); };
+    };
+    return {
+        {"cycles", R::Ratio, false, at("/total_cycles")},
+        {"simulated Mrays/s", R::Ratio, false,
+         [](const json& j) { return number_at(j, "/rays_per_second") / 1e6; }},
+        {"rays", R::Ratio, false, at("/rays/total")},
+        {"steps per ray", R::Ratio, false, [](const json& j) { return per_ray(j, "/rays/steps"); }},
+        {"L1 hit rate", R::Points, true, at("/caches/l1_total/hit_rate")},
+        {"L2 hit rate", R::Points, true, at("/caches/l2/hit_rate")},
+        {"L2->L1 bytes per ray", R::Ratio, false,
+         [](const json& j) { return per_ray(j, "/bandwidth/l2/bytes"); }},
+        {"DRAM bytes per ray", R::Ratio, false,
+         [](const json& j) { return per_ray(j, "/bandwidth/dram/bytes"); }},
+        {"DRAM GB/s", R::Ratio, false, at("/bandwidth/dram/gbps")},
+        {"DRAM utilisation", R::Points, true, at("/bandwidth/dram/utilization")},
+        {"DRAM row hit rate", R::Points, true, at("/bandwidth/dram/row_hit_rate")},
+        {"crossbar utilisation", R::Points, true, at("/bandwidth/crossbar/utilization")},
+        {"box unit utilisation", R::Points, true,
+         [](const json& j) { return mean_over(j, "units", "box_unit[", "utilization"); }},
+        {"triangle unit utilisation", R::Points, true,
+         [](const json& j) { return mean_over(j, "units", "triangle_unit[", "utilization"); }},
+        {"stall: issue", R::Points, true, share("issue")},
+        {"stall: L1", R::Points, true, share("l1")},
+        {"stall: L2", R::Points, true, share("l2")},
+        {"stall: DRAM", R::Points, true, share("dram")},
+        {"stall: box unit", R::Points, true, share("box_unit")},
+        {"stall: triangle unit", R::Points, true, share("triangle_unit")},
+        {"stall: ray buffer", R::Points, true, share("ray_buffer")},
+        {"stall: no work", R::Points, true, share("no_work")},
+        {"host: simulated Mrays/host s", R::Ratio, false,
+         [](const json& j) { return number_at(j, "/host/simulated_rays_per_host_second") / 1e6; }},
+    };
+}
+
+std::string format_value(double v, bool percent) {
+    if (std::isnan(v)) return "-";
+    if (percent) return fmt::format("{:.1f}%", 100 * v);
+    const double a = std::fabs(v);
+    if (a < 1000) return fmt::format("{:.4g}", v);
+    std::string s = fmt::format("{:.0f}", a);  // counts and large figures: digits grouped
+    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
+    return v < 0 ? "-" + s : s;
+}
+
+std::string format_relative(double first, double v, const Comparison::Row& row) {
+    if (std::isnan(first) || std::isnan(v)) return "-";
+    if (row.relative == Comparison::Relative::Points)
+        return fmt::format("{:+.1f} pts", 100 * (v - first));
+    if (first == 0) return v == 0 ? "1.000x" : "-";
+    return fmt::format("{:.3f}x", v / first);
+}
+
+}  // namespace
+
+ComparedRun load_compared_run(const std::string& path, const std::string& label) {
+    std::string file = path;
+    std::error_code ec;
+    if (fs::is_directory(path, ec)) file = (fs::path(path) / "stats.json").string();
+    std::ifstream in(file, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open", file));
+    std::stringstream text;
+    text << in.rdbuf();
+    ComparedRun run{label, file, json()};
+    try {
+        run.stats = json::parse(text.str());
+    } catch (const json::parse_error& e) {
+        throw InputError(fmt::format("{}: not JSON (byte {})", file, e.byte));
+    }
+    for (const char* key : {"total_cycles", "rays", "config"})
+        if (!run.stats.is_object() || !run.stats.contains(key))
+            throw InputError(fmt::format("{}: not an rtsim stats.json (no \"{}\")", file, key));
+    return run;
+}
+
+Comparison compare_runs(std::vector<ComparedRun> runs) {
+    Comparison c;
+    c.runs = std::move(runs);
+    // Settings in which the runs differ: config fields, then what was simulated.
+    std::vector<std::map<std::string, std::string>> settings(c.runs.size());
+    for (size_t r = 0; r < c.runs.size(); ++r) {
+        const json& s = c.runs[r].stats;
+        std::map<std::string, std::string> config;
+        flatten(s["config"], "", config);
+        for (auto& [k, v] : config) settings[r]["config: " + k] = v;
+        if (s.contains("workload")) {
+            std::map<std::string, std::string> workload;
+            flatten(s["workload"], "", workload);
+            for (auto& [k, v] : workload) settings[r]["workload: " + k] = v;
+        }
+        for (const char* k : {"name", "hash"})
+            if (s.contains("scene") && s["scene"].contains(k))
+                settings[r][std::string("scene: ") + k] = s["scene"][k].is_string()
+                                                              ? s["scene"][k].get<std::string>()
+                                                              : s["scene"][k].dump();
+        settings[r]["traversal mode"] = s.value("traversal_mode", std::string("-"));
+    }
+    std::map<std::string, bool> keys;
+    for (const auto& m : settings)
+        for (const auto& kv : m) keys[kv.first] = true;
+    for (const auto& [key, unused] : keys) {
+        std::vector<std::string> values;
+        bool differs = false;
+        for (const auto& m : settings) {
+            const auto it = m.find(key);
+            values.push_back(it == m.end() ? "-" : it->second);
+            differs = differs || values.back() != values.front();
+        }
+        if (differs) c.differences.emplace_back(key, std::move(values));
+    }
+    for (const Metric& m : metrics()) {
+        Comparison::Row row{m.name, m.relative, m.percent, {}};
+        bool any = false;
+        for (const auto& run : c.runs) {
+            row.values.push_back(m.value(run.stats));
+            any = any || !std::isnan(row.values.back());
+        }
+        if (any) c.rows.push_back(std::move(row));
+    }
+    return c;
+}
+
+std::string format_comparison(const Comparison& c) {
+    std::string out;
+    size_t label_width = 0;
+    for (const auto& run : c.runs) label_width = std::max(label_width, run.label.size());
+    for (const auto& run : c.runs)
+        out += fmt::format("{:<{}}  {}\n", run.label, label_width, run.path);
+    if (c.differences.empty()) {
+        out += "\nThe runs share every config field and workload setting.\n";
+    } else {
+        out += "\nDiffering settings:\n";
+        for (const auto& [key, values] : c.differences) {
+            std::string line = fmt::format("  {:<34}", key);
+            for (size_t r = 0; r < values.size(); ++r)
+                line += fmt::format("{}{}", r ? " | " : "", values[r]);
+            out += line + "\n";
+        }
+    }
+    // Columns: metric, each run's value, then each later run relative to the first.
+    std::vector<std::vector<std::string>> table;
+    std::vector<std::string> head{"metric"};
+    for (const auto& run : c.runs) head.push_back(run.label);
+    for (size_t r = 1; r < c.runs.size(); ++r)
+        head.push_back(fmt::format("{} vs {}", c.runs[r].label, c.runs[0].label));
+    table.push_back(head);
+    for (const auto& row : c.rows) {
+        std::vector<std::string> cells{row.name};
+        for (double v : row.values) cells.push_back(format_value(v, row.percent));
+        for (size_t r = 1; r < row.values.size(); ++r)
+            cells.push_back(format_relative(row.values[0], row.values[r], row));
+        table.push_back(std::move(cells));
+    }
+    std::vector<size_t> width(head.size(), 0);
+    for (const auto& cells : table)
+        for (size_t k = 0; k < cells.size(); ++k) width[k] = std::max(width[k], cells[k].size());
+    out += "\n";
+    for (const auto& cells : table) {
+        std::string line = fmt::format("{:<{}}", cells[0], width[0]);
+        for (size_t k = 1; k < cells.size(); ++k)
+            line += fmt::format("  {:>{}}", cells[k], width[k]);
+        out += line + "\n";
+    }
+    out +=
+        "\nvs: ratio to the first run, or the difference in percentage points (pts).\n"
+        "host: wall-clock timing of the machine that ran the run, not a simulated result.\n";
+    return out;
+}
+
+json comparison_json(const Comparison& c) {
+    json out;
+    out["runs"] = json::array();
+    for (const auto& run : c.runs)
+        out["runs"].push_back({{"label", run.label}, {"path", run.path}});
+    out["differences"] = json::object();
+    for (const auto& [key, values] : c.differences) out["differences"][key] = values;
+    out["metrics"] = json::array();
+    for (const auto& row : c.rows) {
+        json values = json::array(), relative = json::array();
+        for (size_t r = 0; r < row.values.size(); ++r) {
+            const double v = row.values[r], first = row.values[0];
+            values.push_back(std::isnan(v) ? json(nullptr) : json(v));
+            const bool known = !std::isnan(v) && !std::isnan(first);
+            if (row.relative == Comparison::Relative::Points)
+                relative.push_back(known ? json(v - first) : json(nullptr));
+            else
+                relative.push_back(known && first != 0 ? json(v / first) : json(nullptr));
+        }
+        out["metrics"].push_back(
+            {{"name", row.name},
+             {"values", values},
+             {"relative", relative},
+             {"relative_kind",
+              row.relative == Comparison::Relative::Points ? "difference" : "ratio"}});
+    }
+    return out;
+}
+
+int compare_command(const CompareOptions& opt) {
+    if (opt.paths.size() < 2)
+        throw InputError(
+            fmt::format("compare: needs at least two stats files, got {}", opt.paths.size()));
+    if (!opt.labels.empty() && opt.labels.size() != opt.paths.size())
+        throw InputError(fmt::format("--labels: {} labels for {} stats files", opt.labels.size(),
+                                     opt.paths.size()));
+    std::vector<ComparedRun> runs;
+    for (size_t i = 0; i < opt.paths.size(); ++i) {
+        const std::string label = opt.labels.empty() ? (i < 26 ? std::string(1, char('A' + i))
+                                                               : fmt::format("R{}", i + 1))
+                                                     : opt.labels[i];
+        runs.push_back(load_compared_run(opt.paths[i], label));
+    }
+    const Comparison c = compare_runs(std::move(runs));
+    if (!opt.json_path.empty()) write_file_atomically(opt.json_path, comparison_json(c).dump(1));
+    fmt::print("{}", format_comparison(c));
+    return 0;
+}
+
+}  // namespace rtsim

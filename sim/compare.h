@@ -1,0 +1,45 @@
+// rtsim compare: the figures of several runs' stats.json side by side, each relative to the
+// first run, with the config fields and workload settings in which the runs differ.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace rtsim {
+
+struct CompareOptions {
+    std::vector<std::string> paths;   // stats.json files, or folders holding one
+    std::vector<std::string> labels;  // one per path; default A, B, C, ...
+    std::string json_path;            // also write the comparison as JSON here
+};
+
+// One run's stats as read from disk. Throws InputError naming the file for anything that is
+// not a readable rtsim stats.json.
+struct ComparedRun {
+    std::string label, path;
+    nlohmann::json stats;
+};
+ComparedRun load_compared_run(const std::string& path, const std::string& label);
+
+struct Comparison {
+    enum class Relative { Ratio, Points };  // run / first, or run - first in percentage points
+    struct Row {
+        std::string name;
+        Relative relative = Relative::Ratio;
+        bool percent = false;        // a fraction shown as a percentage
+        std::vector<double> values;  // per run; NaN where the run has no such figure
+    };
+    std::vector<ComparedRun> runs;
+    // Settings that differ between runs: "config: l1.size_kib" -> its value in each run.
+    std::vector<std::pair<std::string, std::vector<std::string>>> differences;
+    std::vector<Row> rows;
+};
+
+Comparison compare_runs(std::vector<ComparedRun> runs);
+std::string format_comparison(const Comparison& c);
+nlohmann::json comparison_json(const Comparison& c);
+
+int compare_command(const CompareOptions& opt);
+
+}  // namespace rtsim
