@@ -105,15 +105,25 @@ std::vector<Metric> metrics() {
     };
 }
 
-std::string format_value(double v, bool percent) {
+}  // namespace
+
+std::string format_figure(double v, bool percent) {
     if (std::isnan(v)) return "-";
     if (percent) return fmt::format("{:.1f}%", 100 * v);
     const double a = std::fabs(v);
-    if (a < 1000) return fmt::format("{:.4g}", v);
+    if (a < 1000) return fmt::format("{:#.4g}", v);
     std::string s = fmt::format("{:.0f}", a);  // counts and large figures: digits grouped
     for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
     return v < 0 ? "-" + s : s;
 }
+
+std::vector<Figure> key_figures(const json& stats) {
+    std::vector<Figure> out;
+    for (const Metric& m : metrics()) out.push_back({m.name, m.value(stats), m.percent});
+    return out;
+}
+
+namespace {
 
 std::string format_relative(double first, double v, const Comparison::Row& row) {
     if (std::isnan(first) || std::isnan(v)) return "-";
@@ -218,7 +228,7 @@ std::string format_comparison(const Comparison& c) {
     table.push_back(head);
     for (const auto& row : c.rows) {
         std::vector<std::string> cells{row.name};
-        for (double v : row.values) cells.push_back(format_value(v, row.percent));
+        for (double v : row.values) cells.push_back(format_figure(v, row.percent));
         for (size_t r = 1; r < row.values.size(); ++r)
             cells.push_back(format_relative(row.values[0], row.values[r], row));
         table.push_back(std::move(cells));

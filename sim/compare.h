@@ -37,6 +37,16 @@ struct Comparison {
 };
 
 Comparison compare_runs(std::vector<ComparedRun> runs);
+
+// The figures compare shows, read from one stats.json (NaN where the run has none), and how
+// one is printed.
+struct Figure {
+    std::string name;
+    double value;
+    bool percent;  // a fraction, shown as a percentage
+};
+std::vector<Figure> key_figures(const nlohmann::json& stats);
+std::string format_figure(double value, bool percent);
 std::string format_comparison(const Comparison& c);
 nlohmann::json comparison_json(const Comparison& c);
 

@@ -8,6 +8,7 @@
 #include "sim/config.h"
 #include "sim/errors.h"
 #include "sim/run.h"
+#include "sim/sweep.h"
 #include "sim/trace_cmd.h"
 #include "sim/trace_info.h"
 #include "workloads/error.h"
@@ -59,6 +60,16 @@ int main_impl(int argc, char** argv) {
         ->delimiter(',');
     compare_cmd->add_option("--json", compare.json_path, "Also write the comparison as JSON");
 
+    rtsim::SweepOptions sweep;
+    CLI::App* sweep_cmd = app.add_subcommand(
+        "sweep", "Simulate one workload on every combination of config values; one results table");
+    sweep_cmd
+        ->add_option("file", sweep.path, "Sweep file (JSON: config, set, workload or trace, vary)")
+        ->required();
+    sweep_cmd->add_option("--out,-o", sweep.out_dir,
+                          "Output folder (default: a fresh folder under out/)");
+    sweep_cmd->add_option("-j,--jobs", sweep.jobs, "Runs at once")->capture_default_str();
+
     std::string cfg_path;
     std::vector<std::string> cfg_sets;
     bool cfg_doc = false;
@@ -94,6 +105,7 @@ int main_impl(int argc, char** argv) {
         }
         if (*info_cmd) return rtsim::trace_info_command(info_path, info_json);
         if (*compare_cmd) return rtsim::compare_command(compare);
+        if (*sweep_cmd) return rtsim::sweep_command(sweep);
         if (*cfg_cmd) {
             if (cfg_doc) {
                 fmt::print("{}", rtsim::config_reference_markdown());

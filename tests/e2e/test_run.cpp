@@ -186,7 +186,8 @@ TEST(Run, BadCommandLinesExitTwo) {
 }
 
 TEST(Run, HelpOnEveryCommand) {
-    for (const char* c : {"--help", "run --help", "config --help", "compare --help"}) {
+    for (const char* c :
+         {"--help", "run --help", "config --help", "compare --help", "sweep --help"}) {
         const Result r = run_rtsim(c);
         EXPECT_EQ(r.status, 0) << c;
         EXPECT_NE(r.out.find("Usage"), std::string::npos) << c;
@@ -777,4 +778,57 @@ TEST(Compare, BadInputExitsTwoWithOneLineAndWritesNothing) {
     EXPECT_FALSE(fs::exists(table));
     expect_one_line_error(run_rtsim(fmt::format("compare '{}'", other.string())), "at least two");
     EXPECT_EQ(run_rtsim("compare").status, 2);
+}
+
+// A sweep as a user runs it: two points on two jobs, one table, each point's full stats.
+TEST(Sweep, RunsEveryPointAndWritesOneTable) {
+    const fs::path file = work_dir() / "sweep_ways.json";
+    std::ofstream(file) << R"({"workload": {"rays": "primary", "res": "24x24"},
+                               "set": {"core.count": 2},
+                               "vary": {"l1.ways": [1, 8]}})";
+    const fs::path out = work_dir() / "sweep_out";
+    const Result r = run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}'", file.string(), out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json table = json::parse(std::ifstream(out / "results.json"));
+    ASSERT_EQ(table["points"].size(), 2u);
+    for (size_t i = 0; i < 2; ++i) {
+        const json& p = table["points"][i];
+        EXPECT_EQ(p["values"]["l1.ways"], i == 0 ? "1" : "8");
+        const json s = stats_of(out / p["point"].get<std::string>());
+        EXPECT_EQ(s["config"]["l1"]["ways"], i == 0 ? 1 : 8);
+        EXPECT_EQ(s["config"]["core"]["count"], 2);
+        EXPECT_EQ(p["figures"]["cycles"].get<double>(), s["total_cycles"].get<double>());
+    }
+    // The same rays on both points; the table lists them in order, and the CSV has a line each.
+    EXPECT_EQ(stats_of(out / table["points"][0]["point"].get<std::string>())["rays"],
+              stats_of(out / table["points"][1]["point"].get<std::string>())["rays"]);
+    std::ifstream csv(out / "results.csv");
+    int lines = 0;
+    for (std::string line; std::getline(csv, line);) ++lines;
+    EXPECT_EQ(lines, 3);
+    EXPECT_NE(r.out.find("l1.ways"), std::string::npos) << r.out;
+}
+
+TEST(Sweep, BadSweepExitsTwoAndRunsNothing) {
+    const fs::path file = work_dir() / "sweep_bad.json";
+    std::ofstream(file) << R"({"vary": {"l1.size_kib": [8, 12]}})";
+    const fs::path out = work_dir() / "sweep_never";
+    expect_one_line_error(run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), out.string())),
+                          file.string() + ": point 001_l1.size_kib=12");
+    EXPECT_FALSE(fs::exists(out));
+}
+
+TEST(Sweep, AFailedRunIsReportedAndNoTableWritten) {
+    const fs::path trace = work_dir() / "garbage.rtt";
+    std::ofstream(trace) << "not a trace";
+    const fs::path file = work_dir() / "sweep_garbage.json";
+    std::ofstream(file) << fmt::format(R"({{"trace": "{}", "vary": {{"l1.ways": [2, 4]}}}})",
+                                       trace.string());
+    const fs::path out = work_dir() / "sweep_failed";
+    const Result r = run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), out.string()));
+    EXPECT_EQ(r.status, 1);
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_NE(r.err.find("failed (status 2): rtsim: error: " + trace.string()), std::string::npos)
+        << r.err;
+    EXPECT_FALSE(fs::exists(out / "results.json"));
 }

@@ -1,0 +1,317 @@
+#include "sim/sweep.h"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include "sim/compare.h"
+#include "sim/config.h"
+#include "sim/run.h"
+#include "workloads/error.h"
+#include "workloads/output_file.h"
+
+extern char** environ;
+
+namespace rtsim {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+// `rtsim run`'s ray options a sweep's "workload" may set.
+const char* const kWorkloadKeys[] = {"scene", "rays",       "res",       "spp",          "seed",
+                                     "light", "ao_samples", "ao_length", "diffuse_depth"};
+
+std::string value_text(const json& v) {
+    return v.is_string() ? v.get<std::string>() : v.dump();
+}
+
+// A folder-name-safe rendering of a point's values.
+std::string point_name(size_t index, const std::vector<std::pair<std::string, std::string>>& vals) {
+    std::string name = fmt::format("{:03}", index);
+    for (const auto& [k, v] : vals) {
+        std::string part = k + "=" + v;
+        for (char& ch : part)
+            if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '.' && ch != '=' &&
+                ch != '-' && ch != '_')
+                ch = '_';
+        name += "_" + part;
+    }
+    return name;
+}
+
+// The table's columns: the figures that tell designs apart at a glance.
+const char* const kTableFigures[] = {"cycles",      "simulated Mrays/s",    "L1 hit rate",
+                                     "L2 hit rate", "L2->L1 bytes per ray", "DRAM bytes per ray"};
+
+std::string fresh_sweep_dir(const std::string& stem) {
+    for (int i = 0;; ++i) {
+        const std::string d = fmt::format("out/sweep-{}{}", stem, i ? fmt::format("-{}", i) : "");
+        if (!fs::exists(d)) return d;
+    }
+}
+
+std::string first_line_of(const fs::path& file) {
+    std::ifstream in(file);
+    std::string line;
+    std::getline(in, line);
+    return line.empty() ? "(no message)" : line;
+}
+
+}  // namespace
+
+SweepPlan plan_sweep(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open", path));
+    std::stringstream text;
+    text << in.rdbuf();
+    json s;
+    try {
+        s = json::parse(text.str());
+    } catch (const json::parse_error& e) {
+        throw InputError(fmt::format("{}: not JSON (byte {})", path, e.byte));
+    }
+    auto fail = [&](const std::string& what) {
+        throw InputError(fmt::format("{}: {}", path, what));
+    };
+    if (!s.is_object()) fail("expected an object");
+    for (const auto& [k, v] : s.items())
+        if (k != "config" && k != "set" && k != "workload" && k != "trace" && k != "vary")
+            fail(fmt::format("{}: unknown key (expected config, set, workload, trace, vary)", k));
+    const fs::path dir = fs::path(path).parent_path();
+    auto relative = [&](const std::string& p) {
+        return fs::path(p).is_absolute() ? p : (dir / p).lexically_normal().string();
+    };
+
+    std::vector<std::string> common;  // arguments every point shares
+    std::string base_config;
+    if (s.contains("config")) {
+        if (!s["config"].is_string()) fail("config: expected a file name string");
+        base_config = relative(s["config"].get<std::string>());
+        common.insert(common.end(), {"--config", base_config});
+    }
+    std::vector<std::string> fixed_sets;
+    if (s.contains("set")) {
+        if (!s["set"].is_object()) fail("set: expected an object of KEY: value");
+        for (const auto& [k, v] : s["set"].items()) fixed_sets.push_back(k + "=" + v.dump());
+    }
+    if (s.contains("trace") && s.contains("workload"))
+        fail("trace and workload: give one (a trace fixes the scene and rays)");
+    if (s.contains("trace")) {
+        if (!s["trace"].is_string()) fail("trace: expected a file name string");
+        const std::string trace = relative(s["trace"].get<std::string>());
+        if (!fs::is_regular_file(trace)) fail(fmt::format("trace: {}: no such file", trace));
+        common.insert(common.end(), {"--trace", trace});
+    } else {
+        WorkloadOptions w;
+        if (s.contains("workload")) {
+            if (!s["workload"].is_object()) fail("workload: expected an object");
+            for (const auto& [k, v] : s["workload"].items()) {
+                if (std::find(std::begin(kWorkloadKeys), std::end(kWorkloadKeys), k) ==
+                    std::end(kWorkloadKeys))
+                    fail(fmt::format("workload.{}: unknown key", k));
+                if (!v.is_string() && !v.is_number())
+                    fail(fmt::format("workload.{}: expected a string or a number", k));
+                std::string flag = "--" + k;
+                std::replace(flag.begin(), flag.end(), '_', '-');
+                common.insert(common.end(), {flag, value_text(v)});
+            }
+            // Checked as rtsim run would, before any point starts.
+            const json& wl = s["workload"];
+            auto text_of = [&](const char* k, std::string& out) {
+                if (wl.contains(k)) out = value_text(wl[k]);
+            };
+            text_of("scene", w.scene);
+            text_of("rays", w.rays);
+            text_of("res", w.res);
+            text_of("light", w.light);
+            try {
+                if (wl.contains("spp")) w.gen.spp = wl["spp"].get<int>();
+                if (wl.contains("seed")) w.gen.seed = wl["seed"].get<uint32_t>();
+                if (wl.contains("ao_samples")) w.gen.ao_samples = wl["ao_samples"].get<int>();
+                if (wl.contains("ao_length"))
+                    w.gen.ao_length_fraction = wl["ao_length"].get<float>();
+                if (wl.contains("diffuse_depth"))
+                    w.gen.diffuse_depth = wl["diffuse_depth"].get<int>();
+            } catch (const json::exception&) {
+                fail("workload: spp, seed, ao_samples, ao_length and diffuse_depth are numbers");
+            }
+            try {
+                w.resolve();
+            } catch (const InputError& e) {
+                fail(fmt::format("workload: {}", e.what()));
+            }
+            if (w.scene.rfind("builtin:", 0) != 0 && !fs::is_regular_file(w.scene))
+                fail(fmt::format("workload.scene: {}: no such file", w.scene));
+        }
+    }
+
+    if (!s.contains("vary") || !s["vary"].is_object() || s["vary"].empty())
+        fail("vary: expected an object of KEY: [values], e.g. {\"l1.size_kib\": [16, 32, 64]}");
+    SweepPlan plan;
+    std::vector<std::vector<json>> axes;
+    for (const auto& [k, v] : s["vary"].items()) {
+        if (!v.is_array() || v.empty())
+            fail(fmt::format("vary.{}: expected a non-empty array of values", k));
+        plan.keys.push_back(k);
+        axes.emplace_back(v.begin(), v.end());
+    }
+    // Every combination, the last key varying fastest.
+    size_t count = 1;
+    for (const auto& a : axes) count *= a.size();
+    if (count > 10000) fail(fmt::format("vary: {} points; at most 10000", count));
+    for (size_t i = 0; i < count; ++i) {
+        SweepPoint p;
+        std::vector<std::string> sets = fixed_sets;
+        size_t rest = i;
+        std::vector<size_t> pick(axes.size());
+        for (size_t a = axes.size(); a-- > 0;) {
+            pick[a] = rest % axes[a].size();
+            rest /= axes[a].size();
+        }
+        for (size_t a = 0; a < axes.size(); ++a) {
+            const json& v = axes[a][pick[a]];
+            p.values.emplace_back(plan.keys[a], value_text(v));
+            sets.push_back(plan.keys[a] + "=" + v.dump());
+        }
+        p.name = point_name(i, p.values);
+        try {
+            load_config(base_config, sets);  // a bad key or value fails here, not in a child
+        } catch (const InputError& e) {
+            fail(fmt::format("point {}: {}", p.name, e.what()));
+        }
+        p.run_args = common;
+        for (const auto& set : sets) p.run_args.insert(p.run_args.end(), {"--set", set});
+        plan.points.push_back(std::move(p));
+    }
+    return plan;
+}
+
+int sweep_command(const SweepOptions& opt) {
+    if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
+    const SweepPlan plan = plan_sweep(opt.path);
+    const std::string out_dir =
+        opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec)
+        throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
+
+    const bool progress = isatty(STDERR_FILENO);
+    // Children: this binary's `run`, its stderr kept in the point's folder.
+    std::map<pid_t, size_t> running;
+    std::vector<int> status(plan.points.size(), -1);
+    size_t next = 0, done = 0;
+    bool failed = false;
+    while (done < plan.points.size() && !(failed && running.empty())) {
+        while (!failed && next < plan.points.size() && running.size() < size_t(opt.jobs)) {
+            const SweepPoint& p = plan.points[next];
+            const fs::path dir = fs::path(out_dir) / p.name;
+            fs::create_directories(dir, ec);
+            std::vector<std::string> args = {"/proc/self/exe", "run", "--quiet"};
+            args.insert(args.end(), p.run_args.begin(), p.run_args.end());
+            args.insert(args.end(), {"--out", dir.string()});
+            std::vector<char*> argv;
+            for (std::string& a : args) argv.push_back(a.data());
+            argv.push_back(nullptr);
+            posix_spawn_file_actions_t files;
+            posix_spawn_file_actions_init(&files);
+            const std::string err_path = (dir / "stderr.txt").string();
+            posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(),
+                                             O_WRONLY | O_CREAT | O_TRUNC, 0644);
+            posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
+            pid_t pid;
+            const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
+            posix_spawn_file_actions_destroy(&files);
+            if (rc != 0) throw std::runtime_error("sweep: cannot start a run");
+            running[pid] = next++;
+        }
+        int st = 0;
+        const pid_t pid = waitpid(-1, &st, 0);
+        if (pid < 0) break;
+        const auto it = running.find(pid);
+        if (it == running.end()) continue;
+        status[it->second] = WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+        failed = failed || status[it->second] != 0;
+        running.erase(it);
+        ++done;
+        if (progress)
+            std::fprintf(stderr, "\r[rtsim] sweep: %zu of %zu runs done   ", done,
+                         plan.points.size());
+    }
+    if (progress) std::fprintf(stderr, "\r%60s\r", "");
+    for (size_t i = 0; i < plan.points.size(); ++i)
+        if (status[i] > 0) {
+            const fs::path dir = fs::path(out_dir) / plan.points[i].name;
+            throw std::runtime_error(fmt::format("sweep: run {} failed (status {}): {}",
+                                                 dir.string(), status[i],
+                                                 first_line_of(dir / "stderr.txt")));
+        }
+
+    // The table: one row per point.
+    json results = json::array();
+    std::vector<std::vector<std::string>> table;
+    std::vector<std::string> head = plan.keys;
+    head.insert(head.end(), std::begin(kTableFigures), std::end(kTableFigures));
+    table.push_back(head);
+    std::string csv;
+    for (size_t i = 0; i < plan.points.size(); ++i) {
+        const SweepPoint& p = plan.points[i];
+        const std::string stats_path = (fs::path(out_dir) / p.name / "stats.json").string();
+        const ComparedRun run = load_compared_run(stats_path, p.name);
+        const std::vector<Figure> figures = key_figures(run.stats);
+        json row = {{"point", p.name}, {"stats", stats_path}, {"values", json::object()}};
+        for (const auto& [k, v] : p.values) row["values"][k] = v;
+        json figs = json::object();
+        for (const Figure& f : figures)
+            figs[f.name] = std::isnan(f.value) ? json(nullptr) : json(f.value);
+        row["figures"] = figs;
+        results.push_back(row);
+        std::vector<std::string> cells;
+        for (const auto& kv : p.values) cells.push_back(kv.second);
+        for (const char* name : kTableFigures)
+            for (const Figure& f : figures)
+                if (f.name == name) cells.push_back(format_figure(f.value, f.percent));
+        table.push_back(cells);
+        if (i == 0) {
+            std::vector<std::string> names = plan.keys;
+            for (const Figure& f : figures) names.push_back(f.name);
+            for (size_t k = 0; k < names.size(); ++k) csv += (k ? "," : "") + names[k];
+            csv += "\n";
+        }
+        std::string line;
+        for (const auto& kv : p.values) line += (line.empty() ? "" : ",") + kv.second;
+        for (const Figure& f : figures)
+            line += "," + (std::isnan(f.value) ? std::string() : fmt::format("{}", f.value));
+        csv += line + "\n";
+    }
+    write_file_atomically(
+        (fs::path(out_dir) / "results.json").string(),
+        json({{"sweep", opt.path}, {"keys", plan.keys}, {"points", results}}).dump(1));
+    write_file_atomically((fs::path(out_dir) / "results.csv").string(), csv);
+
+    std::vector<size_t> width(head.size(), 0);
+    for (const auto& cells : table)
+        for (size_t k = 0; k < cells.size(); ++k) width[k] = std::max(width[k], cells[k].size());
+    for (const auto& cells : table) {
+        std::string line;
+        for (size_t k = 0; k < cells.size(); ++k)
+            line += fmt::format("{}{:>{}}", k ? "  " : "", cells[k], width[k]);
+        fmt::print("{}\n", line);
+    }
+    fmt::print("\n{} runs; stats under {}; table in results.json and results.csv\n",
+               plan.points.size(), out_dir);
+    return 0;
+}
+
+}  // namespace rtsim

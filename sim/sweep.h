@@ -1,0 +1,45 @@
+// rtsim sweep: one workload simulated on every point of a grid of config values, each point a
+// child `rtsim run` (a SystemC kernel runs once per process), up to -j at a time; then one
+// results table.
+//
+// A sweep file is JSON:
+//   {
+//     "config": "../baseline.json",          base config, relative to the sweep file (optional)
+//     "set": {"core.count": 8},              fixed overrides (optional)
+//     "workload": {"scene": "builtin:cornell", "rays": "primary,ao", "res": "128x128",
+//                  "seed": 1, ...}           rtsim run's ray options without dashes (optional)
+//     "trace": "frame.rtt",                  or replay a trace (relative to the sweep file)
+//     "vary": {"l1.size_kib": [16, 32, 64], "l1.ways": [2, 4]}   every combination
+//   }
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+namespace rtsim {
+
+struct SweepOptions {
+    std::string path;     // the sweep file
+    std::string out_dir;  // empty: a fresh folder under out/
+    int jobs = 1;         // runs at once
+};
+
+// A sweep's points: the child command line of each, checked (configs resolved, workload parsed)
+// before anything runs. Throws InputError naming the file and field.
+struct SweepPoint {
+    std::vector<std::pair<std::string, std::string>> values;  // varied key -> value text
+    std::vector<std::string> run_args;  // `rtsim run` arguments, without --out
+    std::string name;                   // folder name: index and values
+};
+struct SweepPlan {
+    std::vector<std::string> keys;  // varied keys, in the file's order
+    std::vector<SweepPoint> points;
+};
+SweepPlan plan_sweep(const std::string& path);
+
+// Runs the plan; writes each point's stats.json under out_dir/<point>/ and the table to
+// out_dir/results.json and results.csv. Returns the exit status.
+int sweep_command(const SweepOptions& opt);
+
+}  // namespace rtsim
