@@ -233,19 +233,29 @@ std::string format_comparison(const Comparison& c) {
             cells.push_back(format_relative(row.values[0], row.values[r], row));
         table.push_back(std::move(cells));
     }
-    std::vector<size_t> width(head.size(), 0);
-    for (const auto& cells : table)
-        for (size_t k = 0; k < cells.size(); ++k) width[k] = std::max(width[k], cells[k].size());
-    out += "\n";
-    for (const auto& cells : table) {
-        std::string line = fmt::format("{:<{}}", cells[0], width[0]);
-        for (size_t k = 1; k < cells.size(); ++k)
-            line += fmt::format("  {:>{}}", cells[k], width[k]);
-        out += line + "\n";
-    }
+    out += "\n" + format_table(table, true);
     out +=
         "\nvs: ratio to the first run, or the difference in percentage points (pts).\n"
         "host: wall-clock timing of the machine that ran the run, not a simulated result.\n";
+    return out;
+}
+
+std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left) {
+    std::vector<size_t> width;
+    for (const auto& cells : rows) {
+        width.resize(std::max(width.size(), cells.size()), 0);
+        for (size_t k = 0; k < cells.size(); ++k) width[k] = std::max(width[k], cells[k].size());
+    }
+    std::string out;
+    for (const auto& cells : rows) {
+        std::string line;
+        for (size_t k = 0; k < cells.size(); ++k) {
+            if (k) line += "  ";
+            line += k == 0 && first_left ? fmt::format("{:<{}}", cells[k], width[k])
+                                         : fmt::format("{:>{}}", cells[k], width[k]);
+        }
+        out += line + "\n";
+    }
     return out;
 }
 

@@ -47,6 +47,12 @@ struct Figure {
 };
 std::vector<Figure> key_figures(const nlohmann::json& stats);
 std::string format_figure(double value, bool percent);
+// Rows of cells as aligned text columns: right-aligned, but the first column left-aligned when
+// `first_left`.
+std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left);
+// Rows of cells as aligned text columns: numbers right-aligned, the first column left-aligned
+// when `first_left`.
+std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left);
 std::string format_comparison(const Comparison& c);
 nlohmann::json comparison_json(const Comparison& c);
 

@@ -300,15 +300,7 @@ int sweep_command(const SweepOptions& opt) {
         json({{"sweep", opt.path}, {"keys", plan.keys}, {"points", results}}).dump(1));
     write_file_atomically((fs::path(out_dir) / "results.csv").string(), csv);
 
-    std::vector<size_t> width(head.size(), 0);
-    for (const auto& cells : table)
-        for (size_t k = 0; k < cells.size(); ++k) width[k] = std::max(width[k], cells[k].size());
-    for (const auto& cells : table) {
-        std::string line;
-        for (size_t k = 0; k < cells.size(); ++k)
-            line += fmt::format("{}{:>{}}", k ? "  " : "", cells[k], width[k]);
-        fmt::print("{}\n", line);
-    }
+    fmt::print("{}", format_table(table, false));
     fmt::print("\n{} runs; stats under {}; table in results.json and results.csv\n",
                plan.points.size(), out_dir);
     return 0;
