@@ -100,6 +100,12 @@ std::vector<Metric> metrics() {
         {"stall: triangle unit", R::Points, true, share("triangle_unit")},
         {"stall: ray buffer", R::Points, true, share("ray_buffer")},
         {"stall: no work", R::Points, true, share("no_work")},
+        // Treelet and packet modes (absent from other runs' stats).
+        {"ray buffer bytes per ray", R::Ratio, false,
+         [](const json& j) { return per_ray(j, "/ray_buffer/bytes"); }},
+        {"treelet crossings per ray", R::Ratio, false, at("/ray_buffer/crossings_per_ray")},
+        {"rays per treelet batch", R::Ratio, false, at("/ray_buffer/rays_per_batch")},
+        {"packet lane utilisation", R::Points, true, at("/packets/lane_utilization")},
         {"host: simulated Mrays/host s", R::Ratio, false,
          [](const json& j) { return number_at(j, "/host/simulated_rays_per_host_second") / 1e6; }},
     };
@@ -175,7 +181,6 @@ Comparison compare_runs(std::vector<ComparedRun> runs) {
                 settings[r][std::string("scene: ") + k] = s["scene"][k].is_string()
                                                               ? s["scene"][k].get<std::string>()
                                                               : s["scene"][k].dump();
-        settings[r]["traversal mode"] = s.value("traversal_mode", std::string("-"));
     }
     std::map<std::string, bool> keys;
     for (const auto& m : settings)
