@@ -19,9 +19,6 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    void expect(uint64_t addr, uint32_t size_bytes) const override {
-        next_->expect(addr, size_bytes);
-    }
     void register_stats(StatsRegistry& reg, const std::string& block);
     void follow(const TimeFloor* floor) { link_.follow(floor); }
 
