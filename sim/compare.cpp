@@ -293,6 +293,112 @@ json comparison_json(const Comparison& c) {
     return out;
 }
 
+namespace {
+
+const char* const kStallCauses[] = {"issue",         "l1",         "l2",     "dram", "box_unit",
+                                    "triangle_unit", "ray_buffer", "no_work"};
+const char* const kStallColours[] = {"#8c8c8c", "#4e79a7", "#76b7b2", "#e15759",
+                                     "#f28e2b", "#edc948", "#b07aa1", "#dddddd"};
+const char* const kRunColours[] = {"#4e79a7", "#e15759", "#59a14f", "#f28e2b",
+                                   "#b07aa1", "#76b7b2", "#edc948", "#9c755f"};
+
+std::string escape_xml(const std::string& t) {
+    std::string out;
+    for (char ch : t) {
+        if (ch == '<')
+            out += "&lt;";
+        else if (ch == '>')
+            out += "&gt;";
+        else if (ch == '&')
+            out += "&amp;";
+        else
+            out += ch;
+    }
+    return out;
+}
+
+// One line chart: `series` values of every run per window, x in cycles.
+void line_chart(std::string& svg, const Comparison& c, const char* series, const char* title,
+                double top) {
+    const double x0 = 70, w = 560, h = 150;
+    double peak = 0, last_cycle = 0;
+    for (const auto& run : c.runs) {
+        const json& ts = run.stats["time_series"];
+        for (const auto& v : ts[series]) peak = std::max(peak, v.get<double>());
+        last_cycle = std::max(last_cycle, ts["window_cycles"].get<double>() * ts[series].size());
+    }
+    if (peak <= 0) peak = 1;
+    svg += fmt::format("<text x='{}' y='{}' font-weight='bold'>{}</text>\n", x0, top - 8,
+                       escape_xml(title));
+    svg += fmt::format("<rect x='{}' y='{}' width='{}' height='{}' fill='none' stroke='#999'/>\n",
+                       x0, top, w, h);
+    svg += fmt::format("<text x='{}' y='{}' text-anchor='end'>{}</text>\n", x0 - 4, top + 10,
+                       format_figure(peak, false));
+    svg += fmt::format("<text x='{}' y='{}' text-anchor='end'>0</text>\n", x0 - 4, top + h);
+    svg += fmt::format("<text x='{}' y='{}' text-anchor='end'>{} cycles</text>\n", x0 + w,
+                       top + h + 14, format_figure(last_cycle, false));
+    for (size_t r = 0; r < c.runs.size(); ++r) {
+        const json& ts = c.runs[r].stats["time_series"];
+        const double window = ts["window_cycles"].get<double>();
+        std::string points;
+        for (size_t k = 0; k < ts[series].size(); ++k)
+            points += fmt::format("{:.1f},{:.1f} ", x0 + w * (k + 0.5) * window / last_cycle,
+                                  top + h - h * ts[series][k].get<double>() / peak);
+        svg += fmt::format("<polyline points='{}' fill='none' stroke='{}' stroke-width='1.5'/>\n",
+                           points, kRunColours[r % 8]);
+    }
+}
+
+}  // namespace
+
+std::string comparison_svg(const Comparison& c) {
+    const double x0 = 110, bar_w = 520, bar_h = 22;
+    bool series = !c.runs.empty();
+    for (const auto& run : c.runs)
+        series = series && run.stats.contains("time_series") &&
+                 run.stats["time_series"].contains("l2_to_l1_gbps");
+    const double bars_h = 60 + c.runs.size() * (bar_h + 8) + 40;
+    const double height = bars_h + (series ? 2 * 200 + 30 : 0);
+    std::string svg = fmt::format(
+        "<svg xmlns='http://www.w3.org/2000/svg' width='680' height='{:.0f}' "
+        "font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' "
+        "fill='white'/>\n<text x='10' y='24' font-size='15' font-weight='bold'>Ray-slot cycles "
+        "by stall cause</text>\n",
+        height);
+    for (size_t r = 0; r < c.runs.size(); ++r) {
+        const double y = 44 + r * (bar_h + 8);
+        svg += fmt::format("<text x='{}' y='{}' text-anchor='end' fill='{}'>{}</text>\n", x0 - 8,
+                           y + 15, kRunColours[r % 8], escape_xml(c.runs[r].label));
+        double x = x0;
+        for (size_t k = 0; k < std::size(kStallCauses); ++k) {
+            const double share = number_at(
+                c.runs[r].stats, (std::string("/stalls/total/share/") + kStallCauses[k]).c_str());
+            if (!(share > 0)) continue;
+            svg += fmt::format(
+                "<rect x='{:.1f}' y='{:.1f}' width='{:.1f}' height='{}' fill='{}'><title>{} "
+                "{:.1f}%</title></rect>\n",
+                x, y, bar_w * share, bar_h, kStallColours[k], kStallCauses[k], 100 * share);
+            x += bar_w * share;
+        }
+    }
+    const double legend_y = 44 + c.runs.size() * (bar_h + 8) + 14;
+    double legend_x = 10;
+    for (size_t k = 0; k < std::size(kStallCauses); ++k) {
+        std::string name = kStallCauses[k];
+        std::replace(name.begin(), name.end(), '_', ' ');
+        svg += fmt::format("<rect x='{}' y='{}' width='10' height='10' fill='{}'/>\n", legend_x,
+                           legend_y - 9, kStallColours[k]);
+        svg += fmt::format("<text x='{}' y='{}'>{}</text>\n", legend_x + 13, legend_y, name);
+        legend_x += 13 + 7.0 * double(name.size()) + 12;  // about 7 pixels per character
+    }
+    if (series) {
+        line_chart(svg, c, "l2_to_l1_gbps", "L2 -> L1 GB/s per window", bars_h + 30);
+        line_chart(svg, c, "dram_gbps", "DRAM GB/s per window", bars_h + 230);
+    }
+    svg += "</svg>\n";
+    return svg;
+}
+
 int compare_command(const CompareOptions& opt) {
     if (opt.paths.size() < 2)
         throw InputError(
@@ -309,6 +415,7 @@ int compare_command(const CompareOptions& opt) {
     }
     const Comparison c = compare_runs(std::move(runs));
     if (!opt.json_path.empty()) write_file_atomically(opt.json_path, comparison_json(c).dump(1));
+    if (!opt.svg_path.empty()) write_file_atomically(opt.svg_path, comparison_svg(c));
     fmt::print("{}", format_comparison(c));
     return 0;
 }

@@ -12,6 +12,7 @@ struct CompareOptions {
     std::vector<std::string> paths;   // stats.json files, or folders holding one
     std::vector<std::string> labels;  // one per path; default A, B, C, ...
     std::string json_path;            // also write the comparison as JSON here
+    std::string svg_path;             // also draw it (stall shares, bandwidth over time) here
 };
 
 // One run's stats as read from disk. Throws InputError naming the file for anything that is
@@ -55,6 +56,9 @@ std::string format_table(const std::vector<std::vector<std::string>>& rows, bool
 std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left);
 std::string format_comparison(const Comparison& c);
 nlohmann::json comparison_json(const Comparison& c);
+// An SVG drawing: each run's stall shares as a stacked bar; when every run recorded a time series
+// (sim.window_cycles), its L2->L1 and DRAM bandwidth per window as lines.
+std::string comparison_svg(const Comparison& c);
 
 int compare_command(const CompareOptions& opt);
 

@@ -59,6 +59,9 @@ int main_impl(int argc, char** argv) {
     compare_cmd->add_option("--labels", compare.labels, "A label per run (default A, B, C, ...)")
         ->delimiter(',');
     compare_cmd->add_option("--json", compare.json_path, "Also write the comparison as JSON");
+    compare_cmd->add_option("--svg", compare.svg_path,
+                            "Also draw stall shares (and bandwidth per window, when every run "
+                            "recorded sim.window_cycles) as SVG");
 
     rtsim::SweepOptions sweep;
     CLI::App* sweep_cmd = app.add_subcommand(

@@ -743,14 +743,18 @@ TEST(Compare, TwoRunsSideBySide) {
     const std::string args = "run -q --rays primary,ao --res 32x32 --set core.count=2";
     ASSERT_EQ(run_rtsim(args + " --set l1.size_kib=4 --out '" + a.string() + "'").status, 0);
     ASSERT_EQ(run_rtsim(args + " --set l1.size_kib=64 --out '" + b.string() + "'").status, 0);
-    const fs::path table = work_dir() / "compare.json";
-    const Result r =
-        run_rtsim(fmt::format("compare '{}' '{}/stats.json' --labels small,big --json '{}'",
-                              a.string(), b.string(), table.string()));
+    const fs::path table = work_dir() / "compare.json", drawing = work_dir() / "compare.svg";
+    const Result r = run_rtsim(
+        fmt::format("compare '{}' '{}/stats.json' --labels small,big --json '{}' --svg '{}'",
+                    a.string(), b.string(), table.string(), drawing.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     EXPECT_NE(r.out.find("config: l1.size_kib"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("4 | 64"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("big vs small"), std::string::npos) << r.out;
+    std::ifstream svg(drawing);
+    const std::string svg_text((std::istreambuf_iterator<char>(svg)), {});
+    EXPECT_EQ(svg_text.rfind("<svg", 0), 0u);
+    EXPECT_NE(svg_text.find(">big</text>"), std::string::npos);
     // Only the L1 size differs: the JSON lists that one setting, and the bigger L1 hits more.
     const json j = json::parse(std::ifstream(table));
     EXPECT_EQ(j["differences"].size(), 1u) << j["differences"].dump();

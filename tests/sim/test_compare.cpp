@@ -110,3 +110,28 @@ TEST(Compare, BadFilesAreNamedInOneLine) {
     labels.labels = {"only one"};
     EXPECT_THROW(compare_command(labels), InputError);
 }
+
+namespace {
+size_t count_of(const std::string& text, const std::string& what) {
+    size_t n = 0;
+    for (size_t at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+    return n;
+}
+}  // namespace
+
+TEST(Compare, DrawsStallSharesAndBandwidthOverTime) {
+    json a = stats(1000, 100, 0.5, 6400, 32), b = stats(800, 100, 0.6, 3200, 64);
+    a["stalls"]["total"]["share"] = {{"issue", 0.25}, {"dram", 0.75}};
+    b["stalls"]["total"]["share"] = {{"l2", 0.5}, {"box_unit", 0.25}, {"no_work", 0.25}};
+    const std::string bars = comparison_svg(compare_runs({{"A", "a", a}, {"B", "b", b}}));
+    EXPECT_EQ(bars.rfind("<svg", 0), 0u);
+    EXPECT_EQ(count_of(bars, "<title>"), 5u);  // one bar segment per share above zero
+    EXPECT_NE(bars.find("<title>dram 75.0%</title>"), std::string::npos);
+    EXPECT_EQ(count_of(bars, "<polyline"), 0u);  // no time series recorded
+    for (json* s : {&a, &b})
+        (*s)["time_series"] = {{"window_cycles", 100},
+                               {"l2_to_l1_gbps", {1.0, 2.0, 3.0}},
+                               {"dram_gbps", {0.5, 0.25, 0.0}}};
+    const std::string lines = comparison_svg(compare_runs({{"A", "a", a}, {"B", "b", b}}));
+    EXPECT_EQ(count_of(lines, "<polyline"), 4u);  // two charts, a line per run
+}
