@@ -213,6 +213,7 @@ int sweep_command(const SweepOptions& opt) {
     std::vector<int> status(plan.points.size(), -1);
     size_t next = 0, done = 0;
     bool failed = false;
+    std::string spawn_error;
     while (done < plan.points.size() && !(failed && running.empty())) {
         while (!failed && next < plan.points.size() && running.size() < size_t(opt.jobs)) {
             const SweepPoint& p = plan.points[next];
@@ -233,9 +234,14 @@ int sweep_command(const SweepOptions& opt) {
             pid_t pid;
             const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
             posix_spawn_file_actions_destroy(&files);
-            if (rc != 0) throw std::runtime_error("sweep: cannot start a run");
+            if (rc != 0) {  // stop starting runs; the ones running finish first
+                spawn_error = fmt::format("sweep: cannot start the run of {}", dir.string());
+                failed = true;
+                break;
+            }
             running[pid] = next++;
         }
+        if (running.empty()) break;
         int st = 0;
         const pid_t pid = waitpid(-1, &st, 0);
         if (pid < 0) break;
@@ -250,6 +256,7 @@ int sweep_command(const SweepOptions& opt) {
                          plan.points.size());
     }
     if (progress) std::fprintf(stderr, "\r%60s\r", "");
+    if (!spawn_error.empty()) throw std::runtime_error(spawn_error);
     for (size_t i = 0; i < plan.points.size(); ++i)
         if (status[i] > 0) {
             const fs::path dir = fs::path(out_dir) / plan.points[i].name;
