@@ -92,10 +92,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     const std::string mode = cfg.string("traversal.mode");
     const int64_t treelet_cache_kib =
         mode == "treelet" ? cfg.integer("traversal.treelet_cache_kib") : 0;
-    if (treelet_cache_kib > 0 && cfg.boolean("l1.split"))
-        throw InputError(
-            "traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
-            "l1.split to false or the treelet cache to 0");
+    // (A treelet cache needs a unified L1: check_config_combination refuses it before.)
     if (mode == "packet") cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
     cp.treelet_prefetch = cfg.boolean("traversal.treelet_prefetch");
     if (mode == "treelet") {

@@ -507,6 +507,24 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
     return meta;
 }
 
+void check_config_combination(const Config& cfg, const std::string& trace_path) {
+    const std::string mode = cfg.string("traversal.mode");
+    if (mode == "treelet" && cfg.integer("bvh.treelet_bytes") == 0)
+        throw InputError(
+            "traversal.mode=treelet queues rays by treelet, but bvh.treelet_bytes is 0 (no "
+            "treelets); set it, e.g. to the L1 size in bytes");
+    if (mode == "treelet" && cfg.integer("traversal.treelet_cache_kib") > 0 &&
+        cfg.boolean("l1.split"))
+        throw InputError(
+            "traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
+            "l1.split to false or the treelet cache to 0");
+    if (mode == "packet" && !trace_path.empty())
+        throw InputError(fmt::format(
+            "{}: a trace records single-ray traversal; traversal.mode=packet needs rays "
+            "generated on the fly (drop --trace)",
+            trace_path));
+}
+
 void check_trace_matches_config(const json& bvh, const Config& cfg, const std::string& where) {
     auto refuse = [&](const std::string& field, const std::string& recorded,
                       const std::string& wanted) {
@@ -547,15 +565,7 @@ int run_command(const RunOptions& opt) {
             fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
 
     const std::string mode = cfg.string("traversal.mode");
-    if (mode == "treelet" && cfg.integer("bvh.treelet_bytes") == 0)
-        throw InputError(
-            "traversal.mode=treelet queues rays by treelet, but bvh.treelet_bytes is 0 (no "
-            "treelets); set it, e.g. to the L1 size in bytes");
-    if (mode == "packet" && !opt.trace_path.empty())
-        throw InputError(fmt::format(
-            "{}: a trace records single-ray traversal; traversal.mode=packet needs rays "
-            "generated on the fly (drop --trace)",
-            opt.trace_path));
+    check_config_combination(cfg, opt.trace_path);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
     const auto t_prepare = Clock::now();
     json meta;  // scene, bvh and workload sections of stats.json
@@ -584,6 +594,10 @@ int run_command(const RunOptions& opt) {
 
     Chip chip(cfg, &source, bvh ? bvh->layout : reader->layout());
     const auto t_sim = Clock::now();
+    // A run stopped by bad input mid-way reports its own one-line error; the kernel's note that
+    // sc_stop() was called would only add noise on stdout.
+    sc_core::sc_report_handler::set_actions("/OSCI/SystemC", sc_core::SC_INFO,
+                                            sc_core::SC_DO_NOTHING);
     sc_core::sc_start();
     const double sim_seconds = std::chrono::duration<double>(Clock::now() - t_sim).count();
     source.finish_progress();

@@ -56,6 +56,12 @@ nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
 BvhLayout layout_from_summary(const nlohmann::json& bvh, const std::string& where);
 // A trace's header metadata, checked, with the reader's layout set from it. Throws InputError.
 nlohmann::json open_trace_metadata(TraceReader& reader, const std::string& path);
+// Config fields that are valid one by one but not together (a treelet mode without treelets, a
+// treelet cache with a split L1, packets replayed from a trace). Throws InputError.
+void check_config_combination(const Config& cfg, const std::string& trace_path);
+// A trace's BVH summary against the config's BVH fields; `where` names the trace in the error.
+void check_trace_matches_config(const nlohmann::json& bvh, const Config& cfg,
+                                const std::string& where);
 // Peak resident memory of this process so far.
 double peak_rss_mib();
 

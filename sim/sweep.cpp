@@ -18,6 +18,7 @@
 #include "sim/run.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
+#include "workloads/trace_file.h"
 
 extern char** environ;
 
@@ -107,10 +108,14 @@ SweepPlan plan_sweep(const std::string& path) {
     }
     if (s.contains("trace") && s.contains("workload"))
         fail("trace and workload: give one (a trace fixes the scene and rays)");
+    std::string trace;
+    json trace_meta;
     if (s.contains("trace")) {
         if (!s["trace"].is_string()) fail("trace: expected a file name string");
-        const std::string trace = relative(s["trace"].get<std::string>());
+        trace = relative(s["trace"].get<std::string>());
         if (!fs::is_regular_file(trace)) fail(fmt::format("trace: {}: no such file", trace));
+        TraceReader reader(trace);  // its header, checked as `run` checks it
+        trace_meta = open_trace_metadata(reader, trace);
         common.insert(common.end(), {"--trace", trace});
     } else {
         WorkloadOptions w;
@@ -185,8 +190,10 @@ SweepPlan plan_sweep(const std::string& path) {
             sets.push_back(plan.keys[a] + "=" + v.dump());
         }
         p.name = point_name(i, p.values);
-        try {
-            load_config(base_config, sets);  // a bad key or value fails here, not in a child
+        try {  // a bad key, value or combination fails here, not in a child
+            const Config cfg = load_config(base_config, sets);
+            check_config_combination(cfg, trace);
+            if (!trace.empty()) check_trace_matches_config(trace_meta["bvh"], cfg, trace);
         } catch (const InputError& e) {
             fail(fmt::format("point {}: {}", p.name, e.what()));
         }

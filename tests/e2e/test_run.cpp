@@ -419,8 +419,9 @@ TEST(TraceFileRun, BadTracesExitTwoNamingTheDamage) {
         "footer missing");
     std::string flipped = bytes;
     flipped[bytes.size() / 2] ^= 0x20;
-    const Result r = run_rtsim("run --trace '" + damaged("flip.rtt", flipped) + "'");
+    const Result r = run_rtsim("run -q --trace '" + damaged("flip.rtt", flipped) + "'");
     expect_one_line_error(r, "chunk");
+    EXPECT_EQ(r.out, "");  // quiet: not even the kernel's note that the run was stopped
     std::string magic = bytes;
     magic[0] = 'X';
     expect_one_line_error(run_rtsim("trace-info '" + damaged("magic.rtt", magic) + "'"),
@@ -822,17 +823,56 @@ TEST(Sweep, BadSweepExitsTwoAndRunsNothing) {
     EXPECT_FALSE(fs::exists(out));
 }
 
-TEST(Sweep, AFailedRunIsReportedAndNoTableWritten) {
+TEST(Sweep, AGarbageTraceIsRefusedBeforeAnythingRuns) {
     const fs::path trace = work_dir() / "garbage.rtt";
     std::ofstream(trace) << "not a trace";
     const fs::path file = work_dir() / "sweep_garbage.json";
+    std::ofstream(file) << fmt::format(R"({{"trace": "{}", "vary": {{"l1.ways": [2, 4]}}}})",
+                                       trace.string());
+    const fs::path out = work_dir() / "sweep_garbage_out";
+    expect_one_line_error(run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), out.string())),
+                          trace.string() + ": byte 0");
+    EXPECT_FALSE(fs::exists(out));
+}
+
+// A trace whose header is sound but whose data is damaged fails inside the runs: the sweep
+// reports the first failed run in one line and writes no table.
+TEST(Sweep, AFailedRunIsReportedAndNoTableWritten) {
+    const fs::path trace = work_dir() / "damaged.rtt";
+    ASSERT_EQ(run_rtsim(fmt::format("trace -q --rays primary --res 32x32 --chunk-rays 64 -o '{}'",
+                                    trace.string()))
+                  .status,
+              0);
+    std::fstream f(trace, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(0, std::ios::end);
+    const auto middle = std::streamoff(f.tellg()) / 2;  // inside a chunk's compressed data
+    f.seekg(middle);
+    char byte = 0;
+    f.read(&byte, 1);
+    byte = char(~byte);
+    f.seekp(middle);
+    f.write(&byte, 1);
+    f.close();
+    const fs::path file = work_dir() / "sweep_damaged.json";
     std::ofstream(file) << fmt::format(R"({{"trace": "{}", "vary": {{"l1.ways": [2, 4]}}}})",
                                        trace.string());
     const fs::path out = work_dir() / "sweep_failed";
     const Result r = run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), out.string()));
     EXPECT_EQ(r.status, 1);
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    EXPECT_NE(r.err.find("failed (status 2): rtsim: error: " + trace.string()), std::string::npos)
+    EXPECT_NE(r.err.find("failed (status 2): rtsim: error: " + trace.string() + ": chunk"),
+              std::string::npos)
         << r.err;
     EXPECT_FALSE(fs::exists(out / "results.json"));
+}
+
+// A combination run would refuse (treelet mode without treelets) is refused for the whole sweep.
+TEST(Sweep, ACombinationRunRefusesIsRefusedUpFront) {
+    const fs::path file = work_dir() / "sweep_modes.json";
+    std::ofstream(file) << R"({"vary": {"traversal.mode": ["independent", "treelet"]}})";
+    const fs::path out = work_dir() / "sweep_modes_out";
+    expect_one_line_error(
+        run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), out.string())),
+        "point 001_traversal.mode=treelet: traversal.mode=treelet queues rays by treelet");
+    EXPECT_FALSE(fs::exists(out));
 }
