@@ -4,12 +4,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <limits>
 #include <map>
-#include <sstream>
 
+#include "sim/config.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 
@@ -145,16 +144,7 @@ ComparedRun load_compared_run(const std::string& path, const std::string& label)
     std::string file = path;
     std::error_code ec;
     if (fs::is_directory(path, ec)) file = (fs::path(path) / "stats.json").string();
-    std::ifstream in(file, std::ios::binary);
-    if (!in) throw InputError(fmt::format("{}: cannot open", file));
-    std::stringstream text;
-    text << in.rdbuf();
-    ComparedRun run{label, file, json()};
-    try {
-        run.stats = json::parse(text.str());
-    } catch (const json::parse_error& e) {
-        throw InputError(fmt::format("{}: not JSON (byte {})", file, e.byte));
-    }
+    ComparedRun run{label, file, read_json_file(file, "stats file")};
     for (const char* key : {"total_cycles", "rays", "config"})
         if (!run.stats.is_object() || !run.stats.contains(key))
             throw InputError(fmt::format("{}: not an rtsim stats.json (no \"{}\")", file, key));

@@ -127,21 +127,6 @@ void merge_into(json& base, const json& over) {
     }
 }
 
-json read_json_file(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(fmt::format("{}: cannot open config file", path));
-    std::stringstream ss;
-    ss << in.rdbuf();
-    try {
-        return json::parse(ss.str());
-    } catch (const json::parse_error& e) {
-        std::string msg = e.what();
-        const auto pos = msg.find("] ");
-        if (pos != std::string::npos) msg = msg.substr(pos + 2);
-        throw InputError(fmt::format("{}: invalid JSON at byte {}: {}", path, e.byte, msg));
-    }
-}
-
 // Reads `path` and its extends chain into `out` (parent values first). `chain` holds the files
 // being loaded, child first, to detect cycles; `files` collects them parent first.
 void load_chain(const std::string& path, json& out, std::vector<std::string>& files,
@@ -151,7 +136,7 @@ void load_chain(const std::string& path, json& out, std::vector<std::string>& fi
             throw InputError(fmt::format("{}: extends: cycle through this file", path));
     if (chain.size() > 32)
         throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
-    json j = read_json_file(path);
+    json j = read_json_file(path, "config file");
     validate(config_schema(), j, "", path);
     if (j.contains("extends")) {
         if (!j["extends"].is_string())
@@ -271,6 +256,21 @@ std::string config_reference_markdown() {
     };
     walk(config_schema(), "");
     return out;
+}
+
+json read_json_file(const std::string& path, const std::string& what) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw InputError(fmt::format("{}: cannot open {}", path, what));
+    std::stringstream ss;
+    ss << in.rdbuf();
+    try {
+        return json::parse(ss.str());
+    } catch (const json::parse_error& e) {
+        std::string msg = e.what();
+        const auto pos = msg.find("] ");
+        if (pos != std::string::npos) msg = msg.substr(pos + 2);
+        throw InputError(fmt::format("{}: invalid JSON at byte {}: {}", path, e.byte, msg));
+    }
 }
 
 }  // namespace rtsim

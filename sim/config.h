@@ -29,6 +29,10 @@ class Config {
 // else taken as a string). Throws InputError.
 Config load_config(const std::string& path, const std::vector<std::string>& sets);
 
+// Reads a JSON file; InputError naming it (`what`: "config file", ...) if it cannot be opened
+// or parsed, with the byte offset of the error.
+nlohmann::json read_json_file(const std::string& path, const std::string& what);
+
 // The schema (configs/schema.json) as compiled in.
 const nlohmann::json& config_schema();
 // Markdown reference of every field, generated from the schema (rtsim config --doc).

@@ -11,7 +11,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <sstream>
 
 #include "sim/compare.h"
 #include "sim/config.h"
@@ -72,16 +71,7 @@ std::string first_line_of(const fs::path& file) {
 }  // namespace
 
 SweepPlan plan_sweep(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(fmt::format("{}: cannot open", path));
-    std::stringstream text;
-    text << in.rdbuf();
-    json s;
-    try {
-        s = json::parse(text.str());
-    } catch (const json::parse_error& e) {
-        throw InputError(fmt::format("{}: not JSON (byte {})", path, e.byte));
-    }
+    const json s = read_json_file(path, "sweep file");
     auto fail = [&](const std::string& what) {
         throw InputError(fmt::format("{}: {}", path, what));
     };

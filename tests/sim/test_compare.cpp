@@ -97,9 +97,10 @@ TEST(Compare, BadFilesAreNamedInOneLine) {
         return std::string("no error");
     };
     const std::string missing = (test::scratch_dir() / "no_such_stats.json").string();
-    EXPECT_EQ(message(missing), missing + ": cannot open");
+    EXPECT_EQ(message(missing), missing + ": cannot open stats file");
     const std::string broken = write("broken_stats.json", "{\"total_cycles\": 1,");
-    EXPECT_EQ(message(broken).rfind(broken + ": not JSON", 0), 0u) << message(broken);
+    EXPECT_EQ(message(broken).rfind(broken + ": invalid JSON at byte 20: ", 0), 0u)
+        << message(broken);
     const std::string other = write("other.json", "{\"total_cycles\": 1}");
     EXPECT_EQ(message(other), other + ": not an rtsim stats.json (no \"rays\")");
     CompareOptions one;
