@@ -98,12 +98,16 @@ void Cache::Slowest::miss(Cycle d, const AccessBreakdown& line_bd) {
 void Cache::Slowest::charge(AccessBreakdown* bd, int level, Cycle now) const {
     if (!bd) return;
     if (is_hit) {
-        // Waiting for a fill already in flight is time spent below this level.
-        bd->cycles[level] += hit_lookup_done - now;
-        bd->cycles[std::min(level + 1, kMemLevels - 1)] += done - hit_lookup_done;
+        charge_hit(bd, level, now, hit_lookup_done, done);
     } else {
         for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += miss_bd.cycles[l];
     }
+}
+
+void Cache::charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done, Cycle done) {
+    // Waiting for a fill already in flight is time spent below this level.
+    bd->cycles[level] += lookup_done - now;
+    bd->cycles[std::min(level + 1, kMemLevels - 1)] += done - lookup_done;
 }
 
 // The earliest-free MSHR (the heap's root) now frees at `ready`, which is never earlier: one
@@ -221,10 +225,7 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
         const int found = find_way(set, first);
         if (found < 0) return fill(set, first, now, lookup_done, bd);
         const Cycle ready = std::max(lookup_done, hit(set, found, lookup_done));
-        if (bd) {  // waiting for a fill already in flight is time spent below this level
-            bd->cycles[level_] += lookup_done - now;
-            bd->cycles[std::min(level_ + 1, kMemLevels - 1)] += ready - lookup_done;
-        }
+        if (bd) charge_hit(bd, level_, now, lookup_done, ready);
         return ready;
     }
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds

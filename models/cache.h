@@ -72,9 +72,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
-    // The earliest cycle a lookup may still come at (the requesters' floor).
     // Tests: start the replacement stamps' counter here (to see it wrap).
     void set_stamp_clock(uint32_t stamp) { use_clock_ = stamp; }
+    // The earliest cycle a lookup may still come at (the requesters' floor).
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
     }
@@ -143,6 +143,10 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     void look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done);
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
     Cycle hit(uint64_t set, int way, Cycle lookup_done);
+    // A hit's cycles in `bd`: looking it up at `level` until `lookup_done`, then waiting below
+    // for its fill until `done`.
+    static void charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done,
+                           Cycle done);
     // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
     // breakdown copied per line (copying small structs per line stalled store forwarding).
     struct Slowest {

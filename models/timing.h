@@ -37,15 +37,15 @@ struct PortCalendar {
     }
 };
 
-// A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
-// that returns the cycle the data is available. Requests must arrive in non-decreasing time
-// order per level (the cores' scheduler keeps them so, to within its quantum).
 // Where an access spent its cycles, by the memory level that spent them (stall attribution).
 enum MemLevel : int { kLevelL1 = 0, kLevelL2 = 1, kLevelDram = 2, kMemLevels = 3 };
 struct AccessBreakdown {
     Cycle cycles[kMemLevels] = {0, 0, 0};
 };
 
+// A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
+// that returns the cycle the data is available. Requests may come out of time order, but never
+// before the time floor the level follows (models/calendar.h).
 class MemoryPort {
   public:
     virtual ~MemoryPort() = default;
@@ -53,13 +53,13 @@ class MemoryPort {
     // the returned cycle minus `now`.
     virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                          AccessBreakdown* breakdown = nullptr) = 0;
+    // A hint that an access to these bytes will come soon (a host-side prefetch of the
+    // simulator's own state for them; no simulated effect).
+    virtual void expect(uint64_t /*addr*/, uint32_t /*size_bytes*/) const {}
     // Performs the access only if this block serves it entirely, touching no other block's
     // state (a private cache's hit): then sets `ready` as access() would return it and returns
     // true. Otherwise changes nothing and returns false. A requester may run a local access
     // ahead of simulated time; anything else may reach shared state and must wait for its turn.
-    // A hint that an access to these bytes will come soon (a host-side prefetch of the
-    // simulator's own state for them; no simulated effect).
-    virtual void expect(uint64_t /*addr*/, uint32_t /*size_bytes*/) const {}
     virtual bool access_local(uint64_t /*addr*/, uint32_t /*size_bytes*/, Cycle /*now*/,
                               Cycle& /*ready*/, AccessBreakdown* /*breakdown*/ = nullptr) {
         return false;
