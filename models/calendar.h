@@ -114,6 +114,12 @@ class BandwidthCalendar {
   public:
     explicit BandwidthCalendar(double bytes_per_cycle);
     void follow(const TimeFloor* floor) { floor_ = floor ? floor : &detail::g_no_floor; }
+    // Cycles `bytes` take on an idle link (the link's busy time per transfer, in its own fixed
+    // point, so it agrees with the cycles transfers book).
+    Cycle idle_cycles(uint64_t bytes) const {
+        return (std::max<uint64_t>(bytes, 1) * kUnitsPerByte + capacity_units_ - 1) /
+               capacity_units_;
+    }
     // Moves `bytes` from `ready` on; returns the cycle the first byte moves and the cycle after
     // the last one did.
     std::pair<Cycle, Cycle> transfer(Cycle ready, uint64_t bytes) {

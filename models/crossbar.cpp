@@ -1,23 +1,11 @@
 #include "models/crossbar.h"
 
 #include <algorithm>
-#include <cmath>
 
 namespace rtsim {
 
 Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
-    : sc_core::sc_module(name),
-      bytes_per_cycle_(bytes_per_cycle),
-      link_(bytes_per_cycle),
-      next_(next_level) {}
-
-namespace {
-// std::ceil for the non-negative cycle counts here, without a libm call on every transfer.
-Cycle ceil_cycles(double x) {
-    const auto whole = static_cast<Cycle>(x);
-    return whole + (static_cast<double>(whole) < x);
-}
-}  // namespace
+    : sc_core::sc_module(name), link_(bytes_per_cycle), next_(next_level) {}
 
 Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     // Requests are small and cross at once; the line crosses when the L2 returns it (a line the
@@ -26,11 +14,7 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
     const auto [first, end] = link_.transfer(returned, size_bytes);
     ++transfers;
     bytes += size_bytes;
-    if (size_bytes != last_size_bytes_) {  // nearly always a line: one division per size
-        last_size_bytes_ = size_bytes;
-        last_busy_cycles_ = ceil_cycles(size_bytes / bytes_per_cycle_);
-    }
-    busy_cycles += last_busy_cycles_;
+    busy_cycles += link_.idle_cycles(size_bytes);
     queue_cycles += first - returned;
     if (bd) bd->cycles[kLevelL2] += end - returned;  // waiting for the link, then crossing
     return end;

@@ -28,10 +28,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     uint64_t queue_cycles = 0;  // cycles requests waited for bandwidth
 
   private:
-    double bytes_per_cycle_;
     BandwidthCalendar link_;
-    uint32_t last_size_bytes_ = 0;
-    Cycle last_busy_cycles_ = 0;
     MemoryPort* next_;
 };
 

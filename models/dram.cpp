@@ -1,7 +1,6 @@
 #include "models/dram.h"
 
 #include <algorithm>
-#include <cmath>
 
 namespace rtsim {
 
@@ -42,7 +41,7 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
     ++reads;
     bytes += moved;
     if (bytes_series_) bytes_series_->add(bus_start, moved);
-    busy_cycles += static_cast<uint64_t>(std::ceil(moved / params_.bytes_per_cycle));
+    busy_cycles += buses_[channel].idle_cycles(moved);
     queue_cycles += (start - now) + (bus_start - data_ready);
     // Data is usable once its last byte has crossed the bus and the controller latency passed.
     const Cycle done = bus_end + params_.latency_cycles;
