@@ -98,12 +98,13 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
                 s.treelet = batch_treelet_;
                 got = ray_buffer_->read(s.handle, t, s.work, s.pos);
                 stall_cycles[kRayBuffer] += got - t;
+                // The ray waited in the buffer, its steps long out of the host's caches: start
+                // loading them now, before the slot runs them. (Rays straight from the source
+                // had theirs prefetched by the source a few rays ahead.)
+                const char* p = reinterpret_cast<const char*>(s.work.steps.data() + s.pos);
+                for (size_t b = 0; b < (s.work.steps.size() - s.pos) * sizeof(Step); b += 64)
+                    __builtin_prefetch(p + b);
             }
-            // The steps were written on another host thread: start loading them now, long
-            // before the slot runs them.
-            const char* p = reinterpret_cast<const char*>(s.work.steps.data() + s.pos);
-            for (size_t b = 0; b < (s.work.steps.size() - s.pos) * sizeof(Step); b += 64)
-                __builtin_prefetch(p + b);
             s.busy = true;
             s.start = t;
             // A ray missing the root box has no steps and ends after its setup.
