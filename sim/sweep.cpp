@@ -6,6 +6,7 @@
 #include <unistd.h>
 
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -27,10 +28,6 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 
 namespace {
-
-// `rtsim run`'s ray options a sweep's "workload" may set.
-const char* const kWorkloadKeys[] = {"scene", "rays",       "res",       "spp",          "seed",
-                                     "light", "ao_samples", "ao_length", "diffuse_depth"};
 
 std::string value_text(const json& v) {
     return v.is_string() ? v.get<std::string>() : v.dump();
@@ -107,48 +104,34 @@ SweepPlan plan_sweep(const std::string& path) {
         TraceReader reader(trace);  // its header, checked as `run` checks it
         trace_meta = open_trace_metadata(reader, trace);
         common.insert(common.end(), {"--trace", trace});
-    } else {
+    } else if (s.contains("workload")) {
+        if (!s["workload"].is_object()) fail("workload: expected an object");
+        // Parsed and checked by the parser `run` uses, before any point starts.
+        CLI::App parser;
         WorkloadOptions w;
-        if (s.contains("workload")) {
-            if (!s["workload"].is_object()) fail("workload: expected an object");
-            for (const auto& [k, v] : s["workload"].items()) {
-                if (std::find(std::begin(kWorkloadKeys), std::end(kWorkloadKeys), k) ==
-                    std::end(kWorkloadKeys))
-                    fail(fmt::format("workload.{}: unknown key", k));
-                if (!v.is_string() && !v.is_number())
-                    fail(fmt::format("workload.{}: expected a string or a number", k));
-                std::string flag = "--" + k;
-                std::replace(flag.begin(), flag.end(), '_', '-');
-                common.insert(common.end(), {flag, value_text(v)});
-            }
-            // Checked as rtsim run would, before any point starts.
-            const json& wl = s["workload"];
-            auto text_of = [&](const char* k, std::string& out) {
-                if (wl.contains(k)) out = value_text(wl[k]);
-            };
-            text_of("scene", w.scene);
-            text_of("rays", w.rays);
-            text_of("res", w.res);
-            text_of("light", w.light);
-            try {
-                if (wl.contains("spp")) w.gen.spp = wl["spp"].get<int>();
-                if (wl.contains("seed")) w.gen.seed = wl["seed"].get<uint32_t>();
-                if (wl.contains("ao_samples")) w.gen.ao_samples = wl["ao_samples"].get<int>();
-                if (wl.contains("ao_length"))
-                    w.gen.ao_length_fraction = wl["ao_length"].get<float>();
-                if (wl.contains("diffuse_depth"))
-                    w.gen.diffuse_depth = wl["diffuse_depth"].get<int>();
-            } catch (const json::exception&) {
-                fail("workload: spp, seed, ao_samples, ao_length and diffuse_depth are numbers");
-            }
-            try {
-                w.resolve();
-            } catch (const InputError& e) {
-                fail(fmt::format("workload: {}", e.what()));
-            }
-            if (w.scene.rfind("builtin:", 0) != 0 && !fs::is_regular_file(w.scene))
-                fail(fmt::format("workload.scene: {}: no such file", w.scene));
+        add_workload_options(&parser, w);
+        std::vector<std::string> args;
+        for (const auto& [k, v] : s["workload"].items()) {
+            std::string flag = "--" + k;
+            std::replace(flag.begin(), flag.end(), '_', '-');
+            if (k.find('-') != std::string::npos || !parser.get_option_no_throw(flag))
+                fail(fmt::format("workload.{}: unknown key", k));
+            if (!v.is_string() && !v.is_number())
+                fail(fmt::format("workload.{}: expected a string or a number", k));
+            args.insert(args.end(), {flag, value_text(v)});
         }
+        common.insert(common.end(), args.begin(), args.end());
+        try {
+            std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11's order
+            parser.parse(reversed);
+            w.resolve();
+        } catch (const CLI::ParseError& e) {
+            fail(fmt::format("workload: {}", e.what()));
+        } catch (const InputError& e) {
+            fail(fmt::format("workload: {}", e.what()));
+        }
+        if (w.scene.rfind("builtin:", 0) != 0 && !fs::is_regular_file(w.scene))
+            fail(fmt::format("workload.scene: {}: no such file", w.scene));
     }
 
     if (!s.contains("vary") || !s["vary"].is_object() || s["vary"].empty())
