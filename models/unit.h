@@ -6,7 +6,6 @@
 #include <array>
 #include <string>
 #include <systemc>
-#include <vector>
 
 #include "models/calendar.h"
 #include "models/stats.h"
