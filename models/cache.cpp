@@ -11,6 +11,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
              int level)
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
     block_bytes_ = 16 * uint64_t(params_.ways);
+    tag_groups_ = params_.ways % 4 == 0 ? params_.ways / 4 : 0;
     set_storage_.assign(params_.sets() * block_bytes_ / 8 + 8, 0);
     set_blocks_ = reinterpret_cast<char*>(set_storage_.data());
     while (reinterpret_cast<uintptr_t>(set_blocks_) % 64) set_blocks_ += 8;
@@ -48,16 +49,15 @@ void Cache::renumber_stamps() {
 
 void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
     const uint64_t lines = last - first + 1;
+    if (one_bank_reads(lines)) {  // one bank reads the lines back to back (the common cases)
+        const Cycle first_done = look_up_in_one_bank(first, lines, now);
+        for (Cycle j = 0; j < lines; ++j) done[j] = first_done + j;
+        return;
+    }
     accesses += lines;
     // One lookup per bank per cycle; waiting for the bank is charged to this level. Lookups
     // come out of time order (a miss above waited for an MSHR): a bank is a calendar.
     const uint64_t nb = banks_.size();
-    if (nb == 1 || lines == 1) {  // one bank reads the lines back to back (the common cases)
-        const Cycle start = banks_[first & bank_mask_].reserve(now, lines);
-        bank_conflict_cycles += lines * (start - now) + lines * (lines - 1) / 2;
-        for (Cycle j = 0; j < lines; ++j) done[j] = start + j + params_.hit_latency_cycles;
-        return;
-    }
     for (uint64_t k = 0; k < std::min(lines, nb); ++k) {
         const Cycle span =
             (lines - k + nb - 1) >> bank_shift_;  // lines k, k + nb, ... share a bank
@@ -192,26 +192,38 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
 bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                          AccessBreakdown* bd) {
     const auto [first, last] = line_range(addr, size_bytes);
+    const uint64_t lines = last - first + 1;
     // Find every line before touching any state: a request with one missing line is not local.
     constexpr uint64_t kMaxLines = 16;
     int ways[kMaxLines];
-    if (last - first >= kMaxLines) return false;
-    expect(addr, size_bytes);  // the sets' loads overlap instead of one after another
-    for (uint64_t line = first; line <= last; ++line) {
-        const int w = find_way(set_of(line), line);
+    if (lines > kMaxLines) return false;
+    for (uint64_t k = 0; k < lines; ++k)  // the sets' loads overlap instead of one after another
+        __builtin_prefetch(set_block(set_of(first + k)));
+    for (uint64_t k = 0; k < lines; ++k) {
+        const int w = find_way(set_of(first + k), first + k);
         if (w < 0) return false;
-        ways[line - first] = w;
+        ways[k] = w;
     }
     bytes_requested += size_bytes;
     Cycle done[kMaxLines];
-    look_up(first, last, now, done);
-    Slowest slowest;
-    for (uint64_t line = first; line <= last; ++line) {
-        const Cycle lookup_done = done[line - first];
-        slowest.hit(lookup_done, hit(set_of(line), ways[line - first], lookup_done));
+    Cycle first_done = 0;
+    const bool one_bank = one_bank_reads(lines);
+    if (one_bank)
+        first_done = look_up_in_one_bank(first, lines, now);
+    else
+        look_up(first, last, now, done);
+    // The slowest line decides (the first of equals); a hit waits for a fill still in flight.
+    Cycle slowest = 0, slowest_lookup = 0;
+    for (uint64_t k = 0; k < lines; ++k) {
+        const Cycle lookup_done = one_bank ? first_done + k : done[k];
+        const Cycle d = std::max(lookup_done, hit(set_of(first + k), ways[k], lookup_done));
+        if (k == 0 || d > slowest) {
+            slowest = d;
+            slowest_lookup = lookup_done;
+        }
     }
-    slowest.charge(bd, level_, now);
-    ready = slowest.done;
+    if (bd) charge_hit(bd, level_, now, slowest_lookup, slowest);
+    ready = slowest;
     return true;
 }
 
@@ -219,8 +231,7 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
     bytes_requested += size_bytes;
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
-        Cycle lookup_done;
-        look_up(first, first, now, &lookup_done);
+        const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
         const uint64_t set = set_of(first);
         const int found = find_way(set, first);
         if (found < 0) return fill(set, first, now, lookup_done, bd);
@@ -230,11 +241,19 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
     }
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
     // to what the requester's levels already charged.
-    if (lookup_done_.size() < last - first + 1) lookup_done_.resize(last - first + 1);
-    look_up(first, last, now, lookup_done_.data());
+    const uint64_t lines = last - first + 1;
+    Cycle first_done = 0;
+    const bool one_bank = one_bank_reads(lines);
+    if (one_bank) {
+        first_done = look_up_in_one_bank(first, lines, now);
+    } else {
+        if (lookup_done_.size() < lines) lookup_done_.resize(lines);
+        look_up(first, last, now, lookup_done_.data());
+    }
     Slowest slowest;
-    for (uint64_t line = first; line <= last; ++line)
-        access_line(line, now, lookup_done_[line - first], slowest, bd != nullptr);
+    for (uint64_t k = 0; k < lines; ++k)
+        access_line(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
+                    bd != nullptr);
     slowest.charge(bd, level_, now);
     return std::max(now, slowest.done);
 }

@@ -98,6 +98,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     char* set_block(uint64_t set) { return set_blocks_ + set * block_bytes_; }
     const char* set_block(uint64_t set) const { return set_blocks_ + set * block_bytes_; }
     uint32_t* tags(uint64_t set) { return reinterpret_cast<uint32_t*>(set_block(set)); }
+    const uint32_t* tags(uint64_t set) const {
+        return reinterpret_cast<const uint32_t*>(set_block(set));
+    }
     uint32_t* stamps(uint64_t set) { return tags(set) + params_.ways; }
     Cycle* fill_ready(uint64_t set) {
         return reinterpret_cast<Cycle*>(set_block(set) + 8 * uint64_t(params_.ways));
@@ -108,30 +111,47 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     }
     // The way holding `line_addr` in its set, or -1. Compares every way without an early exit:
     // a data-dependent exit mispredicts on most lookups, the extra compares cost less.
-    int find_way(uint64_t set, uint64_t line_addr) {
+    [[gnu::always_inline]] int find_way(uint64_t set, uint64_t line_addr) const {
         const uint32_t* t = tags(set);
         const uint32_t tag = tag_of(line_addr);
 #ifdef __SSE2__
-        if (params_.ways % 4 == 0) {  // four tags per compare; a tag is in at most one way
-            const __m128i key = _mm_set1_epi32(int(tag));
-            for (int base = 0; base < params_.ways; base += 32) {
-                const int n = std::min(32, params_.ways - base);
-                uint32_t hits = 0;
-                for (int w = 0; w < n; w += 4) {
-                    const __m128i four =
-                        _mm_load_si128(reinterpret_cast<const __m128i*>(t + base + w));
-                    const int eq = _mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(four, key)));
-                    hits |= uint32_t(eq) << w;
+        // Four tags per compare; a tag is in at most one way. The usual associativities get
+        // unrolled compares.
+        switch (tag_groups_) {
+            case 1:
+                return find_in_groups<1>(t, tag);
+            case 2:
+                return find_in_groups<2>(t, tag);
+            case 4:
+                return find_in_groups<4>(t, tag);
+            case 0:
+                break;
+            default:
+                for (int base = 0; base < params_.ways; base += 32) {
+                    const int found = find_in_groups<8>(t + base, tag);
+                    if (found >= 0) return base + found;
                 }
-                if (hits) return base + __builtin_ctz(hits);
-            }
-            return -1;
+                return -1;
         }
 #endif
         int found = -1;
         for (int w = 0; w < params_.ways; ++w) found = t[w] == tag ? w : found;
         return found;
     }
+#ifdef __SSE2__
+    // The way among the first 4 * kGroups tags of `t` equal to `tag`, or -1.
+    template <int kGroups>
+    [[gnu::always_inline]] static int find_in_groups(const uint32_t* t, uint32_t tag) {
+        const __m128i key = _mm_set1_epi32(int(tag));
+        uint32_t hits = 0;
+        for (int g = 0; g < kGroups; ++g) {
+            const __m128i four = _mm_load_si128(reinterpret_cast<const __m128i*>(t + 4 * g));
+            hits |= uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(four, key))))
+                    << (4 * g);
+        }
+        return hits ? __builtin_ctz(hits) : -1;
+    }
+#endif
     uint32_t next_stamp() {
         if (use_clock_ == ~uint32_t(0)) renumber_stamps();
         return ++use_clock_;
@@ -141,6 +161,17 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     // Counts the lookups of lines first..last and waits for their banks, each of which reads
     // its lines of the request back to back; done[k]: the cycle line first + k is looked up.
     void look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done);
+    // look_up for `lines` lines from `first` that one bank reads (one bank, or one line):
+    // returns the cycle the first is looked up; line k is looked up k cycles later.
+    Cycle look_up_in_one_bank(uint64_t first, uint64_t lines, Cycle now) {
+        accesses += lines;
+        const Cycle start = banks_[first & bank_mask_].reserve(now, lines);
+        bank_conflict_cycles += lines * (start - now) + lines * (lines - 1) / 2;
+        return start + params_.hit_latency_cycles;
+    }
+    bool one_bank_reads(uint64_t lines) const {
+        return banks_.size() == 1 || lines == 1;
+    }
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
     Cycle hit(uint64_t set, int way, Cycle lookup_done);
     // A hit's cycles in `bd`: looking it up at `level` until `lookup_done`, then waiting below
@@ -174,6 +205,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     std::vector<uint64_t> set_storage_;  // the sets' blocks (a tag of kNoTag: an invalid way)
     char* set_blocks_ = nullptr;         // set_storage_ aligned to a host cache line
     uint64_t block_bytes_ = 0;
+    int tag_groups_ = 0;      // ways / 4 for tag compares four at a time; 0: one at a time
     uint32_t set_shift_ = 0;  // log2 of the set count: a tag is the line address above it
     uint64_t bank_mask_ = 0;
     uint32_t bank_shift_ = 0;  // log2 of the bank count

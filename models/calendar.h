@@ -92,11 +92,20 @@ class ReservationCalendar {
             ++g_calendar_late_requests;
             ready = ring_.base();
         }
-        if (ready < ring_.end()) return reserve_among_bookings(ready, span);
-        // Nothing booked from `ready` on (requests mostly come in order): no search.
-        ring_.extend(ready + span);
-        for (Cycle c = ready; c < ready + span; ++c) ring_.set(c, 1);
-        return ready;
+        Cycle start = ready;
+        if (ready < ring_.end()) {
+            // One user, and no request so far was ready later than this one: every cycle from
+            // the latest ready to the end is booked (each in-order booking starts at its ready or
+            // at the end; an out-of-order one fills a gap or starts at the end), so the
+            // reservation starts at the end. A private L1's bank sees only such requests.
+            if (capacity_ != 1 || ready < latest_ready_) return reserve_among_bookings(ready, span);
+            start = ring_.end();
+        }
+        latest_ready_ = ready;
+        // Nothing booked from `start` on: no search.
+        ring_.extend(start + span);
+        for (Cycle c = start; c < start + span; ++c) ring_.set(c, 1);
+        return start;
     }
     size_t ring_cycles() const { return ring_.size(); }
 
@@ -105,6 +114,7 @@ class ReservationCalendar {
     uint32_t capacity_;
     const TimeFloor* floor_ = &detail::g_no_floor;
     detail::CycleRing<16> ring_;  // cycles below 2^48
+    Cycle latest_ready_ = 0;      // the latest `ready` asked for so far
 };
 
 // A link moving `bytes_per_cycle` (fractional allowed) as a fluid: a transfer takes what is left
