@@ -119,7 +119,9 @@ void Cache::replace_earliest_mshr(Cycle ready) {
     for (;;) {
         size_t c = 2 * i + 1;
         if (c >= n) break;
-        if (c + 1 < n && h[c + 1] < h[c]) ++c;
+        // The earlier child, without a branch (which one is unpredictable).
+        const bool right = c + 1 < n && h[c + 1] < h[c];
+        c += right;
         if (h[c] >= ready) break;
         h[i] = h[c];
         i = c;
@@ -145,7 +147,6 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
 Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done,
                   AccessBreakdown* bd) {
     const uint32_t* tag = tags(set);
-    const uint32_t* age = stamps(set);
     // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
     // ones a later stamp, so the oldest stamp is the first invalid way when there is one.
     int victim = -1;
@@ -159,14 +160,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
             rng_ ^= rng_ << 17;
             victim = int(rng_ % uint64_t(params_.ways));
         } else {
-            // Branch-free: which way is oldest is unpredictable.
-            victim = 0;
-            uint32_t oldest = age[0];
-            for (int w = 1; w < params_.ways; ++w) {
-                const bool older = age[w] < oldest;
-                oldest = older ? age[w] : oldest;
-                victim = older ? w : victim;
-            }
+            victim = oldest_way(set);
         }
     }
     ++misses;

@@ -151,7 +151,55 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         }
         return hits ? __builtin_ctz(hits) : -1;
     }
+    // The first way of the least stamp among the 4 * kGroups stamps at `age` (16-byte aligned).
+    template <int kGroups>
+    [[gnu::always_inline]] static int oldest_in_groups(const uint32_t* age) {
+        // SSE2 compares signed 32-bit lanes: flip the sign bit to order unsigned stamps.
+        const __m128i bias = _mm_set1_epi32(int(0x80000000u));
+        const auto load = [&](int g) {
+            return _mm_xor_si128(_mm_load_si128(reinterpret_cast<const __m128i*>(age + 4 * g)),
+                                 bias);
+        };
+        const auto min4 = [](__m128i a, __m128i b) {
+            const __m128i a_greater = _mm_cmpgt_epi32(a, b);
+            return _mm_or_si128(_mm_and_si128(a_greater, b), _mm_andnot_si128(a_greater, a));
+        };
+        __m128i least = load(0);
+        for (int g = 1; g < kGroups; ++g) least = min4(least, load(g));
+        least = min4(least, _mm_shuffle_epi32(least, 0x4E));  // swap halves
+        least = min4(least, _mm_shuffle_epi32(least, 0xB1));  // swap neighbours
+        uint32_t at = 0;
+        for (int g = 0; g < kGroups; ++g)
+            at |= uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(load(g), least))))
+                  << (4 * g);
+        return __builtin_ctz(at);
+    }
 #endif
+    // The way with the least stamp (the first of equals): LRU's and FIFO's victim.
+    int oldest_way(uint64_t set) {
+        const uint32_t* age = stamps(set);
+#ifdef __SSE2__
+        switch (tag_groups_) {
+            case 1:
+                return oldest_in_groups<1>(age);
+            case 2:
+                return oldest_in_groups<2>(age);
+            case 4:
+                return oldest_in_groups<4>(age);
+            default:
+                break;
+        }
+#endif
+        // Branch-free: which way is oldest is unpredictable.
+        int victim = 0;
+        uint32_t oldest = age[0];
+        for (int w = 1; w < params_.ways; ++w) {
+            const bool older = age[w] < oldest;
+            oldest = older ? age[w] : oldest;
+            victim = older ? w : victim;
+        }
+        return victim;
+    }
     uint32_t next_stamp() {
         if (use_clock_ == ~uint32_t(0)) renumber_stamps();
         return ++use_clock_;
