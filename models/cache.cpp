@@ -67,15 +67,6 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
     }
 }
 
-Cycle Cache::hit(uint64_t set, int way, Cycle lookup_done) {
-    ++hits;
-    if (params_.replacement == CacheParams::Replacement::Lru)
-        stamps(set)[way] = next_stamp();  // FIFO: fill order
-    const Cycle ready = fill_ready(set)[way];
-    merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
-    return ready;
-}
-
 void Cache::Slowest::hit(Cycle lookup_done, Cycle ready) {
     const Cycle d = std::max(lookup_done, ready);
     if (d > done || !any) {

@@ -221,7 +221,14 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         return banks_.size() == 1 || lines == 1;
     }
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
-    Cycle hit(uint64_t set, int way, Cycle lookup_done);
+    Cycle hit(uint64_t set, int way, Cycle lookup_done) {
+        ++hits;
+        if (params_.replacement == CacheParams::Replacement::Lru)
+            stamps(set)[way] = next_stamp();  // FIFO: fill order
+        const Cycle ready = fill_ready(set)[way];
+        merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
+        return ready;
+    }
     // A hit's cycles in `bd`: looking it up at `level` until `lookup_done`, then waiting below
     // for its fill until `done`.
     static void charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done,
