@@ -176,7 +176,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     }
 #endif
     // The way with the least stamp (the first of equals): LRU's and FIFO's victim.
-    int oldest_way(uint64_t set) {
+    [[gnu::always_inline]] int oldest_way(uint64_t set) {
         const uint32_t* age = stamps(set);
 #ifdef __SSE2__
         switch (tag_groups_) {

@@ -28,6 +28,17 @@ template class CycleRing<kBandwidthCountBits>;
 }  // namespace detail
 
 Cycle ReservationCalendar::reserve_among_bookings(Cycle ready, Cycle span) {
+    if (span == 1) {  // a cache bank's lookup: the first cycle with a free user
+        Cycle c = ready;
+        uint64_t used = ring_.count(c);
+        while (used >= capacity_ && ++c < ring_.end()) used = ring_.count(c);
+        if (c == ring_.end()) {
+            ring_.extend(c + 1);
+            used = 0;
+        }
+        ring_.set(c, used + 1);
+        return c;
+    }
     // Slide past any full cycle inside the candidate span; cycles from the end on are empty.
     Cycle start = ready;
     for (Cycle c = start; c < start + span && c < ring_.end(); ++c)
@@ -44,19 +55,24 @@ BandwidthCalendar::BandwidthCalendar(double bytes_per_cycle)
 std::pair<Cycle, Cycle> BandwidthCalendar::transfer_among_bookings(Cycle ready, uint64_t left) {
     // Full cycles at the front stay full until the floor passes them: start searching after.
     if (full_until_ < ring_.base()) full_until_ = ring_.base();
-    Cycle c = std::max(ready, full_until_);
+    const Cycle from = std::max(ready, full_until_);
     // Cycles with room hold at least some; skip the full ones (never past the end: it is empty).
-    while (c < ring_.end() && ring_.count(c) >= capacity_units_) ++c;
+    Cycle c = from;
+    uint64_t used = 0;
+    while (c < ring_.end() && (used = ring_.count(c)) >= capacity_units_) ++c;
+    if (c >= ring_.end()) used = 0;
+    if (from == full_until_) full_until_ = c;  // everything skipped is full
     const Cycle first = c;
     // Enough cycles if the link were idle from here; more are added if it is not.
     ring_.extend(c + (left + capacity_units_ - 1) / capacity_units_);
-    while (left > 0) {
-        if (c >= ring_.end()) ring_.extend(c + 1);
-        const uint64_t used = ring_.count(c);
+    for (;;) {
         const uint64_t take = std::min<uint64_t>(left, capacity_units_ - used);
         ring_.set(c, used + take);
         left -= take;
         ++c;
+        if (left == 0) break;
+        if (c >= ring_.end()) ring_.extend(c + 1);
+        used = ring_.count(c);
     }
     while (full_until_ < ring_.end() && ring_.count(full_until_) >= capacity_units_) ++full_until_;
     return {first, c};
