@@ -12,6 +12,9 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
     block_bytes_ = 16 * uint64_t(params_.ways);
     tag_groups_ = params_.ways % 4 == 0 ? params_.ways / 4 : 0;
+#ifdef __SSE2__
+    layout_ = tag_groups_ == 1 || tag_groups_ == 2 || tag_groups_ == 4 ? tag_groups_ : 0;
+#endif
     set_storage_.assign(params_.sets() * block_bytes_ / 8 + 8, 0);
     set_blocks_ = reinterpret_cast<char*>(set_storage_.data());
     while (reinterpret_cast<uintptr_t>(set_blocks_) % 64) set_blocks_ += 8;
@@ -120,24 +123,26 @@ void Cache::replace_earliest_mshr(Cycle ready) {
     h[i] = ready;
 }
 
+template <int G>
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                          bool breakdown) {
     const uint64_t set = set_of(line_addr);
-    const int found = find_way(set, line_addr);
+    const int found = find_way<G>(set, line_addr);
     if (found >= 0) {
-        const Cycle ready = hit(set, found, lookup_done);
+        const Cycle ready = hit<G>(set, found, lookup_done);
         slowest.hit(lookup_done, ready);
         return std::max(lookup_done, ready);
     }
     AccessBreakdown line_bd;
-    const Cycle ready = fill(set, line_addr, now, lookup_done, breakdown ? &line_bd : nullptr);
+    const Cycle ready = fill<G>(set, line_addr, now, lookup_done, breakdown ? &line_bd : nullptr);
     slowest.miss(ready, line_bd);
     return ready;
 }
 
+template <int G>
 Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done,
                   AccessBreakdown* bd) {
-    const uint32_t* tag = tags(set);
+    const uint32_t* tag = tags<G>(set);
     // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
     // ones a later stamp, so the oldest stamp is the first invalid way when there is one.
     int victim = -1;
@@ -151,7 +156,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
             rng_ ^= rng_ << 17;
             victim = int(rng_ % uint64_t(params_.ways));
         } else {
-            victim = oldest_way(set);
+            victim = oldest_way<G>(set);
         }
     }
     ++misses;
@@ -168,14 +173,42 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     if (bd) bd->cycles[level_] += issue_at - now;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
     if (limited) replace_earliest_mshr(ready);
-    tags(set)[victim] = tag_of(line_addr);
-    fill_ready(set)[victim] = ready;
-    stamps(set)[victim] = next_stamp();
+    tags<G>(set)[victim] = tag_of(line_addr);
+    fill_ready<G>(set)[victim] = ready;
+    stamps<G>(set)[victim] = next_stamp();
     return ready;
 }
 
 bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                          AccessBreakdown* bd) {
+    switch (layout_) {
+        case 1:
+            return access_local_in<1>(addr, size_bytes, now, ready, bd);
+        case 2:
+            return access_local_in<2>(addr, size_bytes, now, ready, bd);
+        case 4:
+            return access_local_in<4>(addr, size_bytes, now, ready, bd);
+        default:
+            return access_local_in<0>(addr, size_bytes, now, ready, bd);
+    }
+}
+
+Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+    switch (layout_) {
+        case 1:
+            return access_in<1>(addr, size_bytes, now, bd);
+        case 2:
+            return access_in<2>(addr, size_bytes, now, bd);
+        case 4:
+            return access_in<4>(addr, size_bytes, now, bd);
+        default:
+            return access_in<0>(addr, size_bytes, now, bd);
+    }
+}
+
+template <int G>
+bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                            AccessBreakdown* bd) {
     const auto [first, last] = line_range(addr, size_bytes);
     const uint64_t lines = last - first + 1;
     // Find every line before touching any state: a request with one missing line is not local.
@@ -183,9 +216,9 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
     int ways[kMaxLines];
     if (lines > kMaxLines) return false;
     for (uint64_t k = 0; k < lines; ++k)  // the sets' loads overlap instead of one after another
-        __builtin_prefetch(set_block(set_of(first + k)));
+        __builtin_prefetch(set_block<G>(set_of(first + k)));
     for (uint64_t k = 0; k < lines; ++k) {
-        const int w = find_way(set_of(first + k), first + k);
+        const int w = find_way<G>(set_of(first + k), first + k);
         if (w < 0) return false;
         ways[k] = w;
     }
@@ -201,7 +234,7 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
     Cycle slowest = 0, slowest_lookup = 0;
     for (uint64_t k = 0; k < lines; ++k) {
         const Cycle lookup_done = one_bank ? first_done + k : done[k];
-        const Cycle d = std::max(lookup_done, hit(set_of(first + k), ways[k], lookup_done));
+        const Cycle d = std::max(lookup_done, hit<G>(set_of(first + k), ways[k], lookup_done));
         if (k == 0 || d > slowest) {
             slowest = d;
             slowest_lookup = lookup_done;
@@ -212,15 +245,16 @@ bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& r
     return true;
 }
 
-Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+template <int G>
+Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
         const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
         const uint64_t set = set_of(first);
-        const int found = find_way(set, first);
-        if (found < 0) return fill(set, first, now, lookup_done, bd);
-        const Cycle ready = std::max(lookup_done, hit(set, found, lookup_done));
+        const int found = find_way<G>(set, first);
+        if (found < 0) return fill<G>(set, first, now, lookup_done, bd);
+        const Cycle ready = std::max(lookup_done, hit<G>(set, found, lookup_done));
         if (bd) charge_hit(bd, level_, now, lookup_done, ready);
         return ready;
     }
@@ -237,8 +271,8 @@ Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdo
     }
     Slowest slowest;
     for (uint64_t k = 0; k < lines; ++k)
-        access_line(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
-                    bd != nullptr);
+        access_line<G>(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
+                       bd != nullptr);
     slowest.charge(bd, level_, now);
     return std::max(now, slowest.done);
 }

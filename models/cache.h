@@ -95,15 +95,35 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     static constexpr uint32_t kNoTag = ~uint32_t(0);
     uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
     uint32_t tag_of(uint64_t line_addr) const { return uint32_t(line_addr >> set_shift_); }
-    char* set_block(uint64_t set) { return set_blocks_ + set * block_bytes_; }
-    const char* set_block(uint64_t set) const { return set_blocks_ + set * block_bytes_; }
-    uint32_t* tags(uint64_t set) { return reinterpret_cast<uint32_t*>(set_block(set)); }
-    const uint32_t* tags(uint64_t set) const {
-        return reinterpret_cast<const uint32_t*>(set_block(set));
+    // The hot paths see the set layout with a compile-time associativity of 4 * G ways, so sizes
+    // and offsets are constants (G = 0: the configured associativity, read at run time).
+    template <int G>
+    int ways_of() const {
+        return G ? 4 * G : params_.ways;
     }
-    uint32_t* stamps(uint64_t set) { return tags(set) + params_.ways; }
+    template <int G = 0>
+    char* set_block(uint64_t set) {
+        return set_blocks_ + set * (G ? 64 * uint64_t(G) : block_bytes_);
+    }
+    template <int G = 0>
+    const char* set_block(uint64_t set) const {
+        return set_blocks_ + set * (G ? 64 * uint64_t(G) : block_bytes_);
+    }
+    template <int G = 0>
+    uint32_t* tags(uint64_t set) {
+        return reinterpret_cast<uint32_t*>(set_block<G>(set));
+    }
+    template <int G = 0>
+    const uint32_t* tags(uint64_t set) const {
+        return reinterpret_cast<const uint32_t*>(set_block<G>(set));
+    }
+    template <int G = 0>
+    uint32_t* stamps(uint64_t set) {
+        return tags<G>(set) + ways_of<G>();
+    }
+    template <int G = 0>
     Cycle* fill_ready(uint64_t set) {
-        return reinterpret_cast<Cycle*>(set_block(set) + 8 * uint64_t(params_.ways));
+        return reinterpret_cast<Cycle*>(set_block<G>(set) + 8 * uint64_t(ways_of<G>()));
     }
     // First and last line address a request touches.
     std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
@@ -111,31 +131,24 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     }
     // The way holding `line_addr` in its set, or -1. Compares every way without an early exit:
     // a data-dependent exit mispredicts on most lookups, the extra compares cost less.
+    template <int G>
     [[gnu::always_inline]] int find_way(uint64_t set, uint64_t line_addr) const {
-        const uint32_t* t = tags(set);
+        const uint32_t* t = tags<G>(set);
         const uint32_t tag = tag_of(line_addr);
 #ifdef __SSE2__
-        // Four tags per compare; a tag is in at most one way. The usual associativities get
-        // unrolled compares.
-        switch (tag_groups_) {
-            case 1:
-                return find_in_groups<1>(t, tag);
-            case 2:
-                return find_in_groups<2>(t, tag);
-            case 4:
-                return find_in_groups<4>(t, tag);
-            case 0:
-                break;
-            default:
-                for (int base = 0; base < params_.ways; base += 32) {
-                    const int found = find_in_groups<8>(t + base, tag);
-                    if (found >= 0) return base + found;
-                }
-                return -1;
+        // Four tags per compare; a tag is in at most one way.
+        if constexpr (G > 0) {
+            return find_in_groups<G>(t, tag);
+        } else if (tag_groups_ > 0) {
+            for (int base = 0; base < params_.ways; base += 32) {
+                const int found = find_in_groups<8>(t + base, tag);
+                if (found >= 0) return base + found;
+            }
+            return -1;
         }
 #endif
         int found = -1;
-        for (int w = 0; w < params_.ways; ++w) found = t[w] == tag ? w : found;
+        for (int w = 0; w < ways_of<G>(); ++w) found = t[w] == tag ? w : found;
         return found;
     }
 #ifdef __SSE2__
@@ -176,24 +189,16 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     }
 #endif
     // The way with the least stamp (the first of equals): LRU's and FIFO's victim.
+    template <int G>
     [[gnu::always_inline]] int oldest_way(uint64_t set) {
-        const uint32_t* age = stamps(set);
+        const uint32_t* age = stamps<G>(set);
 #ifdef __SSE2__
-        switch (tag_groups_) {
-            case 1:
-                return oldest_in_groups<1>(age);
-            case 2:
-                return oldest_in_groups<2>(age);
-            case 4:
-                return oldest_in_groups<4>(age);
-            default:
-                break;
-        }
+        if constexpr (G > 0) return oldest_in_groups<G>(age);
 #endif
         // Branch-free: which way is oldest is unpredictable.
         int victim = 0;
         uint32_t oldest = age[0];
-        for (int w = 1; w < params_.ways; ++w) {
+        for (int w = 1; w < ways_of<G>(); ++w) {
             const bool older = age[w] < oldest;
             oldest = older ? age[w] : oldest;
             victim = older ? w : victim;
@@ -221,11 +226,12 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         return banks_.size() == 1 || lines == 1;
     }
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
+    template <int G>
     Cycle hit(uint64_t set, int way, Cycle lookup_done) {
         ++hits;
         if (params_.replacement == CacheParams::Replacement::Lru)
-            stamps(set)[way] = next_stamp();  // FIFO: fill order
-        const Cycle ready = fill_ready(set)[way];
+            stamps<G>(set)[way] = next_stamp();  // FIFO: fill order
+        const Cycle ready = fill_ready<G>(set)[way];
         merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
         return ready;
     }
@@ -244,11 +250,19 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         void miss(Cycle done, const AccessBreakdown& line_bd);
         void charge(AccessBreakdown* bd, int level, Cycle now) const;
     };
+    template <int G>
     Cycle access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                       bool breakdown);
     // A miss: picks a victim, waits for an MSHR, fetches the line from the next level (adding
     // its cycles to `bd`); returns the cycle the line is there.
+    template <int G>
     Cycle fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done, AccessBreakdown* bd);
+    // access() and access_local() for the set layout G (see ways_of).
+    template <int G>
+    Cycle access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd);
+    template <int G>
+    bool access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                         AccessBreakdown* bd);
 
     CacheParams params_;
     MemoryPort* next_;
@@ -261,6 +275,7 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     char* set_blocks_ = nullptr;         // set_storage_ aligned to a host cache line
     uint64_t block_bytes_ = 0;
     int tag_groups_ = 0;      // ways / 4 for tag compares four at a time; 0: one at a time
+    int layout_ = 0;          // the G the hot paths run with: tag_groups_ if 1, 2 or 4, else 0
     uint32_t set_shift_ = 0;  // log2 of the set count: a tag is the line address above it
     uint64_t bank_mask_ = 0;
     uint32_t bank_shift_ = 0;  // log2 of the bank count
