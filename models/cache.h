@@ -140,9 +140,9 @@ class Cache : public sc_core::sc_module, public MemoryPort {
         if constexpr (G > 0) {
             return find_in_groups<G>(t, tag);
         } else if (tag_groups_ > 0) {
-            for (int base = 0; base < params_.ways; base += 32) {
-                const int found = find_in_groups<8>(t + base, tag);
-                if (found >= 0) return base + found;
+            for (int g = 0; g < tag_groups_; ++g) {
+                const int found = find_in_groups<1>(t + 4 * g, tag);
+                if (found >= 0) return 4 * g + found;
             }
             return -1;
         }

@@ -44,11 +44,12 @@ class ReferenceLru {
 }  // namespace
 
 TEST(Cache, HitAndMissCountsEqualReferenceLru) {
-    for (int ways : {1, 2, 4, 8}) {
+    // Every set layout the hot paths are compiled for (4, 8, 16 ways), and ones read at run time.
+    for (int ways : {1, 2, 4, 8, 12, 16, 32}) {
         CacheParams p;
-        p.size_bytes = 8 * 1024;
         p.ways = ways;
         p.line_bytes = 64;
+        p.size_bytes = uint64_t(ways) * 64 * (ways % 3 == 0 ? 8 : 8 * 16 / ways);  // 2^n sets
         test::FixedLatencyMemory mem(50);
         Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
         ReferenceLru ref(p.sets(), ways, 64);
