@@ -190,7 +190,7 @@ TEST(CoreScheduler, QuantumBoundsHowFarRequestsArriveOutOfOrder) {
 // The slots' tournament tree against a plain scan (the lowest index among the earliest).
 TEST(EarliestOf, MatchesAScanOnRandomUpdates) {
     for (size_t n : {1, 2, 3, 8, 13}) {
-        std::mt19937 rng{uint32_t(n)};
+        std::mt19937 rng(uint32_t(n));
         EarliestOf tree(n, 0);
         std::vector<Cycle> plain(n, 0);
         for (int k = 0; k < 5000; ++k) {
