@@ -8,15 +8,6 @@
 
 namespace rtsim {
 
-EarliestOf::EarliestOf(size_t n, Cycle initial) : n_(n), size_(1) {
-    while (size_ < n_) size_ *= 2;
-    leaf_.assign(size_, kNeverCycle);
-    winner_.assign(2 * size_, 0);
-    for (size_t i = 0; i < size_; ++i) winner_[size_ + i] = uint32_t(i);
-    for (size_t node = size_ - 1; node >= 1; --node) winner_[node] = winner_[2 * node];
-    for (size_t i = 0; i < n_; ++i) set(i, initial);
-}
-
 Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
            PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
            MemoryPort* triangle_l1)
@@ -51,8 +42,8 @@ void Core::finish_ray(Slot& s, Cycle done) {
 
 void Core::wake(Cycle at) {
     at = std::max(at, floor_.cycle);  // never behind the core's own floor
-    for (size_t i = 0; i < ready_.size(); ++i)
-        if (ready_[i] == kParkedCycle) ready_.set(i, at);
+    for (Cycle& r : ready_)
+        if (r == kParkedCycle) r = at;
 }
 
 // Loads a treelet's nodes and triangles with one request per run: the cache looks its lines up
@@ -67,9 +58,16 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
 }
 
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
+    const size_t n = ready_.size();
     for (;;) {
-        const size_t i = ready_.earliest();
-        const Cycle t = ready_[i];
+        // Branch-free: which slot is earliest changes unpredictably from step to step.
+        size_t i = 0;
+        Cycle t = ready_[0];
+        for (size_t j = 1; j < n; ++j) {
+            const bool earlier = ready_[j] < t;
+            t = earlier ? ready_[j] : t;
+            i = earlier ? j : i;
+        }
         if (t >= kParkedCycle) return t;  // every slot parked or retired
         // Every later request of this core comes at t or after.
         floor_.cycle = t;
@@ -82,14 +80,14 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             Cycle got = t;
             if (!ray_buffer_) {
                 if (!source_->next(s.work)) {
-                    ready_.set(i, kNeverCycle);
+                    ready_[i] = kNeverCycle;
                     continue;
                 }
                 s.pos = 0;
             } else {
                 if (batch_.empty()) {
                     if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
-                        ready_.set(i, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
+                        ready_[i] = ray_buffer_->finished() ? kNeverCycle : kParkedCycle;
                         continue;
                     }
                     if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
@@ -111,7 +109,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             s.start = t;
             // A ray missing the root box has no steps and ends after its setup.
             const Cycle done = issue(got, params_.ray_setup_instructions);
-            ready_.set(i, done);
+            ready_[i] = done;
             stall_cycles[kIssue] += done - got;
             if (!ray_buffer_ && s.work.steps.empty()) finish_ray(s, done);
             continue;
@@ -131,7 +129,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
                 stall_cycles[kRayBuffer] += done - t;
                 ray_latency_cycles += done - s.start;
                 s.busy = false;
-                ready_.set(i, done);
+                ready_[i] = done;
                 continue;
             }
         }
@@ -172,7 +170,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         }
         const Cycle done =
             node ? box_->issue(fetched, st.count, lanes) : tri_->issue(fetched, 1, lanes);
-        ready_.set(i, done);
+        ready_[i] = done;
         stall_cycles[kIssue] += issued - t;
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];

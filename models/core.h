@@ -61,28 +61,6 @@ class WakeSource {
 
 class RayBuffer;
 
-// The earliest of a few cycles (a core's ray slots' ready cycles) in a tournament tree: a change
-// costs log2(n) compares instead of a scan of all n. Ties go to the lower index.
-class EarliestOf {
-  public:
-    explicit EarliestOf(size_t n, Cycle initial);
-    void set(size_t i, Cycle c) {
-        leaf_[i] = c;
-        for (size_t node = (i + size_) >> 1; node >= 1; node >>= 1) {
-            const uint32_t a = winner_[2 * node], b = winner_[2 * node + 1];
-            winner_[node] = leaf_[b] < leaf_[a] ? b : a;
-        }
-    }
-    Cycle operator[](size_t i) const { return leaf_[i]; }
-    size_t size() const { return n_; }
-    size_t earliest() const { return winner_[1]; }
-
-  private:
-    size_t n_, size_;               // entries, and leaves (a power of two)
-    std::vector<Cycle> leaf_;       // entries, then kNeverCycle up to size_
-    std::vector<uint32_t> winner_;  // per tree node (root 1; leaf i at size_ + i): its earliest
-};
-
 class Core : public sc_core::sc_module {
   public:
     // triangle_l1: a separate L1 for triangle fetches (a split L1); nullptr: `l1` serves both.
@@ -146,8 +124,9 @@ class Core : public sc_core::sc_module {
     PipelinedUnit* tri_;
     RayWorkSource* source_;
     std::vector<Slot> slots_;
-    // Per slot: the cycle it is ready for its next step; kNeverCycle once retired.
-    EarliestOf ready_;
+    // Per slot: the cycle it is ready for its next step; kNeverCycle once retired. Apart from
+    // the slots so that finding the earliest is a short branch-free scan.
+    std::vector<Cycle> ready_;
     RayBuffer* ray_buffer_ = nullptr;
     std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
     uint32_t batch_treelet_ = 0;

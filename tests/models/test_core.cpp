@@ -1,8 +1,6 @@
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <deque>
-#include <random>
 
 #include "fixed_memory.h"
 #include "models/core.h"
@@ -185,24 +183,4 @@ TEST(CoreScheduler, QuantumBoundsHowFarRequestsArriveOutOfOrder) {
     EXPECT_EQ(rays, uint64_t(20 + 25 + 30 + 35));
     EXPECT_GT(worst_lag(times), 0u);  // the quantum did relax the order
     EXPECT_LE(worst_lag(times), q);
-}
-
-// The slots' tournament tree against a plain scan (the lowest index among the earliest).
-TEST(EarliestOf, MatchesAScanOnRandomUpdates) {
-    for (size_t n : {1, 2, 3, 8, 13}) {
-        std::mt19937 rng(uint32_t(n));
-        EarliestOf tree(n, 0);
-        std::vector<Cycle> plain(n, 0);
-        for (int k = 0; k < 5000; ++k) {
-            const size_t i = rng() % n;
-            // Few distinct values, so ties are common; now and then a retired slot.
-            const Cycle c = rng() % 10 == 0 ? kNeverCycle : Cycle(rng() % 6);
-            tree.set(i, c);
-            plain[i] = c;
-            const size_t want =
-                size_t(std::min_element(plain.begin(), plain.end()) - plain.begin());
-            ASSERT_EQ(tree.earliest(), want) << n << " entries, update " << k;
-            ASSERT_EQ(tree[i], c);
-        }
-    }
 }
