@@ -9,6 +9,7 @@
 #include <map>
 
 #include "sim/config.h"
+#include "sim/stats_report.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 
@@ -58,7 +59,7 @@ void flatten(const json& j, const std::string& prefix, std::map<std::string, std
 }
 
 struct Metric {
-    const char* name;
+    std::string name;
     Comparison::Relative relative;
     bool percent;
     std::function<double(const json&)> value;
@@ -67,11 +68,11 @@ struct Metric {
 std::vector<Metric> metrics() {
     using R = Comparison::Relative;
     auto at = [](const char* p) { return [p](const json& j) { return number_at(j, p); }; };
-    auto share = [](const char* cause) {
-        const std::string p = std::string("/stalls/total/share/") + cause;
+    auto share = [](const std::string& cause) {
+        const std::string p = "/stalls/total/share/" + cause;
         return [p](const json& j) { return number_at(j, p.c_str()); };
     };
-    return {
+    std::vector<Metric> list = {
         {"cycles", R::Ratio, false, at("/total_cycles")},
         {"simulated Mrays/s", R::Ratio, false,
          [](const json& j) { return number_at(j, "/rays_per_second") / 1e6; }},
@@ -91,23 +92,24 @@ std::vector<Metric> metrics() {
          [](const json& j) { return mean_over(j, "units", "box_unit[", "utilization"); }},
         {"triangle unit utilisation", R::Points, true,
          [](const json& j) { return mean_over(j, "units", "triangle_unit[", "utilization"); }},
-        {"stall: issue", R::Points, true, share("issue")},
-        {"stall: L1", R::Points, true, share("l1")},
-        {"stall: L2", R::Points, true, share("l2")},
-        {"stall: DRAM", R::Points, true, share("dram")},
-        {"stall: box unit", R::Points, true, share("box_unit")},
-        {"stall: triangle unit", R::Points, true, share("triangle_unit")},
-        {"stall: ray buffer", R::Points, true, share("ray_buffer")},
-        {"stall: no work", R::Points, true, share("no_work")},
-        // Treelet and packet modes (absent from other runs' stats).
-        {"ray buffer bytes per ray", R::Ratio, false,
-         [](const json& j) { return per_ray(j, "/ray_buffer/bytes"); }},
-        {"treelet crossings per ray", R::Ratio, false, at("/ray_buffer/crossings_per_ray")},
-        {"rays per treelet batch", R::Ratio, false, at("/ray_buffer/rays_per_batch")},
-        {"packet lane utilisation", R::Points, true, at("/packets/lane_utilization")},
-        {"host: simulated Mrays/host s", R::Ratio, false,
-         [](const json& j) { return number_at(j, "/host/simulated_rays_per_host_second") / 1e6; }},
     };
+    for (const std::string& cause : stall_causes())
+        list.push_back({"stall: " + stall_cause_label(cause), R::Points, true, share(cause)});
+    list.insert(
+        list.end(),
+        {
+            // Treelet and packet modes (absent from other runs' stats).
+            {"ray buffer bytes per ray", R::Ratio, false,
+             [](const json& j) { return per_ray(j, "/ray_buffer/bytes"); }},
+            {"treelet crossings per ray", R::Ratio, false, at("/ray_buffer/crossings_per_ray")},
+            {"rays per treelet batch", R::Ratio, false, at("/ray_buffer/rays_per_batch")},
+            {"packet lane utilisation", R::Points, true, at("/packets/lane_utilization")},
+            {"host: simulated Mrays/host s", R::Ratio, false,
+             [](const json& j) {
+                 return number_at(j, "/host/simulated_rays_per_host_second") / 1e6;
+             }},
+        });
+    return list;
 }
 
 }  // namespace
@@ -285,8 +287,7 @@ json comparison_json(const Comparison& c) {
 
 namespace {
 
-const char* const kStallCauses[] = {"issue",         "l1",         "l2",     "dram", "box_unit",
-                                    "triangle_unit", "ray_buffer", "no_work"};
+// One per stall cause (stall_causes() order).
 const char* const kStallColours[] = {"#8c8c8c", "#4e79a7", "#76b7b2", "#e15759",
                                      "#f28e2b", "#edc948", "#b07aa1", "#dddddd"};
 const char* const kRunColours[] = {"#4e79a7", "#e15759", "#59a14f", "#f28e2b",
@@ -349,6 +350,7 @@ std::string comparison_svg(const Comparison& c) {
                  run.stats["time_series"].contains("l2_to_l1_gbps");
     const double bars_h = 60 + c.runs.size() * (bar_h + 8) + 40;
     const double height = bars_h + (series ? 2 * 200 + 30 : 0);
+    const std::vector<std::string> causes = stall_causes();
     std::string svg = fmt::format(
         "<svg xmlns='http://www.w3.org/2000/svg' width='680' height='{:.0f}' "
         "font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' "
@@ -360,24 +362,24 @@ std::string comparison_svg(const Comparison& c) {
         svg += fmt::format("<text x='{}' y='{}' text-anchor='end' fill='{}'>{}</text>\n", x0 - 8,
                            y + 15, kRunColours[r % 8], escape_xml(c.runs[r].label));
         double x = x0;
-        for (size_t k = 0; k < std::size(kStallCauses); ++k) {
-            const double share = number_at(
-                c.runs[r].stats, (std::string("/stalls/total/share/") + kStallCauses[k]).c_str());
+        for (size_t k = 0; k < causes.size(); ++k) {
+            const double share =
+                number_at(c.runs[r].stats, ("/stalls/total/share/" + causes[k]).c_str());
             if (!(share > 0)) continue;
             svg += fmt::format(
                 "<rect x='{:.1f}' y='{:.1f}' width='{:.1f}' height='{}' fill='{}'><title>{} "
                 "{:.1f}%</title></rect>\n",
-                x, y, bar_w * share, bar_h, kStallColours[k], kStallCauses[k], 100 * share);
+                x, y, bar_w * share, bar_h, kStallColours[k % std::size(kStallColours)],
+                stall_cause_label(causes[k]), 100 * share);
             x += bar_w * share;
         }
     }
     const double legend_y = 44 + c.runs.size() * (bar_h + 8) + 14;
     double legend_x = 10;
-    for (size_t k = 0; k < std::size(kStallCauses); ++k) {
-        std::string name = kStallCauses[k];
-        std::replace(name.begin(), name.end(), '_', ' ');
+    for (size_t k = 0; k < causes.size(); ++k) {
+        const std::string name = stall_cause_label(causes[k]);
         svg += fmt::format("<rect x='{}' y='{}' width='10' height='10' fill='{}'/>\n", legend_x,
-                           legend_y - 9, kStallColours[k]);
+                           legend_y - 9, kStallColours[k % std::size(kStallColours)]);
         svg += fmt::format("<text x='{}' y='{}'>{}</text>\n", legend_x + 13, legend_y, name);
         legend_x += 13 + 7.0 * double(name.size()) + 12;  // about 7 pixels per character
     }

@@ -1,6 +1,8 @@
 #include "sim/stats_report.h"
 
 #include <fmt/format.h>
+#include <algorithm>
+#include <cctype>
 #include <tuple>
 #include <vector>
 
@@ -9,6 +11,24 @@
 namespace rtsim {
 
 using nlohmann::json;
+
+std::vector<std::string> stall_causes() {
+    std::vector<std::string> causes;
+    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
+    causes.push_back("no_work");
+    return causes;
+}
+
+std::string stall_cause_label(const std::string& cause) {
+    if (cause == "l1" || cause == "l2" || cause == "dram") {
+        std::string upper = cause;
+        for (char& ch : upper) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+        return upper;
+    }
+    std::string label = cause;
+    std::replace(label.begin(), label.end(), '_', ' ');
+    return label;
+}
 
 json timing_report(const ReportInputs& in) {
     const StatsRegistry& s = *in.stats;
@@ -101,13 +121,13 @@ json timing_report(const ReportInputs& in) {
 
     // Stall attribution: every ray-slot cycle charged to one cause; cycles without a ray are
     // "no_work". Per core and in total, in slot-cycles and as shares.
-    std::vector<const char*> causes;
-    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
+    std::vector<std::string> causes = stall_causes();
+    causes.pop_back();  // no_work: what the charged causes leave
     json stalls = json::object();
     auto stall_entry = [&](const std::string& prefix, bool one_core) {
         json e = json::object();
         uint64_t charged = 0;
-        for (const char* c : causes) {
+        for (const std::string& c : causes) {
             const std::string counter = fmt::format("stall_{}_cycles", c);
             const uint64_t v = one_core ? s.get(prefix + "." + counter) : s.sum(prefix, counter);
             e[c] = v;
@@ -118,7 +138,8 @@ json timing_report(const ReportInputs& in) {
         e["no_work"] = slot_cycles >= charged ? slot_cycles - charged : 0;
         e["slot_cycles"] = slot_cycles;
         json share = json::object();
-        for (const char* c : causes) share[c] = ratio(e[c].get<double>(), double(slot_cycles));
+        for (const std::string& c : causes)
+            share[c] = ratio(e[c].get<double>(), double(slot_cycles));
         share["no_work"] = ratio(e["no_work"].get<double>(), double(slot_cycles));
         e["share"] = share;
         return e;

@@ -4,6 +4,7 @@
 
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "models/stats.h"
 #include "models/timing.h"
@@ -23,6 +24,12 @@ struct ReportInputs {
     uint64_t ray_capacity = 0;  // treelet mode: rays the buffer holds
     uint64_t rays = 0;          // rays simulated
 };
+
+// The stall causes of stats.json's "stalls" shares, in report order: the cores' causes
+// (Core::stall_name), then "no_work" (slot cycles without a ray).
+std::vector<std::string> stall_causes();
+// A cause as people read it: "L1", "DRAM", "box unit".
+std::string stall_cause_label(const std::string& cause);
 
 // Sections "units", "caches", "bandwidth", "stalls", "counters" of stats.json, and
 // "ray_buffer" (treelet mode) and "packets" (packet mode) when those blocks ran.

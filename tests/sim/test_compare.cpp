@@ -127,7 +127,8 @@ TEST(Compare, DrawsStallSharesAndBandwidthOverTime) {
     const std::string bars = comparison_svg(compare_runs({{"A", "a", a}, {"B", "b", b}}));
     EXPECT_EQ(bars.rfind("<svg", 0), 0u);
     EXPECT_EQ(count_of(bars, "<title>"), 5u);  // one bar segment per share above zero
-    EXPECT_NE(bars.find("<title>dram 75.0%</title>"), std::string::npos);
+    EXPECT_NE(bars.find("<title>DRAM 75.0%</title>"), std::string::npos);
+    EXPECT_NE(bars.find(">box unit</text>"), std::string::npos);  // the legend names every cause
     EXPECT_EQ(count_of(bars, "<polyline"), 0u);  // no time series recorded
     for (json* s : {&a, &b})
         (*s)["time_series"] = {{"window_cycles", 100},
