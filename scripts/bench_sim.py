@@ -10,13 +10,19 @@ of total cycles and DRAM bytes against quantum 0 (the exact reference).
 With --replay N it then records each kind's rays to a trace once and replays it N times per
 variant (the default config, ideal memory, one core): simulated rays per host second without
 any functional work, best and median, and the best default replay against issue 5's target of
-1 M simulated rays per host second.
+1 M simulated rays per host second. With --profile as well, one more default replay runs under
+`perf record -e cpu-clock` (a software clock: no hardware counters needed) and the functions
+taking the most of the simulation thread's samples are listed; skipped with a note where perf
+is missing or not permitted.
 
     scripts/bench_sim.py [--rtsim build/rtsim] [--scene FILE] [--res 256x256] [--quanta 0,10,100,1000]
-                         [--kinds primary,ao,diffuse] [--set bvh.width=8 ...] [--replay N]
+                         [--kinds primary,ao,diffuse] [--set bvh.width=8 ...] [--replay N] [--profile]
 """
 import argparse
+import collections
 import os
+import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -59,6 +65,44 @@ def replay_section(a, tmp, extra):
                   f"{best:14.3f} {statistics.median(speeds):7.3f} {best / best_default:9.2f}x")
         print(f"{kind:8} best default replay against the 1 M rays/host s target: "
               f"{best_default * 1e6 / TARGET_RAYS_PER_HOST_S:.2f}x")
+        if a.profile:
+            profile_section(a, tmp, kind, trace, extra)
+
+
+def profile_section(a, tmp, kind, trace, extra, top=16):
+    """Where the simulation thread's host time goes, from perf's software-clock samples."""
+    if not shutil.which("perf"):
+        print(f"{kind:8} profile skipped: perf is not installed")
+        return
+    data = os.path.join(tmp, f"{kind}.perf")
+    record = ["perf", "record", "-q", "-e", "cpu-clock", "-F", "5000", "-o", data, a.rtsim, "run", "-q",
+              "--config", a.config, "--trace", trace, "--out", os.path.join(tmp, f"profile-{kind}")] + extra
+    r = subprocess.run(record, capture_output=True, text=True)
+    if r.returncode != 0:
+        print(f"{kind:8} profile skipped: perf record failed: {r.stderr.strip().splitlines()[-1:]}")
+        return
+    rep = subprocess.run(["perf", "report", "-i", data, "--stdio", "--no-children", "--sort", "pid,symbol"],
+                         capture_output=True, text=True)
+    samples = collections.Counter()  # (thread, symbol) -> share of all samples
+    for line in rep.stdout.splitlines():
+        m = re.match(r"\s*([\d.]+)%\s+(\d+):\S+\s+\[[.k]\]\s+(.*?)(\s+-\s+-)?\s*$", line)
+        if m:
+            samples[(m.group(2), m.group(3))] += float(m.group(1))
+    by_thread = collections.Counter()
+    for (tid, _), share in samples.items():
+        by_thread[tid] += share
+    if not by_thread:
+        print(f"{kind:8} profile skipped: perf report gave no samples")
+        return
+    main_tid, main_share = by_thread.most_common(1)[0]
+    print(f"\nWhere the simulation thread's time goes ({kind}, one default replay under perf, cpu-clock "
+          f"samples; that thread took {main_share:.0f}% of all samples, trace reading on the helper "
+          f"thread {100 - main_share:.0f}%):")
+    rows = sorted(((share, sym) for (tid, sym), share in samples.items() if tid == main_tid), reverse=True)
+    for share, sym in rows[:top]:
+        name = sym.replace("non-virtual thunk to ", "").replace("(anonymous namespace)::", "")
+        name = re.sub(r"\(.*", "", name)
+        print(f"  {share / main_share * 100:5.1f}%  {name}")
 
 
 def main():
@@ -71,6 +115,8 @@ def main():
     p.add_argument("--set", action="append", default=[], help="config override, KEY=VALUE (repeatable)")
     p.add_argument("--quanta", default="0,10,100,1000")
     p.add_argument("--replay", type=int, default=0, help="replays per variant of a recorded trace")
+    p.add_argument("--profile", action="store_true",
+                   help="with --replay: profile one default replay with perf (cpu-clock samples)")
     a = p.parse_args()
     quanta = [int(q) for q in a.quanta.split(",")]
     print(f"scene {a.scene}, config {a.config}, {a.res}, overrides {a.set or 'none'}")
