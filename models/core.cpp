@@ -8,6 +8,29 @@
 
 namespace rtsim {
 
+namespace {
+// The index of the earliest of eight cycles, the lower index among equals: pairwise, neighbours
+// first, so the lower index always sits on the left. Branch-free (which slot is earliest changes
+// unpredictably from step to step) and three compares deep instead of seven.
+size_t earliest_of_8(const Cycle* r) {
+    const auto pick = [](Cycle& a, size_t& ia, Cycle b, size_t ib) {
+        const bool right = b < a;
+        a = right ? b : a;
+        ia = right ? ib : ia;
+    };
+    Cycle a0 = r[0], a2 = r[2], a4 = r[4], a6 = r[6];
+    size_t i0 = 0, i2 = 2, i4 = 4, i6 = 6;
+    pick(a0, i0, r[1], 1);
+    pick(a2, i2, r[3], 3);
+    pick(a4, i4, r[5], 5);
+    pick(a6, i6, r[7], 7);
+    pick(a0, i0, a2, i2);
+    pick(a4, i4, a6, i6);
+    pick(a0, i0, a4, i4);
+    return i0;
+}
+}  // namespace
+
 Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
            PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
            MemoryPort* triangle_l1)
@@ -19,7 +42,12 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
       tri_(triangle_unit),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
-      ready_(slots_.size(), 0) {
+      ready_(slots_.size() <= 8    ? 8
+             : slots_.size() <= 16 ? 16
+                                   : slots_.size(),
+             kNeverCycle) {
+    // Slots beyond ray_slots pad the ready cycles to a size the pick unrolls; they never run.
+    std::fill(ready_.begin(), ready_.begin() + std::ptrdiff_t(slots_.size()), 0);
     issue_port_.per_cycle = params.issue_width;
 }
 
@@ -60,14 +88,14 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
     const size_t n = ready_.size();
     for (;;) {
-        // Branch-free: which slot is earliest changes unpredictably from step to step.
         size_t i = 0;
-        Cycle t = ready_[0];
-        for (size_t j = 1; j < n; ++j) {
-            const bool earlier = ready_[j] < t;
-            t = earlier ? ready_[j] : t;
-            i = earlier ? j : i;
+        if (n == 8) {
+            i = earliest_of_8(ready_.data());
+        } else {
+            // Branch-free: which slot is earliest changes unpredictably from step to step.
+            for (size_t j = 1; j < n; ++j) i = ready_[j] < ready_[i] ? j : i;
         }
+        const Cycle t = ready_[i];
         if (t >= kParkedCycle) return t;  // every slot parked or retired
         // Every later request of this core comes at t or after.
         floor_.cycle = t;
