@@ -129,7 +129,7 @@ TEST(Compare, DrawsStallSharesAndBandwidthOverTime) {
     EXPECT_EQ(count_of(bars, "<title>"), 5u);  // one bar segment per share above zero
     EXPECT_NE(bars.find("<title>DRAM 75.0%</title>"), std::string::npos);
     EXPECT_NE(bars.find(">box unit</text>"), std::string::npos);  // the legend names every cause
-    EXPECT_EQ(count_of(bars, "<polyline"), 0u);  // no time series recorded
+    EXPECT_EQ(count_of(bars, "<polyline"), 0u);                   // no time series recorded
     for (json* s : {&a, &b})
         (*s)["time_series"] = {{"window_cycles", 100},
                                {"l2_to_l1_gbps", {1.0, 2.0, 3.0}},
