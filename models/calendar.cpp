@@ -64,7 +64,8 @@ std::pair<Cycle, Cycle> BandwidthCalendar::transfer_among_bookings(Cycle ready, 
     if (from == full_until_) full_until_ = c;  // everything skipped is full
     const Cycle first = c;
     // Enough cycles if the link were idle from here; more are added if it is not.
-    ring_.extend(c + (left + capacity_units_ - 1) / capacity_units_);
+    split(left);
+    ring_.extend(c + split_.whole + (split_.rest > 0));
     for (;;) {
         const uint64_t take = std::min<uint64_t>(left, capacity_units_ - used);
         ring_.set(c, used + take);

@@ -127,8 +127,8 @@ class BandwidthCalendar {
     // Cycles `bytes` take on an idle link (the link's busy time per transfer, in its own fixed
     // point, so it agrees with the cycles transfers book).
     Cycle idle_cycles(uint64_t bytes) const {
-        return (std::max<uint64_t>(bytes, 1) * kUnitsPerByte + capacity_units_ - 1) /
-               capacity_units_;
+        split(std::max<uint64_t>(bytes, 1) * kUnitsPerByte);
+        return split_.whole + (split_.rest > 0);
     }
     // Moves `bytes` from `ready` on; returns the cycle the first byte moves and the cycle after
     // the last one did.
@@ -141,8 +141,9 @@ class BandwidthCalendar {
         const uint64_t units = std::max<uint64_t>(bytes, 1) * kUnitsPerByte;
         if (ready < ring_.end()) return transfer_among_bookings(ready, units);
         // An idle link from `ready` on: whole cycles, then the rest.
-        const Cycle whole = units / capacity_units_;
-        const uint32_t rest = uint32_t(units % capacity_units_);
+        split(units);
+        const Cycle whole = split_.whole;
+        const uint32_t rest = split_.rest;
         const Cycle end = ready + whole + (rest > 0);
         ring_.extend(end);
         for (Cycle c = ready; c < ready + whole; ++c) ring_.set(c, capacity_units_);
@@ -152,6 +153,18 @@ class BandwidthCalendar {
 
   private:
     std::pair<Cycle, Cycle> transfer_among_bookings(Cycle ready, uint64_t units);
+    // `units` on an idle link: whole cycles, then the rest, in split_. A link moves one size (a
+    // line, a burst) again and again: the division is done once per size, not per transfer.
+    void split(uint64_t units) const {
+        if (units == split_.units) return;
+        split_ = {units, units / capacity_units_, uint32_t(units % capacity_units_)};
+    }
+    struct Split {
+        uint64_t units = 0;
+        Cycle whole = 0;
+        uint32_t rest = 0;
+    };
+    mutable Split split_;
     // Fixed point in 1/1000 byte: rates given to three decimals (12.8 bytes per cycle) are exact,
     // and up to 134 kB per cycle fit a cell's count.
     static constexpr uint64_t kUnitsPerByte = 1000;
