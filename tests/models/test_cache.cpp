@@ -75,6 +75,49 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
     }
 }
 
+// The cores' way in: a request of one, two or four lines (a triangle, a node) first tries
+// access_local, which must find every line or change nothing, then access. Line by line, the
+// hits and misses must be the reference's, for every set layout and both orderings, with the
+// stamps' counter wrapping on the way.
+TEST(Cache, LocalProbesOfManyLinesEqualReference) {
+    for (int ways : {2, 4, 8, 12, 16})
+        for (auto policy : {CacheParams::Replacement::Lru, CacheParams::Replacement::Fifo}) {
+            CacheParams p;
+            p.ways = ways;
+            p.line_bytes = 64;
+            p.size_bytes = uint64_t(ways) * 64 * 16;  // 16 sets
+            p.replacement = policy;
+            const bool lru = policy == CacheParams::Replacement::Lru;
+            test::FixedLatencyMemory mem(50);
+            Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+            ReferenceLru ref(p.sets(), ways, 64, lru);
+            TimeFloor floor;
+            c.follow(&floor);
+            std::mt19937_64 rng(uint64_t(ways) * 2 + lru);
+            uint64_t ref_hits = 0, ref_misses = 0, local = 0;
+            Cycle t = 0;
+            for (int i = 0; i < 30000; ++i) {
+                const uint64_t lines = uint64_t(1) << (rng() % 3);
+                const uint64_t addr = (rng() % (3 * p.size_bytes)) & ~(lines * 64 - 1);
+                for (uint64_t k = 0; k < lines; ++k)
+                    (ref.access(addr + 64 * k) ? ref_hits : ref_misses)++;
+                floor.cycle = t;
+                Cycle ready = 0;
+                if (c.access_local(addr, uint32_t(lines * 64), t, ready))
+                    ++local;
+                else
+                    c.access(addr, uint32_t(lines * 64), t);
+                t += 1000;  // fills complete between requests: pure hit/miss behaviour
+                if (i % 7000 == 6999) c.set_stamp_clock(~uint32_t(0) - 50);
+            }
+            const std::string what = std::to_string(ways) + (lru ? " ways, lru" : " ways, fifo");
+            EXPECT_EQ(c.hits, ref_hits) << what;
+            EXPECT_EQ(c.misses, ref_misses) << what;
+            EXPECT_GT(local, 3000u) << what;  // both ways in were taken
+            EXPECT_GT(c.misses, 3000u) << what;
+        }
+}
+
 // Replacement stamps are 32 bits: when their counter wraps they are renumbered per set, and
 // every decision stays the reference's.
 TEST(Cache, ReplacementStampsSurviveTheirCounterWrapping) {
