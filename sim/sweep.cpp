@@ -177,8 +177,21 @@ SweepPlan plan_sweep(const std::string& path) {
     return plan;
 }
 
+// Whether the point's folder holds a finished run of these arguments (a run writes stats.json
+// last, atomically; run.json says what it ran).
+bool finished_before(const fs::path& dir, const std::vector<std::string>& run_args) {
+    if (!fs::is_regular_file(dir / "stats.json")) return false;
+    std::ifstream in(dir / "run.json");
+    const json j = json::parse(in, nullptr, false);
+    return !j.is_discarded() && j.is_object() && j.value("args", json()) == json(run_args);
+}
+
 int sweep_command(const SweepOptions& opt) {
     if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
+    if (opt.resume && opt.out_dir.empty())
+        throw InputError("--resume: needs --out, the folder of the sweep to finish");
+    if (opt.resume && !fs::is_directory(opt.out_dir))
+        throw InputError(fmt::format("--resume: {}: no such folder", opt.out_dir));
     const SweepPlan plan = plan_sweep(opt.path);
     const std::string out_dir =
         opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;
@@ -191,14 +204,29 @@ int sweep_command(const SweepOptions& opt) {
     // Children: this binary's `run`, its stderr kept in the point's folder.
     std::map<pid_t, size_t> running;
     std::vector<int> status(plan.points.size(), -1);
-    size_t next = 0, done = 0;
+    size_t skipped = 0;
+    if (opt.resume)
+        for (size_t i = 0; i < plan.points.size(); ++i)
+            if (finished_before(fs::path(out_dir) / plan.points[i].name, plan.points[i].run_args)) {
+                status[i] = 0;
+                ++skipped;
+            }
+    size_t next = 0, done = skipped;
     bool failed = false;
     std::string spawn_error;
     while (done < plan.points.size() && !(failed && running.empty())) {
         while (!failed && next < plan.points.size() && running.size() < size_t(opt.jobs)) {
+            if (status[next] == 0) {  // finished before (--resume)
+                ++next;
+                continue;
+            }
             const SweepPoint& p = plan.points[next];
             const fs::path dir = fs::path(out_dir) / p.name;
             fs::create_directories(dir, ec);
+            // What this folder's run is, for --resume; a stale stats.json would pass for it.
+            fs::remove(dir / "stats.json", ec);
+            write_file_atomically((dir / "run.json").string(),
+                                  json({{"args", p.run_args}}).dump(1) + "\n");
             std::vector<std::string> args = {"/proc/self/exe", "run", "--quiet"};
             args.insert(args.end(), p.run_args.begin(), p.run_args.end());
             args.insert(args.end(), {"--out", dir.string()});
@@ -288,8 +316,9 @@ int sweep_command(const SweepOptions& opt) {
     write_file_atomically((fs::path(out_dir) / "results.csv").string(), csv);
 
     fmt::print("{}", format_table(table, false));
-    fmt::print("\n{} runs; stats under {}; table in results.json and results.csv\n",
-               plan.points.size(), out_dir);
+    fmt::print(
+        "\n{} runs{}; stats under {}; table in results.json and results.csv\n", plan.points.size(),
+        skipped ? fmt::format(" ({} finished before, not run again)", skipped) : "", out_dir);
     return 0;
 }
 

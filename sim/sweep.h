@@ -23,6 +23,9 @@ struct SweepOptions {
     std::string path;     // the sweep file
     std::string out_dir;  // empty: a fresh folder under out/
     int jobs = 1;         // runs at once
+    // Finish the sweep in out_dir: points whose folder holds a finished run of the same command
+    // (stats.json beside a run.json with the same arguments) are not run again.
+    bool resume = false;
 };
 
 // A sweep's points: the child command line of each, checked (configs resolved, workload parsed)
@@ -38,8 +41,8 @@ struct SweepPlan {
 };
 SweepPlan plan_sweep(const std::string& path);
 
-// Runs the plan; writes each point's stats.json under out_dir/<point>/ and the table to
-// out_dir/results.json and results.csv. Returns the exit status.
+// Runs the plan; writes each point's stats.json (and run.json, the arguments it ran with) under
+// out_dir/<point>/ and the table to out_dir/results.json and results.csv. Returns the exit status.
 int sweep_command(const SweepOptions& opt);
 
 }  // namespace rtsim

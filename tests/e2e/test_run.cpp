@@ -876,3 +876,39 @@ TEST(Sweep, ACombinationRunRefusesIsRefusedUpFront) {
         "point 001_traversal.mode=treelet: traversal.mode=treelet queues rays by treelet");
     EXPECT_FALSE(fs::exists(out));
 }
+
+// An interrupted sweep is finished with --resume: points that ran with the same arguments keep
+// their stats (not run again), missing ones run; a point whose arguments changed runs again.
+TEST(Sweep, ResumeRunsOnlyWhatIsMissing) {
+    const fs::path file = work_dir() / "sweep_resume.json";
+    std::ofstream(file) << R"({"workload": {"rays": "primary", "res": "16x16"},
+                               "vary": {"l1.ways": [1, 2, 4]}})";
+    const fs::path out = work_dir() / "sweep_resume_out";
+    fs::remove_all(out);
+    ASSERT_EQ(run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}'", file.string(), out.string())).status,
+              0);
+    const json table = json::parse(std::ifstream(out / "results.json"));
+    const fs::path kept = out / table["points"][0]["point"].get<std::string>();
+    const fs::path lost = out / table["points"][2]["point"].get<std::string>();
+    const std::string kept_stats = slurp(kept / "stats.json");  // host timings differ per run
+    fs::remove(lost / "stats.json");
+    fs::remove(out / "results.json");
+    Result r =
+        run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}' --resume", file.string(), out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("3 runs (2 finished before"), std::string::npos) << r.out;
+    EXPECT_EQ(slurp(kept / "stats.json"), kept_stats);
+    EXPECT_EQ(stats_of(lost)["config"]["l1"]["ways"], 4);
+    EXPECT_EQ(json::parse(std::ifstream(out / "results.json"))["points"].size(), 3u);
+    // The same sweep at another resolution: every point's arguments changed, all run again.
+    std::ofstream(file) << R"({"workload": {"rays": "primary", "res": "12x12"},
+                               "vary": {"l1.ways": [1, 2, 4]}})";
+    r = run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}' --resume", file.string(), out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(r.out.find("finished before"), std::string::npos) << r.out;
+    EXPECT_NE(slurp(kept / "stats.json"), kept_stats);
+    EXPECT_EQ(stats_of(kept)["rays"]["total"], 144);
+    // Resuming needs the sweep's folder.
+    expect_one_line_error(run_rtsim(fmt::format("sweep '{}' --resume", file.string())),
+                          "--resume: needs --out");
+}
