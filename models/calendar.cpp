@@ -63,6 +63,13 @@ std::pair<Cycle, Cycle> BandwidthCalendar::transfer_among_bookings(Cycle ready, 
     if (c >= ring_.end()) used = 0;
     if (from == full_until_) full_until_ = c;  // everything skipped is full
     const Cycle first = c;
+    if (used == 0 && left == capacity_units_) {  // one whole cycle (a line on a line-wide link)
+        if (c >= ring_.end()) ring_.extend(c + 1);
+        ring_.set(c, left);
+        while (full_until_ < ring_.end() && ring_.count(full_until_) >= capacity_units_)
+            ++full_until_;
+        return {c, c + 1};
+    }
     // Enough cycles if the link were idle from here; more are added if it is not.
     split(left);
     ring_.extend(c + split_.whole + (split_.rest > 0));
