@@ -104,23 +104,22 @@ void Cache::charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_d
     bd->cycles[std::min(level + 1, kMemLevels - 1)] += done - lookup_done;
 }
 
-// The earliest-free MSHR (the heap's root) now frees at `ready`, which is never earlier: one
-// sift-down instead of a pop and a push.
+// The earliest-free MSHR (the ring's front) now frees at `ready`, which is never earlier: it
+// leaves the front and `ready` goes in order from the back. A miss mostly completes after the
+// ones in flight, so it usually stays at the back: one compare where a heap sifts log2(n) levels.
 void Cache::replace_earliest_mshr(Cycle ready) {
     Cycle* h = mshr_free_.data();
     const size_t n = mshr_free_.size();
-    size_t i = 0;
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) break;
-        // The earlier child, without a branch (which one is unpredictable).
-        const bool right = c + 1 < n && h[c + 1] < h[c];
-        c += right;
-        if (h[c] >= ready) break;
-        h[i] = h[c];
-        i = c;
+    // The ring is full: the front's slot is the one after the back once the front leaves.
+    size_t slot = mshr_front_;
+    mshr_front_ = slot + 1 == n ? 0 : slot + 1;
+    for (size_t k = 1; k < n; ++k) {
+        const size_t before = slot == 0 ? n - 1 : slot - 1;
+        if (h[before] <= ready) break;
+        h[slot] = h[before];
+        slot = before;
     }
-    h[i] = ready;
+    h[slot] = ready;
 }
 
 template <int G>
@@ -162,12 +161,12 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
-    // MSHRs as a min-heap of the cycles they free: take the earliest, give it back busy until
-    // this miss's data returns.
+    // MSHRs as the cycles they free, in order: take the earliest, give it back busy until this
+    // miss's data returns.
     Cycle issue_at = lookup_done;
     const bool limited = !mshr_free_.empty();
     if (limited) {
-        issue_at = std::max(lookup_done, mshr_free_[0]);
+        issue_at = std::max(lookup_done, mshr_free_[mshr_front_]);
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;

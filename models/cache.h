@@ -270,7 +270,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
-    std::vector<Cycle> mshr_free_;            // per MSHR: cycle its miss completes
+    std::vector<Cycle> mshr_free_;  // per MSHR: cycle its miss completes; a ring, in order
+    size_t mshr_front_ = 0;         // the ring's earliest
     std::vector<ReservationCalendar> banks_;  // per bank: the cycles it starts a lookup
     uint64_t rng_ = 0x9E3779B97F4A7C15ull;    // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
