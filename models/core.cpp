@@ -42,11 +42,8 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
       tri_(triangle_unit),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
-      ready_(slots_.size() <= 8    ? 8
-             : slots_.size() <= 16 ? 16
-                                   : slots_.size(),
-             kNeverCycle) {
-    // Slots beyond ray_slots pad the ready cycles to a size the pick unrolls; they never run.
+      ready_(std::max<size_t>(slots_.size(), 8), kNeverCycle) {
+    // Slots beyond ray_slots pad the ready cycles to the eight the pick unrolls; they never run.
     std::fill(ready_.begin(), ready_.begin() + std::ptrdiff_t(slots_.size()), 0);
     issue_port_.per_cycle = params.issue_width;
 }
