@@ -65,22 +65,20 @@ std::pair<Cycle, Cycle> BandwidthCalendar::transfer_among_bookings(Cycle ready, 
     const Cycle first = c;
     if (used == 0 && left == capacity_units_) {  // one whole cycle (a line on a line-wide link)
         if (c >= ring_.end()) ring_.extend(c + 1);
-        ring_.set(c, left);
-        while (full_until_ < ring_.end() && ring_.count(full_until_) >= capacity_units_)
-            ++full_until_;
-        return {c, c + 1};
-    }
-    // Enough cycles if the link were idle from here; more are added if it is not.
-    split(left);
-    ring_.extend(c + split_.whole + (split_.rest > 0));
-    for (;;) {
-        const uint64_t take = std::min<uint64_t>(left, capacity_units_ - used);
-        ring_.set(c, used + take);
-        left -= take;
-        ++c;
-        if (left == 0) break;
-        if (c >= ring_.end()) ring_.extend(c + 1);
-        used = ring_.count(c);
+        ring_.set(c++, left);
+    } else {
+        // Enough cycles if the link were idle from here; more are added if it is not.
+        split(left);
+        ring_.extend(c + split_.whole + (split_.rest > 0));
+        for (;;) {
+            const uint64_t take = std::min<uint64_t>(left, capacity_units_ - used);
+            ring_.set(c, used + take);
+            left -= take;
+            ++c;
+            if (left == 0) break;
+            if (c >= ring_.end()) ring_.extend(c + 1);
+            used = ring_.count(c);
+        }
     }
     while (full_until_ < ring_.end() && ring_.count(full_until_) >= capacity_units_) ++full_until_;
     return {first, c};
