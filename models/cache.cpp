@@ -213,15 +213,12 @@ bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle
     // Find every line before touching any state: a request with one missing line is not local.
     constexpr uint64_t kMaxLines = 16;
     if (lines > kMaxLines) return false;
-    char* blocks[kMaxLines];
     int ways[kMaxLines];
     for (uint64_t k = 0; k < lines; ++k) {
-        blocks[k] = set_block<G>(set_of(first + k));
-        ways[k] = find_in_block<G>(blocks[k], tag_of(first + k));
+        ways[k] = find_way<G>(set_of(first + k), first + k);
         if (ways[k] < 0) return false;
     }
     bytes_requested += size_bytes;
-    hits += lines;
     Cycle done[kMaxLines];
     Cycle first_done = 0;
     const bool one_bank = one_bank_reads(lines);
@@ -229,28 +226,15 @@ bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle
         first_done = look_up_in_one_bank(first, lines, now);
     else
         look_up(first, last, now, done);
-    // LRU: the lines are used in order, one stamp each (renumbered first if the counter would
-    // wrap on the way; renumbering keeps their order, which is all a stamp means).
-    const bool lru = params_.replacement == CacheParams::Replacement::Lru;
-    if (lru && use_clock_ > ~uint32_t(0) - uint32_t(lines)) renumber_stamps();
     // The slowest line decides (the first of equals); a hit waits for a fill still in flight.
     Cycle slowest = 0, slowest_lookup = 0;
-    uint64_t merged = 0;
     for (uint64_t k = 0; k < lines; ++k) {
-        char* block = blocks[k];
-        if (lru)
-            reinterpret_cast<uint32_t*>(block)[ways_of<G>() + ways[k]] =
-                use_clock_ + uint32_t(k) + 1;
-        const Cycle fill = reinterpret_cast<const Cycle*>(block + 8 * ways_of<G>())[ways[k]];
         const Cycle lookup_done = one_bank ? first_done + k : done[k];
-        merged += fill > lookup_done;  // no branch: which lines are still filling is random
-        const Cycle d = std::max(lookup_done, fill);
+        const Cycle d = std::max(lookup_done, hit<G>(set_of(first + k), ways[k], lookup_done));
         const bool slower = k == 0 || d > slowest;
         slowest = slower ? d : slowest;
         slowest_lookup = slower ? lookup_done : slowest_lookup;
     }
-    if (lru) use_clock_ += uint32_t(lines);
-    merged_misses += merged;
     if (bd) charge_hit(bd, level_, now, slowest_lookup, slowest);
     ready = slowest;
     return true;

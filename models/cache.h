@@ -133,11 +133,8 @@ class Cache : public sc_core::sc_module, public MemoryPort {
     // a data-dependent exit mispredicts on most lookups, the extra compares cost less.
     template <int G>
     [[gnu::always_inline]] int find_way(uint64_t set, uint64_t line_addr) const {
-        return find_in_block<G>(set_block<G>(set), tag_of(line_addr));
-    }
-    template <int G>
-    [[gnu::always_inline]] int find_in_block(const char* block, uint32_t tag) const {
-        const uint32_t* t = reinterpret_cast<const uint32_t*>(block);
+        const uint32_t* t = tags<G>(set);
+        const uint32_t tag = tag_of(line_addr);
 #ifdef __SSE2__
         // Four tags per compare; a tag is in at most one way.
         if constexpr (G > 0) {
