@@ -121,13 +121,13 @@ json timing_report(const ReportInputs& in) {
 
     // Stall attribution: every ray-slot cycle charged to one cause; cycles without a ray are
     // "no_work". Per core and in total, in slot-cycles and as shares.
-    std::vector<std::string> causes = stall_causes();
-    causes.pop_back();  // no_work: what the charged causes leave
+    std::vector<const char*> causes;  // the charged ones; no_work is what they leave
+    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
     json stalls = json::object();
     auto stall_entry = [&](const std::string& prefix, bool one_core) {
         json e = json::object();
         uint64_t charged = 0;
-        for (const std::string& c : causes) {
+        for (const char* c : causes) {
             const std::string counter = fmt::format("stall_{}_cycles", c);
             const uint64_t v = one_core ? s.get(prefix + "." + counter) : s.sum(prefix, counter);
             e[c] = v;
@@ -138,8 +138,7 @@ json timing_report(const ReportInputs& in) {
         e["no_work"] = slot_cycles >= charged ? slot_cycles - charged : 0;
         e["slot_cycles"] = slot_cycles;
         json share = json::object();
-        for (const std::string& c : causes)
-            share[c] = ratio(e[c].get<double>(), double(slot_cycles));
+        for (const char* c : causes) share[c] = ratio(e[c].get<double>(), double(slot_cycles));
         share["no_work"] = ratio(e["no_work"].get<double>(), double(slot_cycles));
         e["share"] = share;
         return e;

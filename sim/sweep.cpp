@@ -177,6 +177,7 @@ SweepPlan plan_sweep(const std::string& path) {
     return plan;
 }
 
+namespace {
 // Whether the point's folder holds a finished run of these arguments (a run writes stats.json
 // last, atomically; run.json says what it ran).
 bool finished_before(const fs::path& dir, const std::vector<std::string>& run_args) {
@@ -185,6 +186,7 @@ bool finished_before(const fs::path& dir, const std::vector<std::string>& run_ar
     const json j = json::parse(in, nullptr, false);
     return !j.is_discarded() && j.is_object() && j.value("args", json()) == json(run_args);
 }
+}  // namespace
 
 int sweep_command(const SweepOptions& opt) {
     if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
