@@ -43,10 +43,10 @@ class CycleRing {
     Cycle base() const { return base_; }
     Cycle end() const { return end_; }
     size_t size() const { return cells_.size(); }
+    // Without branches: whether the floor moved since the last request is unpredictable.
     void forget_before(Cycle floor) {
-        if (floor <= base_) return;
-        base_ = floor;
-        if (end_ < base_) end_ = base_;
+        base_ = std::max(base_, floor);
+        end_ = std::max(end_, base_);
     }
     // Cycles up to `end` (exclusive) may be booked: grows the ring if they don't fit.
     void extend(Cycle end) {

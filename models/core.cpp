@@ -9,25 +9,11 @@
 namespace rtsim {
 
 namespace {
-// The index of the earliest of eight cycles, the lower index among equals: pairwise, neighbours
-// first, so the lower index always sits on the left. Branch-free (which slot is earliest changes
-// unpredictably from step to step) and three compares deep instead of seven.
-size_t earliest_of_8(const Cycle* r) {
-    const auto pick = [](Cycle& a, size_t& ia, Cycle b, size_t ib) {
-        const bool right = b < a;
-        a = right ? b : a;
-        ia = right ? ib : ia;
-    };
-    Cycle a0 = r[0], a2 = r[2], a4 = r[4], a6 = r[6];
-    size_t i0 = 0, i2 = 2, i4 = 4, i6 = 6;
-    pick(a0, i0, r[1], 1);
-    pick(a2, i2, r[3], 3);
-    pick(a4, i4, r[5], 5);
-    pick(a6, i6, r[7], 7);
-    pick(a0, i0, a2, i2);
-    pick(a4, i4, a6, i6);
-    pick(a0, i0, a4, i4);
-    return i0;
+// The least of eight keys: pairwise, three minimums deep instead of seven.
+uint64_t least_of_8(const uint64_t* k) {
+    const uint64_t a = std::min(k[0], k[1]), b = std::min(k[2], k[3]);
+    const uint64_t c = std::min(k[4], k[5]), d = std::min(k[6], k[7]);
+    return std::min(std::min(a, b), std::min(c, d));
 }
 }  // namespace
 
@@ -42,9 +28,16 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
       tri_(triangle_unit),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
-      ready_(std::max<size_t>(slots_.size(), 8), kNeverCycle) {
-    // Slots beyond ray_slots pad the ready cycles to the eight the pick unrolls; they never run.
-    std::fill(ready_.begin(), ready_.begin() + std::ptrdiff_t(slots_.size()), 0);
+      ready_((slots_.size() + 7) / 8 * 8),
+      keys_(ready_.size()),
+      mem_by_kind_{l1_, l1_tri_},
+      unit_by_kind_{box_, tri_},
+      instructions_by_kind_{params.node_step_instructions, params.triangle_step_instructions} {
+    static_assert(
+        int(StepKind::Node) == 0 && int(StepKind::Triangle) == 1 && kTriangleUnit == kBoxUnit + 1,
+        "per-kind tables index by StepKind");
+    // Slots beyond ray_slots pad the keys to the eights the pick unrolls; they never run.
+    for (size_t i = 0; i < ready_.size(); ++i) set_ready(i, i < slots_.size() ? 0 : kNeverCycle);
     issue_port_.per_cycle = params.issue_width;
 }
 
@@ -67,8 +60,8 @@ void Core::finish_ray(Slot& s, Cycle done) {
 
 void Core::wake(Cycle at) {
     at = std::max(at, floor_.cycle);  // never behind the core's own floor
-    for (Cycle& r : ready_)
-        if (r == kParkedCycle) r = at;
+    for (size_t i = 0; i < ready_.size(); ++i)
+        if (keys_.cycle(ready_[i]) == kParkedCycle) set_ready(i, at);
 }
 
 // Loads a treelet's nodes and triangles with one request per run: the cache looks its lines up
@@ -85,14 +78,10 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
     const size_t n = ready_.size();
     for (;;) {
-        size_t i = 0;
-        if (n == 8) {
-            i = earliest_of_8(ready_.data());
-        } else {
-            // Branch-free: which slot is earliest changes unpredictably from step to step.
-            for (size_t j = 1; j < n; ++j) i = ready_[j] < ready_[i] ? j : i;
-        }
-        const Cycle t = ready_[i];
+        uint64_t least = least_of_8(ready_.data());
+        for (size_t j = 8; j < n; j += 8) least = std::min(least, least_of_8(ready_.data() + j));
+        const size_t i = keys_.index(least);
+        const Cycle t = keys_.cycle(least);
         if (t >= kParkedCycle) return t;  // every slot parked or retired
         // Every later request of this core comes at t or after.
         floor_.cycle = t;
@@ -105,14 +94,14 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             Cycle got = t;
             if (!ray_buffer_) {
                 if (!source_->next(s.work)) {
-                    ready_[i] = kNeverCycle;
+                    set_ready(i, kNeverCycle);
                     continue;
                 }
                 s.pos = 0;
             } else {
                 if (batch_.empty()) {
                     if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
-                        ready_[i] = ray_buffer_->finished() ? kNeverCycle : kParkedCycle;
+                        set_ready(i, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
                         continue;
                     }
                     if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
@@ -134,7 +123,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             s.start = t;
             // A ray missing the root box has no steps and ends after its setup.
             const Cycle done = issue(got, params_.ray_setup_instructions);
-            ready_[i] = done;
+            set_ready(i, done);
             stall_cycles[kIssue] += done - got;
             if (!ray_buffer_ && s.work.steps.empty()) finish_ray(s, done);
             continue;
@@ -154,22 +143,22 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
                 stall_cycles[kRayBuffer] += done - t;
                 ray_latency_cycles += done - s.start;
                 s.busy = false;
-                ready_[i] = done;
+                set_ready(i, done);
                 continue;
             }
         }
         const Step& st = s.work.steps[s.pos];
-        const bool node = st.kind == StepKind::Node;
-        MemoryPort* mem = node ? l1_ : l1_tri_;
+        // Nodes and triangles interleave unpredictably: what differs is looked up by kind.
+        const auto kind = size_t(st.kind);
+        MemoryPort* mem = mem_by_kind_[kind];
         // Shared units order by the step's start: a unit request follows its fetch, so
         // requests from different cores reach a shared unit out of order by up to a fetch.
-        if (t > horizon && params_.units_shared) return t;
+        if (params_.units_shared && t > horizon) return t;
         // Issue, then try the fetch as a private hit; a fetch that needs a shared level waits
         // for its turn with the issue port as it was.
         const PortCalendar saved_port = issue_port_;
         const uint64_t saved_issue_stall = issue_stall_cycles;
-        const Cycle issued =
-            issue(t, node ? params_.node_step_instructions : params_.triangle_step_instructions);
+        const Cycle issued = issue(t, instructions_by_kind_[kind]);
         AccessBreakdown bd;
         Cycle fetched;
         if (s.fetch_is_shared || !mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd)) {
@@ -193,19 +182,19 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             active_lanes += st.lanes;
             lane_slots += uint64_t(params_.packet_lanes);
         }
-        const Cycle done =
-            node ? box_->issue(fetched, st.count, lanes) : tri_->issue(fetched, 1, lanes);
-        ready_[i] = done;
+        const int items = kind == size_t(StepKind::Node) ? st.count : 1;
+        const Cycle done = unit_by_kind_[kind]->issue(fetched, items, lanes);
+        set_ready(i, done);
         stall_cycles[kIssue] += issued - t;
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
-        stall_cycles[node ? kBoxUnit : kTriangleUnit] += done - fetched;
+        stall_cycles[kBoxUnit + kind] += done - fetched;
         if (s.pos < s.work.steps.size()) {
             // The slot's next fetch comes within a few hundred cycles: warm the host's caches
             // with the simulator state it will look up.
             const Step& next = s.work.steps[s.pos];
-            (next.kind == StepKind::Node ? l1_ : l1_tri_)->expect(next.addr, next.size_bytes);
+            mem_by_kind_[size_t(next.kind)]->expect(next.addr, next.size_bytes);
         } else if (!ray_buffer_) {
             finish_ray(s, done);
         }
@@ -244,7 +233,8 @@ CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> co
     : sc_core::sc_module(name),
       cores_(std::move(cores)),
       quantum_cycles_(quantum_cycles),
-      wake_(wake) {
+      wake_(wake),
+      keys_(cores_.size()) {
     for (Core* core : cores_) core->set_shared_floor(&floor_);
     SC_THREAD(run);
 }
@@ -255,27 +245,28 @@ void CoreScheduler::run() {
     // earliest beats a heap.
     const size_t n = cores_.size();
     // A member, not a local: sc_stop() mid-run (a damaged trace) never unwinds this stack.
-    next_.assign(n, 0);
-    Cycle* next = next_.data();
+    next_.resize(n);
+    for (size_t i = 0; i < n; ++i) next_[i] = keys_.key(0, i);
+    uint64_t* next = next_.data();
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
     for (;;) {
-        size_t c = 0;
-        Cycle first = kNeverCycle, second = kNeverCycle;
+        // The least two keys (ties: the lower index, so runs are deterministic).
+        uint64_t least = ~uint64_t(0), second_least = ~uint64_t(0);
         for (size_t i = 0; i < n; ++i) {
-            const Cycle t = next[i];
-            const bool earliest = t < first;  // ties: the lower index, so runs are deterministic
-            second = earliest ? first : std::min(second, t);
-            first = earliest ? t : first;
-            c = earliest ? i : c;
+            second_least = std::min(second_least, std::max(least, next[i]));
+            least = std::min(least, next[i]);
         }
+        const size_t c = keys_.index(least);
+        const Cycle first = keys_.cycle(least);
+        const Cycle second = keys_.cycle(second_least);
         if (first >= kParkedCycle) break;  // all retired (parked cores are woken by work)
         // Parked cores wake no earlier than `first`, retired ones send nothing: the shared
         // floor is the earliest among the running cores', which the advancing core updates.
         Cycle others_floor = kNeverCycle;
         for (size_t i = 0; i < n; ++i) {
-            const bool other = next[i] < kParkedCycle && i != c;
-            others_floor = other ? std::min(others_floor, cores_[i]->floor()->cycle) : others_floor;
+            const bool other = (keys_.cycle(next[i]) < kParkedCycle) & (i != c);
+            others_floor = std::min(others_floor, other ? cores_[i]->floor()->cycle : kNeverCycle);
         }
         if (first >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
@@ -287,14 +278,14 @@ void CoreScheduler::run() {
         const Cycle horizon = second >= kParkedCycle || second >= kNeverCycle - quantum_cycles_
                                   ? kNeverCycle
                                   : second + quantum_cycles_;
-        next[c] = cores_[c]->advance(horizon, others_floor);
+        next[c] = keys_.key(cores_[c]->advance(horizon, others_floor), c);
         Cycle at;
         if (wake_ && wake_->take_wake(at)) {
             at = std::max(at, first);  // never behind the order already served
             for (size_t i = 0; i < n; ++i)
-                if (next[i] == kParkedCycle) {
+                if (keys_.cycle(next[i]) == kParkedCycle) {
                     cores_[i]->wake(at);
-                    next[i] = at;
+                    next[i] = keys_.key(at, i);
                 }
         }
     }

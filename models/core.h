@@ -59,6 +59,33 @@ class WakeSource {
     virtual bool take_wake(Cycle& at) = 0;
 };
 
+// A cycle and an index packed into one key, cycle above the index bits, so that the least key
+// is the earliest cycle and, among equals, the lowest index. Picking the earliest of several
+// (ray slots, cores) is then a plain minimum, which compiles to conditional moves: which one is
+// earliest changes unpredictably from step to step, and a branch on it mispredicts half the time.
+// kParkedCycle and kNeverCycle map to the two largest cycle fields.
+class CycleKeys {
+  public:
+    // Keys for indices below `count`.
+    explicit CycleKeys(size_t count) {
+        while ((size_t(1) << bits_) < count) ++bits_;
+        top_ = ~uint64_t(0) >> bits_;
+    }
+    uint64_t key(Cycle c, size_t index) const {
+        const uint64_t field = c >= kParkedCycle ? top_ - (kNeverCycle - c) : c;
+        return field << bits_ | index;
+    }
+    Cycle cycle(uint64_t key) const {
+        const uint64_t field = key >> bits_;
+        return field >= top_ - 1 ? kNeverCycle - (top_ - field) : field;
+    }
+    size_t index(uint64_t key) const { return size_t(key & ((uint64_t(1) << bits_) - 1)); }
+
+  private:
+    uint32_t bits_ = 0;
+    uint64_t top_ = 0;  // the largest cycle field: kNeverCycle's
+};
+
 class RayBuffer;
 
 class Core : public sc_core::sc_module {
@@ -124,9 +151,15 @@ class Core : public sc_core::sc_module {
     PipelinedUnit* tri_;
     RayWorkSource* source_;
     std::vector<Slot> slots_;
-    // Per slot: the cycle it is ready for its next step; kNeverCycle once retired. Apart from
-    // the slots so that finding the earliest is a short branch-free scan.
-    std::vector<Cycle> ready_;
+    // Per slot: the cycle it is ready for its next step (kNeverCycle once retired) as a key of
+    // keys_, padded to a multiple of eight with retired keys. Apart from the slots so that finding
+    // the earliest is a short branch-free scan.
+    std::vector<uint64_t> ready_;
+    CycleKeys keys_;
+    void set_ready(size_t slot, Cycle c) { ready_[slot] = keys_.key(c, slot); }
+    MemoryPort* mem_by_kind_[2];      // per StepKind: the L1 its fetches go to
+    PipelinedUnit* unit_by_kind_[2];  // per StepKind: the unit its test runs on
+    int instructions_by_kind_[2];     // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
     std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
     uint32_t batch_treelet_ = 0;
@@ -163,7 +196,8 @@ class CoreScheduler : public sc_core::sc_module {
     WakeSource* wake_;
     double host_busy_seconds_ = 0;
     TimeFloor floor_;
-    std::vector<Cycle> next_;  // per core: the cycle of its next shared work
+    std::vector<uint64_t> next_;  // per core: the cycle of its next shared work, as keys_ keys
+    CycleKeys keys_;
     TimeFloor* shared_floor_ = nullptr;
 };
 
