@@ -10,10 +10,30 @@ namespace rtsim {
 
 namespace {
 // The least of eight keys: pairwise, three minimums deep instead of seven.
-uint64_t least_of_8(const uint64_t* k) {
-    const uint64_t a = std::min(k[0], k[1]), b = std::min(k[2], k[3]);
-    const uint64_t c = std::min(k[4], k[5]), d = std::min(k[6], k[7]);
+template <typename T>
+T least_of_8(const T* k) {
+    const T a = std::min(k[0], k[1]), b = std::min(k[2], k[3]);
+    const T c = std::min(k[4], k[5]), d = std::min(k[6], k[7]);
     return std::min(std::min(a, b), std::min(c, d));
+}
+
+// The least two of a set of keys, merged pairwise (minimums and maximums only, no branches).
+struct LeastTwo {
+    uint64_t least = ~uint64_t(0), second = ~uint64_t(0);
+    static LeastTwo of(uint64_t a, uint64_t b) {
+        // A mask, not min and max: gcc turns a min and a max of one compare into a branch.
+        const uint64_t swap = (a ^ b) & -uint64_t(b < a);
+        return {a ^ swap, b ^ swap};
+    }
+    LeastTwo merge(const LeastTwo& o) const {
+        const LeastTwo lows = of(least, o.least);
+        return {lows.least, std::min(lows.second, std::min(second, o.second))};
+    }
+};
+LeastTwo least_two_of_8(const uint64_t* k) {
+    const LeastTwo a = LeastTwo::of(k[0], k[1]).merge(LeastTwo::of(k[2], k[3]));
+    const LeastTwo b = LeastTwo::of(k[4], k[5]).merge(LeastTwo::of(k[6], k[7]));
+    return a.merge(b);
 }
 }  // namespace
 
@@ -234,7 +254,7 @@ CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> co
       cores_(std::move(cores)),
       quantum_cycles_(quantum_cycles),
       wake_(wake),
-      keys_(cores_.size()) {
+      keys_((cores_.size() + 7) / 8 * 8) {
     for (Core* core : cores_) core->set_shared_floor(&floor_);
     SC_THREAD(run);
 }
@@ -244,30 +264,30 @@ void CoreScheduler::run() {
     // kNeverCycle once retired. A few cores: a branch-free scan for the earliest and the next
     // earliest beats a heap.
     const size_t n = cores_.size();
-    // A member, not a local: sc_stop() mid-run (a damaged trace) never unwinds this stack.
-    next_.resize(n);
-    for (size_t i = 0; i < n; ++i) next_[i] = keys_.key(0, i);
+    // Members, not locals: sc_stop() mid-run (a damaged trace) never unwinds this stack. Both
+    // are padded to eights with retired cores for the unrolled scans.
+    const size_t padded = (n + 7) / 8 * 8;
+    next_.resize(padded);
+    floors_.assign(padded, kNeverCycle);
+    for (size_t i = 0; i < padded; ++i) next_[i] = keys_.key(i < n ? 0 : kNeverCycle, i);
+    for (size_t i = 0; i < n; ++i) floors_[i] = cores_[i]->floor()->cycle;
     uint64_t* next = next_.data();
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
     for (;;) {
         // The least two keys (ties: the lower index, so runs are deterministic).
-        uint64_t least = ~uint64_t(0), second_least = ~uint64_t(0);
-        for (size_t i = 0; i < n; ++i) {
-            second_least = std::min(second_least, std::max(least, next[i]));
-            least = std::min(least, next[i]);
-        }
-        const size_t c = keys_.index(least);
-        const Cycle first = keys_.cycle(least);
-        const Cycle second = keys_.cycle(second_least);
+        LeastTwo two = least_two_of_8(next);
+        for (size_t j = 8; j < padded; j += 8) two = two.merge(least_two_of_8(next + j));
+        const size_t c = keys_.index(two.least);
+        const Cycle first = keys_.cycle(two.least);
+        const Cycle second = keys_.cycle(two.second);
         if (first >= kParkedCycle) break;  // all retired (parked cores are woken by work)
         // Parked cores wake no earlier than `first`, retired ones send nothing: the shared
         // floor is the earliest among the running cores', which the advancing core updates.
-        Cycle others_floor = kNeverCycle;
-        for (size_t i = 0; i < n; ++i) {
-            const bool other = (keys_.cycle(next[i]) < kParkedCycle) & (i != c);
-            others_floor = std::min(others_floor, other ? cores_[i]->floor()->cycle : kNeverCycle);
-        }
+        floors_[c] = kNeverCycle;
+        Cycle others_floor = least_of_8(floors_.data());
+        for (size_t j = 8; j < padded; j += 8)
+            others_floor = std::min(others_floor, least_of_8(floors_.data() + j));
         if (first >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
@@ -278,7 +298,9 @@ void CoreScheduler::run() {
         const Cycle horizon = second >= kParkedCycle || second >= kNeverCycle - quantum_cycles_
                                   ? kNeverCycle
                                   : second + quantum_cycles_;
-        next[c] = keys_.key(cores_[c]->advance(horizon, others_floor), c);
+        const Cycle next_c = cores_[c]->advance(horizon, others_floor);
+        next[c] = keys_.key(next_c, c);
+        floors_[c] = next_c < kParkedCycle ? cores_[c]->floor()->cycle : kNeverCycle;
         Cycle at;
         if (wake_ && wake_->take_wake(at)) {
             at = std::max(at, first);  // never behind the order already served
@@ -286,6 +308,7 @@ void CoreScheduler::run() {
                 if (keys_.cycle(next[i]) == kParkedCycle) {
                     cores_[i]->wake(at);
                     next[i] = keys_.key(at, i);
+                    floors_[i] = cores_[i]->floor()->cycle;
                 }
         }
     }

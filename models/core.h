@@ -197,6 +197,7 @@ class CoreScheduler : public sc_core::sc_module {
     double host_busy_seconds_ = 0;
     TimeFloor floor_;
     std::vector<uint64_t> next_;  // per core: the cycle of its next shared work, as keys_ keys
+    std::vector<Cycle> floors_;   // per core: its floor while it runs; kNeverCycle otherwise
     CycleKeys keys_;
     TimeFloor* shared_floor_ = nullptr;
 };
