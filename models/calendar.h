@@ -92,15 +92,15 @@ class ReservationCalendar {
             ++g_calendar_late_requests;
             ready = ring_.base();
         }
-        Cycle start = ready;
-        if (ready < ring_.end()) {
-            // One user, and no request so far was ready later than this one: every cycle from
-            // the latest ready to the end is booked (each in-order booking starts at its ready or
-            // at the end; an out-of-order one fills a gap or starts at the end), so the
-            // reservation starts at the end. A private L1's bank sees only such requests.
-            if (capacity_ != 1 || ready < latest_ready_) return reserve_among_bookings(ready, span);
-            start = ring_.end();
-        }
+        // One user, and no request so far was ready later than this one: every cycle from the
+        // latest ready to the end is booked (each in-order booking starts at its ready or at the
+        // end; an out-of-order one fills a gap or starts at the end), so the reservation starts
+        // at the end, or at its ready if that is later. A private L1's bank sees only such
+        // requests. (The latest ready is never past the end, so with one user a request ready
+        // before it is the only kind that must search; one branch decides.)
+        if (ready < (capacity_ == 1 ? latest_ready_ : ring_.end()))
+            return reserve_among_bookings(ready, span);
+        const Cycle start = std::max(ready, ring_.end());
         latest_ready_ = ready;
         // Nothing booked from `start` on: no search.
         ring_.extend(start + span);
