@@ -172,18 +172,22 @@ class PrefetchingSource : public CountingSource {
         std::string error;
         bool input_error = false;
     };
-    // Fills the next batch, on the helper thread.
+    // Fills the next batch, on the helper thread. It starts with the records of a used batch
+    // (their contents are stale; only their memory is worth keeping).
     virtual void fill(Batch& batch) = 0;
 
     // Derived constructors start the first batch; derived destructors call wait() first, so
     // fill() never runs on a half-destroyed object.
-    // `used`: the batch just consumed, destroyed on the helper thread, which allocated its
-    // step vectors (a free on another thread's arena costs the simulation thread a lock).
+    // `used`: the batch just consumed. Its records (holding the step vectors the ray slots gave
+    // back) start the next batch, so a fill may reuse their memory instead of allocating per
+    // ray; whatever it does not reuse is freed on the helper thread, which allocated it (a
+    // free on another thread's arena costs the simulation thread a lock).
     void prefetch() { prefetch(Batch{}); }
     void prefetch(Batch used) {
         pending_ = std::async(std::launch::async, [this, used = std::move(used)]() mutable {
-            used = Batch();
             Batch b;
+            b.records = std::move(used.records);
+            used = Batch();
             try {
                 fill(b);
             } catch (const InputError& e) {
@@ -258,6 +262,7 @@ class GeneratedWorkSource : public PrefetchingSource {
 
   protected:
     void fill(Batch& b) override {
+        b.records.clear();  // steps are moved in from the tracer: nothing to reuse
         constexpr size_t kBatchRays = 4096;
         std::vector<GeneratedRay> rays;
         bool more = true;

@@ -246,7 +246,8 @@ TraceReader::~TraceReader() {
 }
 
 void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
-    out.clear();
+    // `out`'s records are overwritten, not cleared first: their step vectors keep their memory
+    // (a reader of many chunks allocates only while rays grow longer than before).
     if (k >= index_.size())
         throw InputError(
             fmt::format("{}: chunk {} past the last chunk ({})", path_, k, index_.size()));

@@ -82,7 +82,8 @@ class TraceReader {
     void set_layout(const BvhLayout& layout) { layout_ = layout; }
     const BvhLayout& layout() const { return layout_; }
 
-    // Decodes chunk k into out (cleared first). Throws InputError on damage.
+    // Decodes chunk k into out, replacing its records (their step vectors' memory is reused).
+    // Throws InputError on damage, leaving out's contents unspecified.
     void read_chunk(size_t k, std::vector<TraceRecord>& out);
 
   private:
