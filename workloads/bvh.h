@@ -90,6 +90,13 @@ struct BvhLayout {
     uint32_t tri_treelet(uint32_t slot) const {
         return tri_treelet_.empty() ? 0 : tri_treelet_[slot];
     }
+    // The per-record treelet tables behind node_treelet and tri_treelet; nullptr without treelets.
+    const uint32_t* node_treelets() const {
+        return node_treelet_.empty() ? nullptr : node_treelet_.data();
+    }
+    const uint32_t* tri_treelets() const {
+        return tri_treelet_.empty() ? nullptr : tri_treelet_.data();
+    }
 
     Step node_step(uint32_t node, uint8_t children) const {
         return {node_addr(node), node,     uint16_t(node_size_bytes),

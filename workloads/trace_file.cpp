@@ -291,6 +291,26 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
         if (p == end) chunk_fail(fmt::format("record truncated at offset {}", p - raw_.data()));
         return uint8_t(*p++);
     };
+    // A varint known to have its bytes in the chunk when it has one or two (most step deltas):
+    // decoded without a branch on its length, which varies unpredictably; longer ones go the
+    // checked way. Needs two readable bytes at p.
+    auto short_varint = [&]() -> uint64_t {
+        const uint64_t b0 = uint8_t(p[0]), b1 = uint8_t(p[1]);
+        if ((b0 & b1 & 0x80) != 0) return varint();
+        const uint64_t two = b0 >> 7;
+        p += 1 + two;
+        return (b0 & 0x7F) | ((b1 & 0x7F) << 7 & -two);
+    };
+    // Per step kind (node 0, triangle 1), what its Step is made of: node_step and tri_step
+    // without a branch on the kind, which alternates unpredictably.
+    struct KindLayout {
+        uint64_t base_addr, size_bytes, count;
+        const uint32_t* treelets;
+    };
+    const KindLayout kinds[2] = {{layout_.node_base_addr, layout_.node_size_bytes,
+                                  layout_.inner_node_count, layout_.node_treelets()},
+                                 {layout_.tri_base_addr, layout_.tri_size_bytes,
+                                  layout_.triangle_count, layout_.tri_treelets()}};
     // Every ray takes at least 3 bytes and every step 2: no size claim can allocate beyond that.
     if (uint64_t(rays) * 3 > raw_size)
         chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
@@ -307,17 +327,25 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
         if (count > kMaxStepsPerRay || count * 2 > uint64_t(end - p))
             chunk_fail(fmt::format("ray {} claims {} steps, more than its chunk holds", r, count));
         rec.steps.resize(count);
+        Step* step = rec.steps.data();
         int64_t prev[2] = {0, 0};
         for (uint64_t i = 0; i < count; ++i) {
             const uint8_t b = byte();
             const int sk = b & 1;
-            prev[sk] += unzigzag(varint());
-            const uint64_t limit = sk == 0 ? layout_.inner_node_count : layout_.triangle_count;
-            if (prev[sk] < 0 || uint64_t(prev[sk]) >= limit)
+            prev[sk] += unzigzag(end - p >= 2 ? short_varint() : varint());
+            const KindLayout& K = kinds[sk];
+            if (uint64_t(prev[sk]) >= K.count)  // negative ones too
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
-                                       i, sk ? "triangle" : "node", prev[sk], limit));
+                                       i, sk ? "triangle" : "node", prev[sk], K.count));
             const auto id = uint32_t(prev[sk]);
-            rec.steps[i] = sk == 0 ? layout_.node_step(id, uint8_t(b >> 1)) : layout_.tri_step(id);
+            Step& st = step[i];
+            st.addr = K.base_addr + uint64_t(id) * K.size_bytes;
+            st.id = id;
+            st.size_bytes = uint16_t(K.size_bytes);
+            st.kind = StepKind(sk);
+            st.count = uint8_t(((b >> 1) & (sk - 1)) | sk);  // a triangle step tests one
+            st.treelet = K.treelets ? K.treelets[id] : 0;
+            st.lanes = 1;
         }
         const uint64_t prim = varint();
         if (prim == 0) {
