@@ -11,7 +11,7 @@ namespace rtsim {
 namespace {
 // The least of eight keys: pairwise, three minimums deep instead of seven.
 template <typename T>
-T least_of_8(const T* k) {
+[[gnu::always_inline]] inline T least_of_8(const T* k) {
     const T a = std::min(k[0], k[1]), b = std::min(k[2], k[3]);
     const T c = std::min(k[4], k[5]), d = std::min(k[6], k[7]);
     return std::min(std::min(a, b), std::min(c, d));
@@ -30,7 +30,7 @@ struct LeastTwo {
         return {lows.least, std::min(lows.second, std::min(second, o.second))};
     }
 };
-LeastTwo least_two_of_8(const uint64_t* k) {
+[[gnu::always_inline]] inline LeastTwo least_two_of_8(const uint64_t* k) {
     const LeastTwo a = LeastTwo::of(k[0], k[1]).merge(LeastTwo::of(k[2], k[3]));
     const LeastTwo b = LeastTwo::of(k[4], k[5]).merge(LeastTwo::of(k[6], k[7]));
     return a.merge(b);
