@@ -11,7 +11,7 @@ mode="${1:-run}"
 build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
-          libassimp-dev libembree-dev libcli11-dev libzstd-dev zstd glmark2-data)
+          libassimp-dev libembree-dev libcli11-dev libzstd-dev zlib1g-dev zstd glmark2-data)
 sudo_cmd=""
 [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
 apt_updated=0

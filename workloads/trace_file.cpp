@@ -1,5 +1,6 @@
 #include "workloads/trace_file.h"
 
+#include <zlib.h>
 #include <zstd.h>
 
 #include <fmt/format.h>
@@ -52,19 +53,18 @@ T get(const char* p) {
 }  // namespace
 
 uint32_t crc32(const void* data, size_t size, uint32_t crc) {
-    static const std::array<uint32_t, 256> table = [] {
-        std::array<uint32_t, 256> t{};
-        for (uint32_t i = 0; i < 256; ++i) {
-            uint32_t c = i;
-            for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
-            t[i] = c;
-        }
-        return t;
-    }();
-    crc = ~crc;
-    const auto* p = static_cast<const uint8_t*>(data);
-    for (size_t i = 0; i < size; ++i) crc = table[(crc ^ p[i]) & 0xFF] ^ (crc >> 8);
-    return ~crc;
+    // zlib's CRC-32 (the IEEE polynomial, as the format states), computed several bytes at a
+    // time; it chains like this function's `crc` argument. Sizes are chunk sizes, far below
+    // uInt's range, but fed in pieces anyway.
+    const auto* p = static_cast<const Bytef*>(data);
+    uLong c = crc;
+    while (size > 0) {
+        const auto piece = uInt(std::min<size_t>(size, size_t(1) << 30));
+        c = ::crc32(c, p, piece);
+        p += piece;
+        size -= piece;
+    }
+    return uint32_t(c);
 }
 
 // ---------------------------------------------------------------------------------------------
