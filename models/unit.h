@@ -3,6 +3,7 @@
 // A passive resource calendar: it has no process and costs nothing while idle.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <string>
 #include <systemc>
@@ -49,5 +50,22 @@ class PipelinedUnit : public sc_core::sc_module {
         ops_for_items_{};  // operations for 0..256 items (a BVH node's children)
     TimeSeries* busy_series_ = nullptr;
 };
+
+// Inline: a core issues to a unit on every step.
+inline Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
+    // Operations per item count from a table: a division per operation costs more than the rest.
+    const int per_ray = items >= 0 && size_t(items) < ops_for_items_.size()
+                            ? ops_for_items_[size_t(items)]
+                            : std::max(1, (items + params_.width - 1) / params_.width);
+    const Cycle n = Cycle(per_ray) * Cycle(rays > 1 ? rays : 1);
+    // The n operations run back to back on one pipeline.
+    const Cycle start =
+        params_.unlimited ? ready : calendar_.reserve(ready, n * params_.interval_cycles);
+    ops += n;
+    busy_cycles += n * params_.interval_cycles;
+    if (busy_series_) busy_series_->add(start, n * params_.interval_cycles);
+    queue_cycles += start - ready;
+    return start + (n - 1) * params_.interval_cycles + params_.latency_cycles;
+}
 
 }  // namespace rtsim
