@@ -54,7 +54,7 @@ class IdealMemory : public MemoryPort {
     Cycle latency_;
 };
 
-class Cache : public sc_core::sc_module, public MemoryPort {
+class Cache final : public sc_core::sc_module, public MemoryPort {
   public:
     // `level` names the level for stall attribution (kLevelL1, kLevelL2).
     Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,

@@ -51,6 +51,7 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
       ready_((slots_.size() + 7) / 8 * 8),
       keys_(ready_.size()),
       mem_by_kind_{l1_, l1_tri_},
+      cache_by_kind_{dynamic_cast<Cache*>(l1_), dynamic_cast<Cache*>(l1_tri_)},
       unit_by_kind_{box_, tri_},
       instructions_by_kind_{params.node_step_instructions, params.triangle_step_instructions} {
     static_assert(
@@ -181,7 +182,12 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         const Cycle issued = issue(t, instructions_by_kind_[kind]);
         AccessBreakdown bd;
         Cycle fetched;
-        if (s.fetch_is_shared || !mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd)) {
+        Cache* cache = cache_by_kind_[kind];
+        const bool local =
+            !s.fetch_is_shared &&
+            (cache ? cache->access_local(st.addr, st.size_bytes, issued, fetched, &bd)
+                   : mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd));
+        if (!local) {
             // The request leaves the core at `issued`: that is its place in the global order.
             // (Resumed, the slot is still this core's earliest and the port the same, so it
             // issues at the same cycle.)
@@ -214,7 +220,8 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             // The slot's next fetch comes within a few hundred cycles: warm the host's caches
             // with the simulator state it will look up.
             const Step& next = s.work.steps[s.pos];
-            mem_by_kind_[size_t(next.kind)]->expect(next.addr, next.size_bytes);
+            if (Cache* next_cache = cache_by_kind_[size_t(next.kind)])
+                next_cache->expect(next.addr, next.size_bytes);
         } else if (!ray_buffer_) {
             finish_ray(s, done);
         }
