@@ -61,11 +61,6 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
           int level = kLevelL1);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    void expect(uint64_t addr, uint32_t size_bytes) const override {
-        const auto [first, last] = line_range(addr, size_bytes);
-        for (uint64_t line = first; line <= last; ++line)
-            __builtin_prefetch(set_block(set_of(line)));
-    }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                       AccessBreakdown* breakdown = nullptr) override;
@@ -91,7 +86,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
   private:
     // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
     // FIFO fill order), then their fill cycles; 64 bytes for 4 ways, so a lookup touches one
-    // host cache line, which the core prefetches (expect) well before it looks up.
+    // host cache line.
     static constexpr uint32_t kNoTag = ~uint32_t(0);
     uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
     uint32_t tag_of(uint64_t line_addr) const { return uint32_t(line_addr >> set_shift_); }

@@ -158,9 +158,9 @@ class Core : public sc_core::sc_module {
     std::vector<uint64_t> ready_;
     CycleKeys keys_;
     void set_ready(size_t slot, Cycle c) { ready_[slot] = keys_.key(c, slot); }
-    MemoryPort* mem_by_kind_[2];      // per StepKind: the L1 its fetches go to
-    // ...and the same L1 when it is a Cache (not ideal memory): its hit path and host prefetch
-    // are called directly, without a virtual call, on every step.
+    MemoryPort* mem_by_kind_[2];  // per StepKind: the L1 its fetches go to
+    // ...and the same L1 when it is a Cache (not ideal memory): its hit path is called
+    // directly, without a virtual call, on every step.
     Cache* cache_by_kind_[2];
     PipelinedUnit* unit_by_kind_[2];  // per StepKind: the unit its test runs on
     int instructions_by_kind_[2];     // per StepKind: control instructions per step

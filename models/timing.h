@@ -53,9 +53,6 @@ class MemoryPort {
     // the returned cycle minus `now`.
     virtual Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                          AccessBreakdown* breakdown = nullptr) = 0;
-    // A hint that an access to these bytes will come soon (a host-side prefetch of the
-    // simulator's own state for them; no simulated effect).
-    virtual void expect(uint64_t /*addr*/, uint32_t /*size_bytes*/) const {}
     // Performs the access only if this block serves it entirely, touching no other block's
     // state (a private cache's hit): then sets `ready` as access() would return it and returns
     // true. Otherwise changes nothing and returns false. A requester may run a local access
