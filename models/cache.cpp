@@ -24,6 +24,8 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     while ((uint64_t(1) << set_shift_) < params_.sets()) ++set_shift_;
     mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
     banks_.assign(size_t(std::max(1, params_.banks)), ReservationCalendar(1));
+    if (params_.in_order_requests)
+        for (auto& bank : banks_) bank.assume_in_order();
     bank_mask_ = banks_.size() - 1;  // a power of two (config validates)
     while ((uint64_t(1) << bank_shift_) < banks_.size()) ++bank_shift_;
     line_shift_ = 0;

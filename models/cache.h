@@ -29,6 +29,9 @@ struct CacheParams {
     enum class Replacement : uint8_t { Lru, Fifo, Random };
     Replacement replacement = Replacement::Lru;
     int banks = 1;  // line-interleaved banks, each starting one lookup per cycle
+    // Lookups come in non-decreasing time (a private L1 behind its core's in-order issue
+    // port): the banks keep only their next free cycle (ReservationCalendar::assume_in_order).
+    bool in_order_requests = false;
     // Addresses stay below this: tags are stored in 32 bits (the constructor refuses a cache
     // whose tags would not fit).
     uint64_t address_limit_bytes = uint64_t(1) << 36;

@@ -84,9 +84,22 @@ class ReservationCalendar {
         : capacity_(uint32_t(capacity > 0 ? capacity : 1)) {}
     // Forget the cycles before `floor->cycle` as it rises (nullptr: remember everything).
     void follow(const TimeFloor* floor) { floor_ = floor ? floor : &detail::g_no_floor; }
+    // The requests will come in non-decreasing `ready` order (a private L1's bank behind its
+    // core's in-order issue port). With one user each then starts at its ready or at the end
+    // of the bookings before it, so only that end is kept, no per-cycle counts. A request out
+    // of order would break the promise: it is counted with the late ones (sim.late_requests,
+    // which runs check stays zero) and starts at the end.
+    void assume_in_order() { in_order_ = capacity_ == 1; }
     // Reserves one user for [start, start + span) with the earliest start >= ready at which
     // every cycle of the span has a free user; returns start. span >= 1.
     Cycle reserve(Cycle ready, Cycle span) {
+        if (in_order_) {
+            g_calendar_late_requests += ready < latest_ready_;
+            latest_ready_ = ready;
+            const Cycle start = std::max(ready, in_order_end_);
+            in_order_end_ = start + span;
+            return start;
+        }
         ring_.forget_before(floor_->cycle);
         if (ready < ring_.base()) {
             ++g_calendar_late_requests;
@@ -115,6 +128,8 @@ class ReservationCalendar {
     const TimeFloor* floor_ = &detail::g_no_floor;
     detail::CycleRing<16> ring_;  // cycles below 2^48
     Cycle latest_ready_ = 0;      // the latest `ready` asked for so far
+    bool in_order_ = false;       // see assume_in_order
+    Cycle in_order_end_ = 0;      // in order: the end of the bookings
 };
 
 // A link moving `bytes_per_cycle` (fractional allowed) as a fluid: a transfer takes what is left

@@ -108,7 +108,10 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         ray_buffer = std::make_unique<RayBuffer>("ray_buffer", rp, treelet_spans(layout), source);
         ray_buffer->register_stats(stats, "ray_buffer");
     }
-    const CacheParams l1p = cache_params(cfg, "l1", layout);
+    CacheParams l1p = cache_params(cfg, "l1", layout);
+    // A core's L1 lookups follow its one in-order issue port, except a treelet load (at the
+    // cycle a batch starts, which may precede a step's lookup issued just before).
+    l1p.in_order_requests = mode != "treelet";
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
     UnitParams tp = unit_params(cfg, "triangle_unit");

@@ -59,6 +59,31 @@ TEST(ReservationCalendar, MatchesASimpleModelOnRandomRequests) {
             }
 }
 
+// A calendar told its requests come in order (a private L1's bank) keeps only its end: on
+// in-order requests it must book exactly as the full calendar does, and a request out of order
+// is counted as a broken promise.
+TEST(ReservationCalendar, InOrderCalendarBooksAsTheFullOne) {
+    std::mt19937 rng(11);
+    ReservationCalendar full(1), in_order(1);
+    in_order.assume_in_order();
+    const uint64_t late_before = g_calendar_late_requests;
+    Cycle ready = 0;
+    for (int i = 0; i < 20000; ++i) {
+        ready += rng() % 4;  // sometimes the same cycle, sometimes a gap
+        const Cycle span = 1 + rng() % 4;
+        ASSERT_EQ(in_order.reserve(ready, span), full.reserve(ready, span)) << "request " << i;
+    }
+    EXPECT_EQ(g_calendar_late_requests, late_before);
+    const Cycle end = in_order.reserve(ready, 1) + 1;
+    EXPECT_EQ(in_order.reserve(ready - 1, 1), end);  // out of order: at the end, and counted
+    EXPECT_EQ(g_calendar_late_requests, late_before + 1);
+    // A calendar with several users keeps its cells (in-order booking is only exact for one).
+    ReservationCalendar two(2), two_full(2);
+    two.assume_in_order();
+    for (Cycle r : {Cycle(0), Cycle(0), Cycle(0), Cycle(5)})
+        EXPECT_EQ(two.reserve(r, 2), two_full.reserve(r, 2));
+}
+
 TEST(ReservationCalendar, FollowingAFloorKeepsTheRingSmall) {
     TimeFloor floor;
     ReservationCalendar c(1);
