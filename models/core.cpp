@@ -99,11 +99,18 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
     const size_t n = ready_.size();
     for (;;) {
-        uint64_t least = least_of_8(ready_.data());
-        for (size_t j = 8; j < n; j += 8) least = std::min(least, least_of_8(ready_.data() + j));
+        LeastTwo two = least_two_of_8(ready_.data());
+        for (size_t j = 8; j < n; j += 8) two = two.merge(least_two_of_8(ready_.data() + j));
+        const uint64_t least = two.least;
         const size_t i = keys_.index(least);
         const Cycle t = keys_.cycle(least);
         if (t >= kParkedCycle) return t;  // every slot parked or retired
+        {
+            // The next earliest slot usually runs next: start loading its step, which it last
+            // touched dozens of steps ago and the host's L1 has likely dropped since.
+            const Slot& after = slots_[std::min(keys_.index(two.second), slots_.size() - 1)];
+            __builtin_prefetch(after.work.steps.data() + after.pos);
+        }
         // Every later request of this core comes at t or after.
         floor_.cycle = t;
         if (shared_floor_) shared_floor_->cycle = std::min(t, others_floor);
