@@ -5,9 +5,10 @@ import subprocess
 import sys
 
 
-def run_stats(rtsim, args, out, who):
-    """Runs `rtsim run -q --out OUT ARGS`; exits naming `who` if it fails."""
-    cmd = [rtsim, "run", "-q", "--out", out] + args
+def run_stats(rtsim, args, out, who, prefix=()):
+    """Runs `rtsim run -q --out OUT ARGS` (after `prefix`, e.g. a taskset command); exits naming
+    `who` if it fails."""
+    cmd = list(prefix) + [rtsim, "run", "-q", "--out", out] + args
     r = subprocess.run(cmd, capture_output=True, text=True)
     if r.returncode != 0:
         sys.exit(f"{who}: {' '.join(cmd)} failed: {r.stderr.strip()}")
