@@ -8,13 +8,15 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
-#include <future>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <systemc>
+#include <thread>
 #include <utility>
 
 #include "sim/chip.h"
@@ -182,32 +184,32 @@ class PrefetchingSource : public CountingSource {
     // back) start the next batch, so a fill may reuse their memory instead of allocating per
     // ray; whatever it does not reuse is freed on the helper thread, which allocated it (a
     // free on another thread's arena costs the simulation thread a lock).
+    // One helper thread serves every batch (batches are small, and a thread per batch cost
+    // more than decoding one).
     void prefetch() { prefetch(Batch{}); }
     void prefetch(Batch used) {
-        pending_ = std::async(std::launch::async, [this, used = std::move(used)]() mutable {
-            Batch b;
-            b.records = std::move(used.records);
-            used = Batch();
-            try {
-                fill(b);
-            } catch (const InputError& e) {
-                b.error = e.what();
-                b.input_error = true;
-            } catch (const std::exception& e) {
-                b.error = e.what();
-            }
-            return b;
-        });
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (!helper_.joinable()) helper_ = std::thread([this] { help(); });
+        recycled_ = std::move(used);
+        requested_ = true;
+        outstanding_ = true;
+        cv_.notify_all();
     }
+    // Stops the helper thread once it has finished the batch it may be filling.
     void wait() {
-        if (pending_.valid()) pending_.wait();
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            stopping_ = true;
+            cv_.notify_all();
+        }
+        if (helper_.joinable()) helper_.join();
     }
 
     bool produce(RayWork& work, uint32_t& hits) override {
         while (pos_ == batch_.records.size()) {
-            if (!pending_.valid()) return false;
+            if (!outstanding_) return false;
             const auto t0 = Clock::now();
-            Batch used = std::exchange(batch_, pending_.get());
+            Batch used = std::exchange(batch_, take());
             functional_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
             pos_ = 0;
             if (!batch_.error.empty()) {
@@ -240,11 +242,51 @@ class PrefetchingSource : public CountingSource {
     }
 
   private:
+    // The helper thread: fills a batch whenever one is requested, until stopped.
+    void help() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        for (;;) {
+            cv_.wait(lock, [this] { return requested_ || stopping_; });
+            if (stopping_) return;
+            requested_ = false;
+            Batch used = std::move(recycled_);
+            lock.unlock();
+            Batch b;
+            b.records = std::move(used.records);
+            used = Batch();
+            try {
+                fill(b);
+            } catch (const InputError& e) {
+                b.error = e.what();
+                b.input_error = true;
+            } catch (const std::exception& e) {
+                b.error = e.what();
+            }
+            lock.lock();
+            filled_ = std::move(b);
+            ready_ = true;
+            cv_.notify_all();
+        }
+    }
+    // The batch requested last, once the helper has filled it.
+    Batch take() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        cv_.wait(lock, [this] { return ready_; });
+        ready_ = false;
+        outstanding_ = false;
+        return std::move(filled_);
+    }
+
     static constexpr size_t kPrefetchAheadRays = 4;
     const char* unit_;
-    std::future<Batch> pending_;
     Batch batch_;
     size_t pos_ = 0;
+    bool outstanding_ = false;  // a batch was requested and not taken yet (simulation thread)
+    std::thread helper_;
+    std::mutex mutex_;  // guards what follows
+    std::condition_variable cv_;
+    Batch recycled_, filled_;
+    bool requested_ = false, ready_ = false, stopping_ = false;
 };
 
 // Rays from the generator, traced a batch of tiles at a time: only about two batches of rays
@@ -327,9 +369,14 @@ class TraceWorkSource : public PrefetchingSource {
 
   protected:
     void fill(Batch& b) override {
-        if (next_chunk_ < reader_.chunk_count()) reader_.read_chunk(next_chunk_++, b.records);
+        // A batch is at most kBatchRays of a chunk: its steps (~300 bytes a ray) stay in the
+        // host's caches until the cores run them, even with the decoding on the same core.
+        constexpr size_t kBatchRays = 1024;
+        if (reader_.chunk_rays_left() == 0 && next_chunk_ < reader_.chunk_count())
+            reader_.open_chunk(next_chunk_++);
+        reader_.read_records(kBatchRays, b.records);
         b.progress = double(next_chunk_) / double(std::max<size_t>(1, reader_.chunk_count()));
-        b.last = next_chunk_ == reader_.chunk_count();
+        b.last = next_chunk_ == reader_.chunk_count() && reader_.chunk_rays_left() == 0;
     }
 
   private:

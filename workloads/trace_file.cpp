@@ -4,8 +4,10 @@
 #include <zstd.h>
 
 #include <fmt/format.h>
+#include <algorithm>
 #include <array>
 #include <cstring>
+#include <limits>
 
 #include "workloads/error.h"
 
@@ -246,15 +248,22 @@ TraceReader::~TraceReader() {
 }
 
 void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
-    // `out`'s records are overwritten, not cleared first: their step vectors keep their memory
-    // (a reader of many chunks allocates only while rays grow longer than before).
+    open_chunk(k);
+    read_records(std::numeric_limits<size_t>::max(), out);
+}
+
+[[noreturn]] void TraceReader::chunk_fail(const std::string& what) const {
+    throw InputError(fmt::format("{}: chunk {} (byte {}): {}", path_, chunk_, chunk_at_, what));
+}
+
+void TraceReader::open_chunk(size_t k) {
+    chunk_rays_left_ = 0;
     if (k >= index_.size())
         throw InputError(
             fmt::format("{}: chunk {} past the last chunk ({})", path_, k, index_.size()));
-    const uint64_t at = index_[k].offset;
-    auto chunk_fail = [&](const std::string& what) {
-        throw InputError(fmt::format("{}: chunk {} (byte {}): {}", path_, k, at, what));
-    };
+    chunk_ = k;
+    chunk_at_ = index_[k].offset;
+    const uint64_t at = chunk_at_;
     char h[kChunkHeaderBytes];
     read_at(at, h, sizeof h, "chunk header");
     if (std::memcmp(h, kChunkMagic, 4) != 0) chunk_fail("wrong chunk magic");
@@ -273,9 +282,20 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
     raw_.resize(raw_size);
     const size_t n = ZSTD_decompress(raw_.data(), raw_.size(), compressed_.data(), comp_size);
     if (ZSTD_isError(n) || n != raw_size) chunk_fail("cannot decompress");
+    // Every ray takes at least 3 bytes and every step 2: no size claim can allocate beyond that.
+    if (uint64_t(rays) * 3 > raw_size)
+        chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
+    chunk_pos_ = 0;
+    chunk_rays_read_ = 0;
+    chunk_rays_left_ = rays;
+    chunk_last_id_ = 0;
+}
 
-    const char* p = raw_.data();
-    const char* const end = p + raw_size;
+size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out) {
+    // `out`'s records are overwritten, not cleared first: their step vectors keep their memory
+    // (a reader of many chunks allocates only while rays grow longer than before).
+    const char* p = raw_.data() + chunk_pos_;
+    const char* const end = raw_.data() + raw_.size();
     auto varint = [&]() -> uint64_t {
         uint64_t v = 0;
         for (int shift = 0; shift < 64; shift += 7) {
@@ -285,7 +305,6 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
             if (!(b & 0x80)) return v;
         }
         chunk_fail("bad varint");
-        return 0;  // not reached: chunk_fail throws
     };
     auto byte = [&]() -> uint8_t {
         if (p == end) chunk_fail(fmt::format("record truncated at offset {}", p - raw_.data()));
@@ -311,13 +330,12 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
                                   layout_.inner_node_count, layout_.node_treelets()},
                                  {layout_.tri_base_addr, layout_.tri_size_bytes,
                                   layout_.triangle_count, layout_.tri_treelets()}};
-    // Every ray takes at least 3 bytes and every step 2: no size claim can allocate beyond that.
-    if (uint64_t(rays) * 3 > raw_size)
-        chunk_fail(fmt::format("{} rays cannot fit in {} bytes", rays, raw_size));
-    int64_t last_id = 0;
+    const size_t rays = size_t(std::min<uint64_t>(max_rays, chunk_rays_left_));
     out.resize(rays);
-    for (uint32_t r = 0; r < rays; ++r) {
-        TraceRecord& rec = out[r];
+    int64_t last_id = chunk_last_id_;
+    for (size_t j = 0; j < rays; ++j) {
+        const uint64_t r = chunk_rays_read_ + j;  // the ray's place in its chunk, for messages
+        TraceRecord& rec = out[j];
         last_id += unzigzag(varint());
         rec.ray_id = uint32_t(last_id);
         const uint8_t kind = byte();
@@ -358,7 +376,13 @@ void TraceReader::read_chunk(size_t k, std::vector<TraceRecord>& out) {
             p += 4;
         }
     }
-    if (p != end) chunk_fail(fmt::format("{} bytes left after the last record", end - p));
+    chunk_pos_ = size_t(p - raw_.data());
+    chunk_rays_read_ += rays;
+    chunk_rays_left_ -= rays;
+    chunk_last_id_ = last_id;
+    if (chunk_rays_left_ == 0 && p != end)
+        chunk_fail(fmt::format("{} bytes left after the last record", end - p));
+    return rays;
 }
 
 }  // namespace rtsim

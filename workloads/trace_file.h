@@ -85,8 +85,16 @@ class TraceReader {
     // Decodes chunk k into out, replacing its records (their step vectors' memory is reused).
     // Throws InputError on damage, leaving out's contents unspecified.
     void read_chunk(size_t k, std::vector<TraceRecord>& out);
+    // The same in pieces, so that a reader of big chunks holds only a few rays' steps at a
+    // time: open_chunk reads, checks and decompresses chunk k; each read_records then decodes
+    // up to `max_rays` more of its records into out (as read_chunk does) and returns how many;
+    // chunk_rays_left tells how many remain. Throw InputError on damage.
+    void open_chunk(size_t k);
+    size_t read_records(size_t max_rays, std::vector<TraceRecord>& out);
+    uint64_t chunk_rays_left() const { return chunk_rays_left_; }
 
   private:
+    [[noreturn]] void chunk_fail(const std::string& what) const;
     [[noreturn]] void fail(uint64_t offset, const std::string& what) const;
     void read_at(uint64_t offset, void* data, size_t size, const char* what);
 
@@ -103,6 +111,13 @@ class TraceReader {
     uint64_t total_rays_ = 0, total_steps_ = 0;
     BvhLayout layout_;
     std::vector<char> compressed_, raw_;
+    // The open chunk: its number and byte offset (for messages), where its next record starts
+    // in raw_, its records read and left, and the last ray id (ids are delta coded).
+    size_t chunk_ = 0;
+    uint64_t chunk_at_ = 0;
+    size_t chunk_pos_ = 0;
+    uint64_t chunk_rays_read_ = 0, chunk_rays_left_ = 0;
+    int64_t chunk_last_id_ = 0;
 };
 
 }  // namespace rtsim
