@@ -144,6 +144,41 @@ TEST(TraceFile, SeeksToAnyChunk) {
     EXPECT_THROW(r.read_chunk(6, chunk), InputError);
 }
 
+TEST(TraceFile, ChunksDecodeInPiecesAsWhole) {
+    // Pieces of 7 records (uneven against chunks of 50), the records' vectors reused piece to
+    // piece as a replay reuses them: the same records as read_chunk gives, in order.
+    const auto recs = random_records(300, 6);
+    const std::string path = write_trace("pieces.rtt", recs, 50);
+    TraceReader r(path);
+    r.set_layout(test_layout());
+    std::vector<TraceRecord> all, piece;
+    for (size_t k = 0; k < r.chunk_count(); ++k) {
+        r.open_chunk(k);
+        EXPECT_EQ(r.chunk_rays_left(), 50u);
+        while (r.chunk_rays_left() > 0) {
+            const size_t n = r.read_records(7, piece);
+            ASSERT_EQ(n, piece.size());
+            ASSERT_LE(n, 7u);
+            all.insert(all.end(), piece.begin(), piece.end());
+        }
+        EXPECT_EQ(r.read_records(7, piece), 0u);
+    }
+    expect_same(recs, all);
+    // Damage past the first piece is still found, naming the chunk.
+    std::string bytes = slurp(path);
+    bytes[bytes.size() / 2] ^= 0x21;
+    const std::string bad = temp_path("pieces-bad.rtt");
+    spit(bad, bytes);
+    test::expect_input_error(
+        [&] {
+            TraceReader b(bad);
+            b.set_layout(test_layout());
+            for (size_t k = 0; k < b.chunk_count(); ++k)
+                for (b.open_chunk(k); b.chunk_rays_left() > 0;) b.read_records(7, piece);
+        },
+        bad, "chunk");
+}
+
 TEST(TraceFile, EmptyTraceIsValid) {
     const std::string path = write_trace("empty.rtt", {}, 16);
     TraceReader r(path);
