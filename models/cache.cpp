@@ -22,7 +22,14 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
         std::fill(tags(set), tags(set) + params_.ways, kNoTag);
     set_mask_ = params_.sets() - 1;  // sets and line size are powers of two (config validates)
     while ((uint64_t(1) << set_shift_) < params_.sets()) ++set_shift_;
-    mshr_free_.assign(size_t(std::max(0, params_.mshrs)), 0);
+    const auto mshrs = size_t(std::max(0, params_.mshrs));
+    few_mshrs_ = mshrs > 0 && mshrs <= kFewMshrs;
+    if (few_mshrs_) {
+        mshr_keys_.assign(kFewMshrs, ~uint64_t(0));
+        for (size_t m = 0; m < mshrs; ++m) mshr_keys_[m] = m;  // free from cycle 0
+    } else {
+        mshr_free_.assign(mshrs, 0);
+    }
     banks_.assign(size_t(std::max(1, params_.banks)), ReservationCalendar(1));
     if (params_.in_order_requests)
         for (auto& bank : banks_) bank.assume_in_order();
@@ -110,6 +117,10 @@ void Cache::charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_d
 // leaves the front and `ready` goes in order from the back. A miss mostly completes after the
 // ones in flight, so it usually stays at the back: one compare where a heap sifts log2(n) levels.
 void Cache::replace_earliest_mshr(Cycle ready) {
+    if (few_mshrs_) {
+        mshr_keys_[mshr_pick_] = ready << kMshrBits | mshr_pick_;
+        return;
+    }
     Cycle* h = mshr_free_.data();
     const size_t n = mshr_free_.size();
     // The ring is full: the front's slot is the one after the back once the front leaves.
@@ -166,9 +177,9 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     // MSHRs as the cycles they free, in order: take the earliest, give it back busy until this
     // miss's data returns.
     Cycle issue_at = lookup_done;
-    const bool limited = !mshr_free_.empty();
+    const bool limited = few_mshrs_ || !mshr_free_.empty();
     if (limited) {
-        issue_at = std::max(lookup_done, mshr_free_[mshr_front_]);
+        issue_at = std::max(lookup_done, earliest_mshr());
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;

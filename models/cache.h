@@ -208,6 +208,15 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         return ++use_clock_;
     }
     void renumber_stamps();
+    // The cycle the earliest-free MSHR frees; replace_earliest_mshr then books it until `ready`
+    // (with nothing else touching this cache's MSHRs in between).
+    Cycle earliest_mshr() {
+        if (!few_mshrs_) return mshr_free_[mshr_front_];
+        const uint64_t least =
+            std::min(least_of_8(mshr_keys_.data()), least_of_8(mshr_keys_.data() + 8));
+        mshr_pick_ = size_t(least & (kFewMshrs - 1));
+        return least >> kMshrBits;
+    }
     void replace_earliest_mshr(Cycle ready);
     // Counts the lookups of lines first..last and waits for their banks, each of which reads
     // its lines of the request back to back; done[k]: the cycle line first + k is looked up.
@@ -265,8 +274,17 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
-    std::vector<Cycle> mshr_free_;  // per MSHR: cycle its miss completes; a ring, in order
-    size_t mshr_front_ = 0;         // the ring's earliest
+    // MSHRs as the cycles they free. Up to kFewMshrs (an L1's): keys (cycle << kMshrBits | MSHR) in
+    // any order, padded to kFewMshrs with ~0, the earliest found by branch-free minimums (a
+    // miss served by the L2 often frees before misses still waiting for DRAM, so keeping them
+    // sorted shifts an unpredictable number of entries). More: a ring in order.
+    static constexpr int kMshrBits = 4;
+    static constexpr size_t kFewMshrs = size_t(1) << kMshrBits;
+    bool few_mshrs_ = false;
+    std::vector<uint64_t> mshr_keys_;
+    size_t mshr_pick_ = 0;                    // few: the MSHR earliest_mshr found
+    std::vector<Cycle> mshr_free_;            // many: per MSHR the cycle it frees; a ring, in order
+    size_t mshr_front_ = 0;                   // the ring's earliest
     std::vector<ReservationCalendar> banks_;  // per bank: the cycles it starts a lookup
     uint64_t rng_ = 0x9E3779B97F4A7C15ull;    // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;

@@ -9,14 +9,6 @@
 namespace rtsim {
 
 namespace {
-// The least of eight keys: pairwise, three minimums deep instead of seven.
-template <typename T>
-[[gnu::always_inline]] inline T least_of_8(const T* k) {
-    const T a = std::min(k[0], k[1]), b = std::min(k[2], k[3]);
-    const T c = std::min(k[4], k[5]), d = std::min(k[6], k[7]);
-    return std::min(std::min(a, b), std::min(c, d));
-}
-
 // The least two of a set of keys, merged pairwise (minimums and maximums only, no branches).
 struct LeastTwo {
     uint64_t least = ~uint64_t(0), second = ~uint64_t(0);

@@ -2,6 +2,7 @@
 // count at 1 ns per cycle; the configured clock only matters when converting to seconds.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <systemc>
 
@@ -14,6 +15,16 @@ inline sc_core::sc_time cycles_to_time(Cycle c) {
 }
 inline Cycle now_cycles() {
     return static_cast<Cycle>(sc_core::sc_time_stamp().to_seconds() * 1e9 + 0.5);
+}
+
+// The least of eight values, pairwise: three minimums deep instead of seven, and compiled to
+// conditional moves (which of several is least changes unpredictably; a branch on it
+// mispredicts half the time).
+template <typename T>
+[[gnu::always_inline]] inline T least_of_8(const T* v) {
+    const T a = std::min(v[0], v[1]), b = std::min(v[2], v[3]);
+    const T c = std::min(v[4], v[5]), d = std::min(v[6], v[7]);
+    return std::min(std::min(a, b), std::min(c, d));
 }
 
 // A resource that starts at most `per_cycle` operations each cycle, first come first served: a

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <list>
 #include <random>
 
@@ -225,6 +226,39 @@ TEST(Cache, MshrsBoundBandwidthByLittlesLaw) {
     for (int i = 0; i < M; ++i) d.access(uint64_t(i) * 64, 64, 0);
     EXPECT_EQ(d.access(0, 64, 1), hit + L);  // joins the first fill
     EXPECT_EQ(d.mshr_wait_cycles, 0u);
+}
+
+// Misses whose data returns out of order (the latency varies by line): with M MSHRs each miss
+// waits for the earliest to free, as a deliberately simple model of M free times says. Up to
+// 16 MSHRs and more are kept differently (unordered keys, an ordered ring); both must agree.
+TEST(Cache, MshrsFreeOutOfOrderAsASimpleModelSays) {
+    struct VaryingMemory : MemoryPort {
+        Cycle latency(uint64_t addr) const { return 50 + (addr / 64 % 7) * 30; }
+        Cycle access(uint64_t addr, uint32_t, Cycle now, AccessBreakdown* bd) override {
+            if (bd) bd->cycles[kLevelDram] += latency(addr);
+            return now + latency(addr);
+        }
+    };
+    for (int M : {1, 3, 16, 17, 40}) {
+        CacheParams p;
+        p.size_bytes = 64 * 1024;
+        p.ways = 4;
+        p.hit_latency_cycles = 4;
+        p.mshrs = M;
+        p.banks = 256;  // only MSHRs limit
+        VaryingMemory mem;
+        Cache c("c", p, &mem);
+        std::vector<Cycle> free_at(size_t(M), 0);
+        for (int i = 0; i < 200; ++i) {
+            const uint64_t addr = uint64_t(i) * 64;
+            const Cycle now = Cycle(i) * 3;
+            auto earliest = std::min_element(free_at.begin(), free_at.end());
+            const Cycle done = std::max(now + 4, *earliest) + mem.latency(addr);
+            *earliest = done;
+            ASSERT_EQ(c.access(addr, 64, now), done) << M << " MSHRs, miss " << i;
+        }
+        EXPECT_GT(c.mshr_wait_cycles, 0u) << M;
+    }
 }
 
 TEST(Cache, BankConflictsSerialiseLookups) {
