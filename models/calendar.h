@@ -111,8 +111,18 @@ class ReservationCalendar {
         // at the end, or at its ready if that is later. A private L1's bank sees only such
         // requests. (The latest ready is never past the end, so with one user a request ready
         // before it is the only kind that must search; one branch decides.)
-        if (ready < (capacity_ == 1 ? latest_ready_ : ring_.end()))
+        if (ready < (capacity_ == 1 ? latest_ready_ : ring_.end())) {
+            // Out of order: most often the cycle asked for is still free (a unit a few percent
+            // busy); only then is a search needed.
+            if (span == 1) {
+                const uint64_t used = ring_.count(ready);
+                if (used < capacity_) {
+                    ring_.set(ready, used + 1);
+                    return ready;
+                }
+            }
             return reserve_among_bookings(ready, span);
+        }
         const Cycle start = std::max(ready, ring_.end());
         latest_ready_ = ready;
         // Nothing booked from `start` on: no search.
