@@ -184,3 +184,27 @@ TEST(CoreScheduler, QuantumBoundsHowFarRequestsArriveOutOfOrder) {
     EXPECT_GT(worst_lag(times), 0u);  // the quantum did relax the order
     EXPECT_LE(worst_lag(times), q);
 }
+
+// The slot and core picks take the least key: keys must order by cycle, then by index, with
+// kParkedCycle and kNeverCycle after every real cycle, and give back both halves exactly.
+TEST(CycleKeys, OrderByCycleThenIndexAndRoundTrip) {
+    for (size_t count : {size_t(1), size_t(8), size_t(13), size_t(4096)}) {
+        const CycleKeys keys(count);
+        const Cycle latest = (Cycle(1) << 40) - 1;  // beyond any calendar's cycles
+        const std::vector<Cycle> cycles = {0, 1, 7, 4096, latest, kParkedCycle, kNeverCycle};
+        for (size_t a = 0; a < cycles.size(); ++a)
+            for (size_t i : {size_t(0), count - 1}) {
+                const uint64_t k = keys.key(cycles[a], i);
+                EXPECT_EQ(keys.cycle(k), cycles[a]) << count;
+                EXPECT_EQ(keys.index(k), i) << count;
+                for (size_t b = 0; b < cycles.size(); ++b)
+                    for (size_t j : {size_t(0), count - 1}) {
+                        const bool earlier =
+                            cycles[a] < cycles[b] || (cycles[a] == cycles[b] && i < j);
+                        EXPECT_EQ(k < keys.key(cycles[b], j), earlier)
+                            << count << ": " << cycles[a] << "/" << i << " vs " << cycles[b] << "/"
+                            << j;
+                    }
+            }
+    }
+}
