@@ -108,9 +108,9 @@ class ReservationCalendar {
         // One user, and no request so far was ready later than this one: every cycle from the
         // latest ready to the end is booked (each in-order booking starts at its ready or at the
         // end; an out-of-order one fills a gap or starts at the end), so the reservation starts
-        // at the end, or at its ready if that is later. A private L1's bank sees only such
-        // requests. (The latest ready is never past the end, so with one user a request ready
-        // before it is the only kind that must search; one branch decides.)
+        // at the end, or at its ready if that is later. (The latest ready is never past the end,
+        // so with one user a request ready before it is the only kind that must search; one
+        // branch decides.)
         if (ready < (capacity_ == 1 ? latest_ready_ : ring_.end())) {
             // Out of order: most often the cycle asked for is still free (a unit a few percent
             // busy); only then is a search needed.

@@ -200,8 +200,10 @@ class CoreScheduler : public sc_core::sc_module {
     WakeSource* wake_;
     double host_busy_seconds_ = 0;
     TimeFloor floor_;
-    std::vector<uint64_t> next_;  // per core: the cycle of its next shared work, as keys_ keys
-    std::vector<Cycle> floors_;   // per core: its floor while it runs; kNeverCycle otherwise
+    // Per core, padded to eights with retired cores: the cycle of its next shared work as a key
+    // of keys_, and its floor while it runs (kNeverCycle otherwise).
+    std::vector<uint64_t> next_;
+    std::vector<Cycle> floors_;
     CycleKeys keys_;
     TimeFloor* shared_floor_ = nullptr;
 };
