@@ -162,6 +162,9 @@ class CountingSource : public RayWorkSource {
 class PrefetchingSource : public CountingSource {
   public:
     PrefetchingSource(bool progress, const char* unit) : CountingSource(progress), unit_(unit) {}
+    // Derived destructors stop the helper first (see prefetch); this only makes sure no thread
+    // is left joinable.
+    ~PrefetchingSource() override { wait(); }
 
   protected:
     struct Batch {
