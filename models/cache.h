@@ -212,8 +212,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // (with nothing else touching this cache's MSHRs in between).
     Cycle earliest_mshr() {
         if (!few_mshrs_) return mshr_free_[mshr_front_];
-        const uint64_t least =
-            std::min(least_of_8(mshr_keys_.data()), least_of_8(mshr_keys_.data() + 8));
+        const uint64_t least = least_of(mshr_keys_.data(), kFewMshrs);
         mshr_pick_ = size_t(least & (kFewMshrs - 1));
         return least >> kMshrBits;
     }

@@ -27,6 +27,12 @@ struct LeastTwo {
     const LeastTwo b = LeastTwo::of(k[4], k[5]).merge(LeastTwo::of(k[6], k[7]));
     return a.merge(b);
 }
+// The least two of `n` keys, n a multiple of eight (as least_of).
+[[gnu::always_inline]] inline LeastTwo least_two(const uint64_t* k, size_t n) {
+    LeastTwo two = least_two_of_8(k);
+    for (size_t j = 8; j < n; j += 8) two = two.merge(least_two_of_8(k + j));
+    return two;
+}
 }  // namespace
 
 Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
@@ -34,17 +40,13 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l
            MemoryPort* triangle_l1)
     : sc_core::sc_module(name),
       params_(params),
-      l1_(l1),
-      l1_tri_(triangle_l1 ? triangle_l1 : l1),
-      box_(box_unit),
-      tri_(triangle_unit),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
-      ready_((slots_.size() + 7) / 8 * 8),
+      ready_(padded_to_8(slots_.size())),
       keys_(ready_.size()),
-      mem_by_kind_{l1_, l1_tri_},
-      cache_by_kind_{dynamic_cast<Cache*>(l1_), dynamic_cast<Cache*>(l1_tri_)},
-      unit_by_kind_{box_, tri_},
+      mem_by_kind_{l1, triangle_l1 ? triangle_l1 : l1},
+      cache_by_kind_{dynamic_cast<Cache*>(mem_by_kind_[0]), dynamic_cast<Cache*>(mem_by_kind_[1])},
+      unit_by_kind_{box_unit, triangle_unit},
       instructions_by_kind_{params.node_step_instructions, params.triangle_step_instructions} {
     static_assert(
         int(StepKind::Node) == 0 && int(StepKind::Triangle) == 1 && kTriangleUnit == kBoxUnit + 1,
@@ -81,18 +83,18 @@ void Core::wake(Cycle at) {
 // in parallel and fills them; rays that need a line still filling wait for it (miss merging).
 void Core::load_treelet(uint32_t treelet, Cycle now) {
     const TreeletSpan& span = ray_buffer_->span(treelet);
-    if (span.node_bytes) l1_->access(span.node_addr, uint32_t(span.node_bytes), now);
-    if (span.tri_bytes) l1_tri_->access(span.tri_addr, uint32_t(span.tri_bytes), now);
+    MemoryPort* node_l1 = mem_by_kind_[size_t(StepKind::Node)];
+    MemoryPort* tri_l1 = mem_by_kind_[size_t(StepKind::Triangle)];
+    if (span.node_bytes) node_l1->access(span.node_addr, uint32_t(span.node_bytes), now);
+    if (span.tri_bytes) tri_l1->access(span.tri_addr, uint32_t(span.tri_bytes), now);
     ++treelet_loads;
     treelet_load_bytes += span.node_bytes + span.tri_bytes;
     loaded_treelet_ = treelet;
 }
 
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
-    const size_t n = ready_.size();
     for (;;) {
-        LeastTwo two = least_two_of_8(ready_.data());
-        for (size_t j = 8; j < n; j += 8) two = two.merge(least_two_of_8(ready_.data() + j));
+        const LeastTwo two = least_two(ready_.data(), ready_.size());
         const uint64_t least = two.least;
         const size_t i = keys_.index(least);
         const Cycle t = keys_.cycle(least);
@@ -255,7 +257,7 @@ CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> co
       cores_(std::move(cores)),
       quantum_cycles_(quantum_cycles),
       wake_(wake),
-      keys_((cores_.size() + 7) / 8 * 8) {
+      keys_(padded_to_8(cores_.size())) {
     for (Core* core : cores_) core->set_shared_floor(&floor_);
     SC_THREAD(run);
 }
@@ -267,7 +269,7 @@ void CoreScheduler::run() {
     const size_t n = cores_.size();
     // Members, not locals: sc_stop() mid-run (a damaged trace) never unwinds this stack. Both
     // are padded to eights with retired cores for the unrolled scans.
-    const size_t padded = (n + 7) / 8 * 8;
+    const size_t padded = padded_to_8(n);
     next_.resize(padded);
     floors_.assign(padded, kNeverCycle);
     for (size_t i = 0; i < padded; ++i) next_[i] = keys_.key(i < n ? 0 : kNeverCycle, i);
@@ -277,8 +279,7 @@ void CoreScheduler::run() {
     Cycle kernel_cycle = 0;
     for (;;) {
         // The least two keys (ties: the lower index, so runs are deterministic).
-        LeastTwo two = least_two_of_8(next);
-        for (size_t j = 8; j < padded; j += 8) two = two.merge(least_two_of_8(next + j));
+        const LeastTwo two = least_two(next, padded);
         const size_t c = keys_.index(two.least);
         const Cycle first = keys_.cycle(two.least);
         const Cycle second = keys_.cycle(two.second);
@@ -286,9 +287,7 @@ void CoreScheduler::run() {
         // Parked cores wake no earlier than `first`, retired ones send nothing: the shared
         // floor is the earliest among the running cores', which the advancing core updates.
         floors_[c] = kNeverCycle;
-        Cycle others_floor = least_of_8(floors_.data());
-        for (size_t j = 8; j < padded; j += 8)
-            others_floor = std::min(others_floor, least_of_8(floors_.data() + j));
+        const Cycle others_floor = least_of(floors_.data(), padded);
         if (first >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();

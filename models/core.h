@@ -146,10 +146,6 @@ class Core : public sc_core::sc_module {
     void finish_ray(Slot& s, Cycle done);
 
     CoreParams params_;
-    MemoryPort* l1_;      // node fetches (and triangle fetches without a split L1)
-    MemoryPort* l1_tri_;  // triangle fetches
-    PipelinedUnit* box_;
-    PipelinedUnit* tri_;
     RayWorkSource* source_;
     std::vector<Slot> slots_;
     // Per slot: the cycle it is ready for its next step (kNeverCycle once retired) as a key of
@@ -158,7 +154,9 @@ class Core : public sc_core::sc_module {
     std::vector<uint64_t> ready_;
     CycleKeys keys_;
     void set_ready(size_t slot, Cycle c) { ready_[slot] = keys_.key(c, slot); }
-    MemoryPort* mem_by_kind_[2];  // per StepKind: the L1 its fetches go to
+    // Per StepKind: the L1 its fetches go to (nodes: the L1; triangles: the triangle L1 of a
+    // split L1, else the same L1).
+    MemoryPort* mem_by_kind_[2];
     // ...and the same L1 when it is a Cache (not ideal memory): its hit path is called
     // directly, without a virtual call, on every step.
     Cache* cache_by_kind_[2];

@@ -26,6 +26,17 @@ template <typename T>
     const T c = std::min(v[4], v[5]), d = std::min(v[6], v[7]);
     return std::min(std::min(a, b), std::min(c, d));
 }
+// The least of `n` values, n a multiple of eight (arrays padded with values that never win).
+template <typename T>
+[[gnu::always_inline]] inline T least_of(const T* v, size_t n) {
+    T least = least_of_8(v);
+    for (size_t j = 8; j < n; j += 8) least = std::min(least, least_of_8(v + j));
+    return least;
+}
+// `n` rounded up to a multiple of eight: the size of an array least_of scans.
+constexpr size_t padded_to_8(size_t n) {
+    return (n + 7) / 8 * 8;
+}
 
 // A resource that starts at most `per_cycle` operations each cycle, first come first served: a
 // core's issue port, an SRAM's ports. Requests arrive in non-decreasing `ready` order.

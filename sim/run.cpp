@@ -164,7 +164,7 @@ class PrefetchingSource : public CountingSource {
     PrefetchingSource(bool progress, const char* unit) : CountingSource(progress), unit_(unit) {}
     // Derived destructors stop the helper first (see prefetch); this only makes sure no thread
     // is left joinable.
-    ~PrefetchingSource() override { wait(); }
+    ~PrefetchingSource() override { stop_helper(); }
 
   protected:
     struct Batch {
@@ -181,7 +181,7 @@ class PrefetchingSource : public CountingSource {
     // (their contents are stale; only their memory is worth keeping).
     virtual void fill(Batch& batch) = 0;
 
-    // Derived constructors start the first batch; derived destructors call wait() first, so
+    // Derived constructors start the first batch; derived destructors call stop_helper() first, so
     // fill() never runs on a half-destroyed object.
     // `used`: the batch just consumed. Its records (holding the step vectors the ray slots gave
     // back) start the next batch, so a fill may reuse their memory instead of allocating per
@@ -199,7 +199,7 @@ class PrefetchingSource : public CountingSource {
         cv_.notify_all();
     }
     // Stops the helper thread once it has finished the batch it may be filling.
-    void wait() {
+    void stop_helper() {
         {
             std::lock_guard<std::mutex> lock(mutex_);
             stopping_ = true;
@@ -303,7 +303,7 @@ class GeneratedWorkSource : public PrefetchingSource {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
-    ~GeneratedWorkSource() override { wait(); }
+    ~GeneratedWorkSource() override { stop_helper(); }
 
   protected:
     void fill(Batch& b) override {
@@ -368,7 +368,7 @@ class TraceWorkSource : public PrefetchingSource {
         : PrefetchingSource(progress, "chunks"), reader_(reader) {
         prefetch();
     }
-    ~TraceWorkSource() override { wait(); }
+    ~TraceWorkSource() override { stop_helper(); }
 
   protected:
     void fill(Batch& b) override {
