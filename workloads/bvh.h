@@ -90,21 +90,37 @@ struct BvhLayout {
     uint32_t tri_treelet(uint32_t slot) const {
         return tri_treelet_.empty() ? 0 : tri_treelet_[slot];
     }
-    // The per-record treelet tables behind node_treelet and tri_treelet; nullptr without treelets.
-    const uint32_t* node_treelets() const {
-        return node_treelet_.empty() ? nullptr : node_treelet_.data();
-    }
-    const uint32_t* tri_treelets() const {
-        return tri_treelet_.empty() ? nullptr : tri_treelet_.data();
-    }
 
+    // The records of one step kind: `count` of `size_bytes` each from `base_addr`, and their
+    // treelets (nullptr: the layout has none). A reader decoding steps of mixed kinds keeps one
+    // per kind and picks by index instead of branching on the kind.
+    struct Records {
+        uint64_t base_addr;
+        uint32_t size_bytes, count;
+        const uint32_t* treelets;
+    };
+    Records records(StepKind kind) const {
+        return kind == StepKind::Node
+                   ? Records{node_base_addr, node_size_bytes, inner_node_count,
+                             node_treelet_.empty() ? nullptr : node_treelet_.data()}
+                   : Records{tri_base_addr, tri_size_bytes, triangle_count,
+                             tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
+    }
+    // The step on record `id` (below r.count) of `kind`, testing `items` (a node's children; 1
+    // for a triangle): every Step from a layout is made here.
+    static Step step(const Records& r, StepKind kind, uint32_t id, uint8_t items) {
+        return {r.base_addr + uint64_t(id) * r.size_bytes,
+                id,
+                uint16_t(r.size_bytes),
+                kind,
+                items,
+                r.treelets ? r.treelets[id] : 0};
+    }
     Step node_step(uint32_t node, uint8_t children) const {
-        return {node_addr(node), node,     uint16_t(node_size_bytes),
-                StepKind::Node,  children, node_treelet(node)};
+        return step(records(StepKind::Node), StepKind::Node, node, children);
     }
     Step tri_step(uint32_t slot) const {
-        return {tri_addr(slot),     slot, uint16_t(tri_size_bytes),
-                StepKind::Triangle, 1,    tri_treelet(slot)};
+        return step(records(StepKind::Triangle), StepKind::Triangle, slot, 1);
     }
 
   private:

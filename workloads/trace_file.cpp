@@ -320,16 +320,10 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
         p += 1 + two;
         return (b0 & 0x7F) | ((b1 & 0x7F) << 7 & -two);
     };
-    // Per step kind (node 0, triangle 1), what its Step is made of: node_step and tri_step
-    // without a branch on the kind, which alternates unpredictably.
-    struct KindLayout {
-        uint64_t base_addr, size_bytes, count;
-        const uint32_t* treelets;
-    };
-    const KindLayout kinds[2] = {{layout_.node_base_addr, layout_.node_size_bytes,
-                                  layout_.inner_node_count, layout_.node_treelets()},
-                                 {layout_.tri_base_addr, layout_.tri_size_bytes,
-                                  layout_.triangle_count, layout_.tri_treelets()}};
+    // Per step kind (node 0, triangle 1), its records: picked by index, not by a branch on the
+    // kind, which alternates unpredictably.
+    const BvhLayout::Records kinds[2] = {layout_.records(StepKind::Node),
+                                         layout_.records(StepKind::Triangle)};
     const size_t rays = size_t(std::min<uint64_t>(max_rays, chunk_rays_left_));
     out.resize(rays);
     int64_t last_id = chunk_last_id_;
@@ -351,19 +345,13 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
             const uint8_t b = byte();
             const int sk = b & 1;
             prev[sk] += unzigzag(end - p >= 2 ? short_varint() : varint());
-            const KindLayout& K = kinds[sk];
+            const BvhLayout::Records& K = kinds[sk];
             if (uint64_t(prev[sk]) >= K.count)  // negative ones too
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
                                        i, sk ? "triangle" : "node", prev[sk], K.count));
-            const auto id = uint32_t(prev[sk]);
-            Step& st = step[i];
-            st.addr = K.base_addr + uint64_t(id) * K.size_bytes;
-            st.id = id;
-            st.size_bytes = uint16_t(K.size_bytes);
-            st.kind = StepKind(sk);
-            st.count = uint8_t(((b >> 1) & (sk - 1)) | sk);  // a triangle step tests one
-            st.treelet = K.treelets ? K.treelets[id] : 0;
-            st.lanes = 1;
+            // A triangle step tests one, a node step the children its byte states.
+            const auto items = uint8_t(((b >> 1) & (sk - 1)) | sk);
+            step[i] = BvhLayout::step(K, StepKind(sk), uint32_t(prev[sk]), items);
         }
         const uint64_t prim = varint();
         if (prim == 0) {
