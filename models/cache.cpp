@@ -42,21 +42,19 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
         throw std::invalid_argument(
             std::string(name) + ": addresses up to " + std::to_string(params_.address_limit_bytes) +
             " bytes need tags wider than 32 bits with this cache's sets and lines");
-}
-
-// Stamps only order the ways of a set: replacing them by their rank within the set keeps every
-// decision the same, and frees the 32-bit counter for another four billion uses.
-void Cache::renumber_stamps() {
-    const auto ways = size_t(params_.ways);
-    std::vector<size_t> order(ways);
-    for (uint64_t set = 0; set < params_.sets(); ++set) {
-        uint32_t* st = stamps(set);
-        for (size_t w = 0; w < ways; ++w) order[w] = w;
-        std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return st[a] < st[b]; });
-        uint32_t rank = 0;
-        for (size_t w : order) st[w] = st[w] == 0 ? 0 : ++rank;  // invalid ways keep stamp 0
+    repl_.ways = params_.ways;
+    repl_.rrpv_bits = params_.rrpv_bits;
+    repl_.words_base = params_.sets() ? stamps(0) : nullptr;
+    repl_.stride_words = block_bytes_ / 4;
+    repl_.sets = params_.sets();
+    const ReplacementEntry& policy = ReplacementRegistry::at(params_.replacement);
+    if (policy.check) {
+        const std::string why = policy.check(params_.ways);
+        if (!why.empty())
+            throw std::invalid_argument(std::string(name) + ": replacement " + policy.name + ": " +
+                                        why);
     }
-    use_clock_ = uint32_t(ways);
+    policy.bind(*this);
 }
 
 void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
@@ -133,156 +131,6 @@ void Cache::replace_earliest_mshr(Cycle ready) {
         slot = before;
     }
     h[slot] = ready;
-}
-
-template <int G>
-Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
-                         bool breakdown) {
-    const uint64_t set = set_of(line_addr);
-    const int found = find_way<G>(set, line_addr);
-    if (found >= 0) {
-        const Cycle ready = hit<G>(set, found, lookup_done);
-        slowest.hit(lookup_done, ready);
-        return std::max(lookup_done, ready);
-    }
-    AccessBreakdown line_bd;
-    const Cycle ready = fill<G>(set, line_addr, now, lookup_done, breakdown ? &line_bd : nullptr);
-    slowest.miss(ready, line_bd);
-    return ready;
-}
-
-template <int G>
-Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done,
-                  AccessBreakdown* bd) {
-    const uint32_t* tag = tags<G>(set);
-    // Miss: an invalid way if any, else the policy's victim. Invalid ways have stamp 0 and valid
-    // ones a later stamp, so the oldest stamp is the first invalid way when there is one.
-    int victim = -1;
-    if (params_.replacement == CacheParams::Replacement::Random)
-        for (int w = 0; w < params_.ways && victim < 0; ++w)
-            if (tag[w] == kNoTag) victim = w;
-    if (victim < 0) {
-        if (params_.replacement == CacheParams::Replacement::Random) {
-            rng_ ^= rng_ << 13;
-            rng_ ^= rng_ >> 7;
-            rng_ ^= rng_ << 17;
-            victim = int(rng_ % uint64_t(params_.ways));
-        } else {
-            victim = oldest_way<G>(set);
-        }
-    }
-    ++misses;
-    fill_bytes += params_.line_bytes;
-    if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
-    // MSHRs as the cycles they free, in order: take the earliest, give it back busy until this
-    // miss's data returns.
-    Cycle issue_at = lookup_done;
-    const bool limited = few_mshrs_ || !mshr_free_.empty();
-    if (limited) {
-        issue_at = std::max(lookup_done, earliest_mshr());
-        mshr_wait_cycles += issue_at - lookup_done;
-    }
-    if (bd) bd->cycles[level_] += issue_at - now;
-    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
-    if (limited) replace_earliest_mshr(ready);
-    tags<G>(set)[victim] = tag_of(line_addr);
-    fill_ready<G>(set)[victim] = ready;
-    stamps<G>(set)[victim] = next_stamp();
-    return ready;
-}
-
-bool Cache::access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                         AccessBreakdown* bd) {
-    switch (layout_) {
-        case 1:
-            return access_local_in<1>(addr, size_bytes, now, ready, bd);
-        case 2:
-            return access_local_in<2>(addr, size_bytes, now, ready, bd);
-        case 4:
-            return access_local_in<4>(addr, size_bytes, now, ready, bd);
-        default:
-            return access_local_in<0>(addr, size_bytes, now, ready, bd);
-    }
-}
-
-Cycle Cache::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    switch (layout_) {
-        case 1:
-            return access_in<1>(addr, size_bytes, now, bd);
-        case 2:
-            return access_in<2>(addr, size_bytes, now, bd);
-        case 4:
-            return access_in<4>(addr, size_bytes, now, bd);
-        default:
-            return access_in<0>(addr, size_bytes, now, bd);
-    }
-}
-
-template <int G>
-bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                            AccessBreakdown* bd) {
-    const auto [first, last] = line_range(addr, size_bytes);
-    const uint64_t lines = last - first + 1;
-    // Find every line before touching any state: a request with one missing line is not local.
-    constexpr uint64_t kMaxLines = 16;
-    if (lines > kMaxLines) return false;
-    int ways[kMaxLines];
-    for (uint64_t k = 0; k < lines; ++k) {
-        ways[k] = find_way<G>(set_of(first + k), first + k);
-        if (ways[k] < 0) return false;
-    }
-    bytes_requested += size_bytes;
-    Cycle done[kMaxLines];
-    Cycle first_done = 0;
-    const bool one_bank = one_bank_reads(lines);
-    if (one_bank)
-        first_done = look_up_in_one_bank(first, lines, now);
-    else
-        look_up(first, last, now, done);
-    // The slowest line decides (the first of equals); a hit waits for a fill still in flight.
-    Cycle slowest = 0, slowest_lookup = 0;
-    for (uint64_t k = 0; k < lines; ++k) {
-        const Cycle lookup_done = one_bank ? first_done + k : done[k];
-        const Cycle d = std::max(lookup_done, hit<G>(set_of(first + k), ways[k], lookup_done));
-        const bool slower = k == 0 || d > slowest;
-        slowest = slower ? d : slowest;
-        slowest_lookup = slower ? lookup_done : slowest_lookup;
-    }
-    if (bd) charge_hit(bd, level_, now, slowest_lookup, slowest);
-    ready = slowest;
-    return true;
-}
-
-template <int G>
-Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    bytes_requested += size_bytes;
-    const auto [first, last] = line_range(addr, size_bytes);
-    if (first == last) {  // one line (every request from the level above): no slowest to find
-        const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
-        const uint64_t set = set_of(first);
-        const int found = find_way<G>(set, first);
-        if (found < 0) return fill<G>(set, first, now, lookup_done, bd);
-        const Cycle ready = std::max(lookup_done, hit<G>(set, found, lookup_done));
-        if (bd) charge_hit(bd, level_, now, lookup_done, ready);
-        return ready;
-    }
-    // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
-    // to what the requester's levels already charged.
-    const uint64_t lines = last - first + 1;
-    Cycle first_done = 0;
-    const bool one_bank = one_bank_reads(lines);
-    if (one_bank) {
-        first_done = look_up_in_one_bank(first, lines, now);
-    } else {
-        if (lookup_done_.size() < lines) lookup_done_.resize(lines);
-        look_up(first, last, now, lookup_done_.data());
-    }
-    Slowest slowest;
-    for (uint64_t k = 0; k < lines; ++k)
-        access_line<G>(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
-                       bd != nullptr);
-    slowest.charge(bd, level_, now);
-    return std::max(now, slowest.done);
 }
 
 void Cache::register_stats(StatsRegistry& reg, const std::string& block) {

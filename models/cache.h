@@ -1,4 +1,5 @@
-// A set-associative, read-only (BVH data is never written during traversal), LRU cache.
+// A set-associative, read-only (BVH data is never written during traversal) cache with a
+// replacement policy chosen by name (models/replacement/, one file each).
 // Loosely timed: a hit costs `hit_latency_cycles`; a miss adds the next level's latency.
 // A line stays "filling" until its data arrives, so a second access to it waits for the same
 // fill instead of issuing another (miss merging). A miss holds one of `mshrs` registers until its
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "models/calendar.h"
+#include "models/replacement.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -26,9 +28,9 @@ struct CacheParams {
     uint32_t line_bytes = 64;
     Cycle hit_latency_cycles = 4;
     int mshrs = 0;  // misses in flight at once (miss status holding registers); 0: unlimited
-    enum class Replacement : uint8_t { Lru, Fifo, Random };
-    Replacement replacement = Replacement::Lru;
-    int banks = 1;  // line-interleaved banks, each starting one lookup per cycle
+    std::string replacement = "lru";  // a registered replacement policy (rtsim list)
+    int rrpv_bits = 2;                // SRRIP: bits of a re-reference prediction value
+    int banks = 1;                    // line-interleaved banks, each starting one lookup per cycle
     // Lookups come in non-decreasing time (a private L1 behind its core's in-order issue
     // port): the banks keep only their next free cycle (ReservationCalendar::assume_in_order).
     bool in_order_requests = false;
@@ -63,15 +65,23 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
           int level = kLevelL1);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
-                 AccessBreakdown* breakdown = nullptr) override;
+                 AccessBreakdown* breakdown = nullptr) override {
+        return (this->*access_fn_)(addr, size_bytes, now, breakdown);
+    }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                      AccessBreakdown* breakdown = nullptr) override;
+                      AccessBreakdown* breakdown = nullptr) override {
+        return (this->*local_fn_)(addr, size_bytes, now, ready, breakdown);
+    }
     void register_stats(StatsRegistry& reg, const std::string& block);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
     // Tests: start the replacement stamps' counter here (to see it wrap).
-    void set_stamp_clock(uint32_t stamp) { use_clock_ = stamp; }
+    void set_stamp_clock(uint32_t stamp) { repl_.clock = stamp; }
+    // Compiles this cache's hot paths for policy P (a registered policy's `bind`; the template
+    // body is in models/cache_impl.h, which a policy's file includes).
+    template <typename P>
+    static void use_policy(Cache& cache);
     // The earliest cycle a lookup may still come at (the requesters' floor).
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
@@ -97,7 +107,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // and offsets are constants (G = 0: the configured associativity, read at run time).
     template <int G>
     int ways_of() const {
-        return G ? 4 * G : params_.ways;
+        return rtsim::ways_of<G>(repl_);
     }
     template <int G = 0>
     char* set_block(uint64_t set) {
@@ -162,52 +172,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         }
         return hits ? __builtin_ctz(hits) : -1;
     }
-    // The first way of the least stamp among the 4 * kGroups stamps at `age` (16-byte aligned).
-    template <int kGroups>
-    [[gnu::always_inline]] static int oldest_in_groups(const uint32_t* age) {
-        // SSE2 compares signed 32-bit lanes: flip the sign bit to order unsigned stamps.
-        const __m128i bias = _mm_set1_epi32(int(0x80000000u));
-        const auto load = [&](int g) {
-            return _mm_xor_si128(_mm_load_si128(reinterpret_cast<const __m128i*>(age + 4 * g)),
-                                 bias);
-        };
-        const auto min4 = [](__m128i a, __m128i b) {
-            const __m128i a_greater = _mm_cmpgt_epi32(a, b);
-            return _mm_or_si128(_mm_and_si128(a_greater, b), _mm_andnot_si128(a_greater, a));
-        };
-        __m128i least = load(0);
-        for (int g = 1; g < kGroups; ++g) least = min4(least, load(g));
-        least = min4(least, _mm_shuffle_epi32(least, 0x4E));  // swap halves
-        least = min4(least, _mm_shuffle_epi32(least, 0xB1));  // swap neighbours
-        uint32_t at = 0;
-        for (int g = 0; g < kGroups; ++g)
-            at |= uint32_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(load(g), least))))
-                  << (4 * g);
-        return __builtin_ctz(at);
-    }
 #endif
-    // The way with the least stamp (the first of equals): LRU's and FIFO's victim.
-    template <int G>
-    [[gnu::always_inline]] int oldest_way(uint64_t set) {
-        const uint32_t* age = stamps<G>(set);
-#ifdef __SSE2__
-        if constexpr (G > 0) return oldest_in_groups<G>(age);
-#endif
-        // Branch-free: which way is oldest is unpredictable.
-        int victim = 0;
-        uint32_t oldest = age[0];
-        for (int w = 1; w < ways_of<G>(); ++w) {
-            const bool older = age[w] < oldest;
-            oldest = older ? age[w] : oldest;
-            victim = older ? w : victim;
-        }
-        return victim;
-    }
-    uint32_t next_stamp() {
-        if (use_clock_ == ~uint32_t(0)) renumber_stamps();
-        return ++use_clock_;
-    }
-    void renumber_stamps();
     // The cycle the earliest-free MSHR frees; replace_earliest_mshr then books it until `ready`
     // (with nothing else touching this cache's MSHRs in between).
     Cycle earliest_mshr() {
@@ -232,11 +197,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         return banks_.size() == 1 || lines == 1;
     }
     // A hit's bookkeeping; returns the cycle the line's data is (or will be) there.
-    template <int G>
+    template <int G, typename P>
     Cycle hit(uint64_t set, int way, Cycle lookup_done) {
         ++hits;
-        if (params_.replacement == CacheParams::Replacement::Lru)
-            stamps<G>(set)[way] = next_stamp();  // FIFO: fill order
+        P::template hit<G>(stamps<G>(set), way, repl_);
         const Cycle ready = fill_ready<G>(set)[way];
         merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
         return ready;
@@ -256,17 +220,17 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         void miss(Cycle done, const AccessBreakdown& line_bd);
         void charge(AccessBreakdown* bd, int level, Cycle now) const;
     };
-    template <int G>
+    template <int G, typename P>
     Cycle access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                       bool breakdown);
     // A miss: picks a victim, waits for an MSHR, fetches the line from the next level (adding
     // its cycles to `bd`); returns the cycle the line is there.
-    template <int G>
+    template <int G, typename P>
     Cycle fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done, AccessBreakdown* bd);
-    // access() and access_local() for the set layout G (see ways_of).
-    template <int G>
+    // access() and access_local() for the set layout G (see ways_of) and the policy P.
+    template <int G, typename P>
     Cycle access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd);
-    template <int G>
+    template <int G, typename P>
     bool access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                          AccessBreakdown* bd);
 
@@ -285,7 +249,6 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     std::vector<Cycle> mshr_free_;            // many: per MSHR the cycle it frees; a ring, in order
     size_t mshr_front_ = 0;                   // the ring's earliest
     std::vector<ReservationCalendar> banks_;  // per bank: the cycles it starts a lookup
-    uint64_t rng_ = 0x9E3779B97F4A7C15ull;    // random replacement: deterministic xorshift state
     TimeSeries* fill_series_ = nullptr;
     std::vector<uint64_t> set_storage_;  // the sets' blocks (a tag of kNoTag: an invalid way)
     char* set_blocks_ = nullptr;         // set_storage_ aligned to a host cache line
@@ -297,7 +260,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint32_t bank_shift_ = 0;  // log2 of the bank count
     uint64_t set_mask_;
     uint32_t line_shift_;
-    uint32_t use_clock_ = 0;          // the last stamp given; stamps are renumbered before it wraps
+    ReplacementState repl_;  // the policy's state shared by the sets (stamp clock, random state)
+    // The hot paths compiled for this cache's set layout and policy (use_policy).
+    Cycle (Cache::*access_fn_)(uint64_t, uint32_t, Cycle, AccessBreakdown*) = nullptr;
+    bool (Cache::*local_fn_)(uint64_t, uint32_t, Cycle, Cycle&, AccessBreakdown*) = nullptr;
     std::vector<Cycle> lookup_done_;  // scratch for requests of many lines
 };
 

@@ -8,7 +8,7 @@ tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 # Keep these arguments in sync with Golden.CornellSmall in tests/e2e/test_run.cpp.
 "$rtsim" run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out "$tmp"
-python3 - "$tmp/stats.json" tests/golden/cornell_small.json <<'PY'
+python3 - "$tmp/stats.json" "$tmp/golden.json" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1]))
 for k in ("host", "rtsim_version"):
@@ -16,4 +16,10 @@ for k in ("host", "rtsim_version"):
 json.dump(s, open(sys.argv[2], "w"), indent=1, sort_keys=True)
 open(sys.argv[2], "a").write("\n")
 PY
-echo "updated tests/golden/cornell_small.json"
+# The diff is what a reviewer reads: every moved figure needs a reason in the commit message.
+if diff -u tests/golden/cornell_small.json "$tmp/golden.json"; then
+    echo "tests/golden/cornell_small.json: unchanged"
+else
+    cp "$tmp/golden.json" tests/golden/cornell_small.json
+    echo "updated tests/golden/cornell_small.json (diff above)"
+fi

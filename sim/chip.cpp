@@ -19,10 +19,8 @@ CacheParams cache_params(const Config& cfg, const std::string& level, const BvhL
     p.hit_latency_cycles = Cycle(cfg.integer(level + ".hit_latency_cycles"));
     p.mshrs = int(cfg.integer(level + ".mshrs"));
     p.banks = int(cfg.integer(level + ".banks"));
-    const std::string policy = cfg.string(level + ".replacement");
-    p.replacement = policy == "fifo"     ? CacheParams::Replacement::Fifo
-                    : policy == "random" ? CacheParams::Replacement::Random
-                                         : CacheParams::Replacement::Lru;
+    p.replacement = cfg.string(level + ".replacement");
+    p.rrpv_bits = int(cfg.integer(level + ".rrpv_bits"));
     return p;
 }
 

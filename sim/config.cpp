@@ -4,9 +4,12 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <set>
 #include <sstream>
 
+#include "models/registry.h"
+#include "models/replacement.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -16,8 +19,34 @@ extern const char* const kConfigSchemaJson;
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+namespace {
+
+// A field marked "registry": "KIND" takes its enum from the components registered for KIND, so
+// adding a component needs no schema edit. Its default must be one of them.
+void expand_registries(json& node, const std::string& path) {
+    if (node.contains("fields")) {
+        for (auto& [k, v] : node["fields"].items())
+            expand_registries(v, path.empty() ? k : path + "." + k);
+        return;
+    }
+    if (!node.contains("registry")) return;
+    const std::string kind = node["registry"];
+    const auto names = ComponentIndex::names(kind);
+    if (names.empty())
+        throw std::logic_error("schema: " + path + ": no component registered for kind " + kind);
+    node["enum"] = names;
+    if (std::find(names.begin(), names.end(), node["default"].get<std::string>()) == names.end())
+        throw std::logic_error("schema: " + path + ": default is not a registered " + kind);
+}
+
+}  // namespace
+
 const json& config_schema() {
-    static const json schema = json::parse(kConfigSchemaJson);
+    static const json schema = [] {
+        json s = json::parse(kConfigSchemaJson);
+        expand_registries(s, "");
+        return s;
+    }();
     return schema;
 }
 
@@ -163,6 +192,13 @@ void validate_cross(const json& c, const std::string& where) {
                 "{}: {}: size_kib / (ways * line_bytes) must be a power-of-two number of sets, got "
                 "{} KiB / ({} * {}) = {:.4g} sets",
                 where, level, size / 1024, ways, line, double(size) / double(ways * line)));
+    }
+    for (const char* level : {"l1", "l2"}) {
+        const ReplacementEntry& policy = ReplacementRegistry::at(c[level]["replacement"]);
+        const std::string why = policy.check ? policy.check(int(c[level]["ways"])) : "";
+        if (!why.empty())
+            throw InputError(
+                fmt::format("{}: {}.replacement: {} {}", where, level, policy.name, why));
     }
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(

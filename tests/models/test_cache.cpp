@@ -82,13 +82,13 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
 // stamps' counter wrapping on the way.
 TEST(Cache, LocalProbesOfManyLinesEqualReference) {
     for (int ways : {2, 4, 8, 12, 16})
-        for (auto policy : {CacheParams::Replacement::Lru, CacheParams::Replacement::Fifo}) {
+        for (auto policy : {std::string("lru"), std::string("fifo")}) {
             CacheParams p;
             p.ways = ways;
             p.line_bytes = 64;
             p.size_bytes = uint64_t(ways) * 64 * 16;  // 16 sets
             p.replacement = policy;
-            const bool lru = policy == CacheParams::Replacement::Lru;
+            const bool lru = policy == std::string("lru");
             test::FixedLatencyMemory mem(50);
             Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
             ReferenceLru ref(p.sets(), ways, 64, lru);
@@ -122,7 +122,7 @@ TEST(Cache, LocalProbesOfManyLinesEqualReference) {
 // Replacement stamps are 32 bits: when their counter wraps they are renumbered per set, and
 // every decision stays the reference's.
 TEST(Cache, ReplacementStampsSurviveTheirCounterWrapping) {
-    for (auto policy : {CacheParams::Replacement::Lru, CacheParams::Replacement::Fifo}) {
+    for (auto policy : {std::string("lru"), std::string("fifo")}) {
         CacheParams p;
         p.size_bytes = 4 * 1024;
         p.ways = 4;
@@ -130,7 +130,7 @@ TEST(Cache, ReplacementStampsSurviveTheirCounterWrapping) {
         test::FixedLatencyMemory mem(50);
         Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
         c.set_stamp_clock(~uint32_t(0) - 5000);  // wraps after 5,000 stamps, several times over
-        const bool lru = policy == CacheParams::Replacement::Lru;
+        const bool lru = policy == std::string("lru");
         ReferenceLru ref(p.sets(), p.ways, 64, lru);
         TimeFloor floor;
         c.follow(&floor);
@@ -280,7 +280,7 @@ TEST(Cache, BankConflictsSerialiseLookups) {
 TEST(Cache, FifoAndRandomReplacement) {
     // One set of 2 ways: A, B, then A again, then C. LRU evicts B (A was used last), FIFO evicts A
     // (filled first). Random is deterministic: two caches see the same victims.
-    auto run = [](CacheParams::Replacement r) {
+    auto run = [](const std::string& r) {
         CacheParams p;
         p.size_bytes = 128;
         p.ways = 2;
@@ -293,9 +293,9 @@ TEST(Cache, FifoAndRandomReplacement) {
         c.access(0, 64, t += 100);  // is A still there?
         return c.hits - before;
     };
-    EXPECT_EQ(run(CacheParams::Replacement::Lru), 1u);
-    EXPECT_EQ(run(CacheParams::Replacement::Fifo), 0u);
-    EXPECT_EQ(run(CacheParams::Replacement::Random), run(CacheParams::Replacement::Random));
+    EXPECT_EQ(run(std::string("lru")), 1u);
+    EXPECT_EQ(run(std::string("fifo")), 0u);
+    EXPECT_EQ(run(std::string("random")), run(std::string("random")));
 }
 
 TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {

@@ -1,0 +1,142 @@
+// The cache's hot paths as templates of the set layout G and the replacement policy P. Included
+// by each policy's file (models/replacement/*.cpp), which instantiates them for its policy through
+// Cache::use_policy; the cache calls the instance through two member pointers set once.
+#pragma once
+
+#include <algorithm>
+
+#include "models/cache.h"
+
+namespace rtsim {
+
+template <typename P>
+void Cache::use_policy(Cache& c) {
+    switch (c.layout_) {
+        case 1:
+            c.access_fn_ = &Cache::access_in<1, P>;
+            c.local_fn_ = &Cache::access_local_in<1, P>;
+            break;
+        case 2:
+            c.access_fn_ = &Cache::access_in<2, P>;
+            c.local_fn_ = &Cache::access_local_in<2, P>;
+            break;
+        case 4:
+            c.access_fn_ = &Cache::access_in<4, P>;
+            c.local_fn_ = &Cache::access_local_in<4, P>;
+            break;
+        default:
+            c.access_fn_ = &Cache::access_in<0, P>;
+            c.local_fn_ = &Cache::access_local_in<0, P>;
+    }
+}
+
+template <int G, typename P>
+Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
+                         bool breakdown) {
+    const uint64_t set = set_of(line_addr);
+    const int found = find_way<G>(set, line_addr);
+    if (found >= 0) {
+        const Cycle ready = hit<G, P>(set, found, lookup_done);
+        slowest.hit(lookup_done, ready);
+        return std::max(lookup_done, ready);
+    }
+    AccessBreakdown line_bd;
+    const Cycle ready =
+        fill<G, P>(set, line_addr, now, lookup_done, breakdown ? &line_bd : nullptr);
+    slowest.miss(ready, line_bd);
+    return ready;
+}
+
+template <int G, typename P>
+Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done,
+                  AccessBreakdown* bd) {
+    // Miss: the policy's victim (an invalid way if there is one).
+    const int victim = P::template victim<G>(tags<G>(set), stamps<G>(set), repl_);
+    ++misses;
+    fill_bytes += params_.line_bytes;
+    if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
+    // MSHRs as the cycles they free, in order: take the earliest, give it back busy until this
+    // miss's data returns.
+    Cycle issue_at = lookup_done;
+    const bool limited = few_mshrs_ || !mshr_free_.empty();
+    if (limited) {
+        issue_at = std::max(lookup_done, earliest_mshr());
+        mshr_wait_cycles += issue_at - lookup_done;
+    }
+    if (bd) bd->cycles[level_] += issue_at - now;
+    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
+    if (limited) replace_earliest_mshr(ready);
+    tags<G>(set)[victim] = tag_of(line_addr);
+    fill_ready<G>(set)[victim] = ready;
+    P::template filled<G>(stamps<G>(set), victim, repl_);
+    return ready;
+}
+
+template <int G, typename P>
+bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                            AccessBreakdown* bd) {
+    const auto [first, last] = line_range(addr, size_bytes);
+    const uint64_t lines = last - first + 1;
+    // Find every line before touching any state: a request with one missing line is not local.
+    constexpr uint64_t kMaxLines = 16;
+    if (lines > kMaxLines) return false;
+    int ways[kMaxLines];
+    for (uint64_t k = 0; k < lines; ++k) {
+        ways[k] = find_way<G>(set_of(first + k), first + k);
+        if (ways[k] < 0) return false;
+    }
+    bytes_requested += size_bytes;
+    Cycle done[kMaxLines];
+    Cycle first_done = 0;
+    const bool one_bank = one_bank_reads(lines);
+    if (one_bank)
+        first_done = look_up_in_one_bank(first, lines, now);
+    else
+        look_up(first, last, now, done);
+    // The slowest line decides (the first of equals); a hit waits for a fill still in flight.
+    Cycle slowest = 0, slowest_lookup = 0;
+    for (uint64_t k = 0; k < lines; ++k) {
+        const Cycle lookup_done = one_bank ? first_done + k : done[k];
+        const Cycle d = std::max(lookup_done, hit<G, P>(set_of(first + k), ways[k], lookup_done));
+        const bool slower = k == 0 || d > slowest;
+        slowest = slower ? d : slowest;
+        slowest_lookup = slower ? lookup_done : slowest_lookup;
+    }
+    if (bd) charge_hit(bd, level_, now, slowest_lookup, slowest);
+    ready = slowest;
+    return true;
+}
+
+template <int G, typename P>
+Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+    bytes_requested += size_bytes;
+    const auto [first, last] = line_range(addr, size_bytes);
+    if (first == last) {  // one line (every request from the level above): no slowest to find
+        const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
+        const uint64_t set = set_of(first);
+        const int found = find_way<G>(set, first);
+        if (found < 0) return fill<G, P>(set, first, now, lookup_done, bd);
+        const Cycle ready = std::max(lookup_done, hit<G, P>(set, found, lookup_done));
+        if (bd) charge_hit(bd, level_, now, lookup_done, ready);
+        return ready;
+    }
+    // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
+    // to what the requester's levels already charged.
+    const uint64_t lines = last - first + 1;
+    Cycle first_done = 0;
+    const bool one_bank = one_bank_reads(lines);
+    if (one_bank) {
+        first_done = look_up_in_one_bank(first, lines, now);
+    } else {
+        if (lookup_done_.size() < lines) lookup_done_.resize(lines);
+        look_up(first, last, now, lookup_done_.data());
+    }
+    Slowest slowest;
+    for (uint64_t k = 0; k < lines; ++k)
+        access_line<G, P>(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
+                          bd != nullptr);
+    slowest.charge(bd, level_, now);
+    return std::max(now, slowest.done);
+}
+
+}  // namespace rtsim
