@@ -14,6 +14,10 @@ RayBuffer::RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params
       entries_(params.capacity_rays),
       queues_(std::max<size_t>(1, treelets_.size())) {
     ports_.per_cycle = params.ports;
+    TreeletSchedulerParams sp;
+    sp.treelets = uint32_t(queues_.size());
+    sp.max_wait_batches = params.max_wait_batches;
+    scheduler_ = TreeletSchedulerRegistry::at(params.scheduler).make(sp);
     free_.reserve(params.capacity_rays);
     for (uint32_t h = params.capacity_rays; h-- > 0;) free_.push_back(h);
 }
@@ -26,19 +30,13 @@ Cycle RayBuffer::port(Cycle now) {
 }
 
 void RayBuffer::recount(uint32_t treelet, size_t before) {
-    const size_t after = queues_[treelet].size();
-    if (params_.policy == RayBufferParams::Policy::MostRays) {
-        constexpr size_t kMax = std::numeric_limits<size_t>::max();
-        if (before) by_count_.erase({kMax - before, treelet});
-        if (after) by_count_.insert({kMax - after, treelet});
-    } else {
-        if (before && !after) nonempty_.erase(treelet);
-        if (!before && after) nonempty_.insert(treelet);
-    }
+    const std::deque<uint32_t>& q = queues_[treelet];
+    scheduler_->changed(treelet, before, q.size(), q.empty() ? 0 : entries_[q.front()].seq);
 }
 
 void RayBuffer::enqueue(uint32_t handle, uint32_t treelet, Cycle now) {
     const size_t before = queues_[treelet].size();
+    entries_[handle].seq = next_seq_++;
     queues_[treelet].push_back(handle);
     recount(treelet, before);
     // Cores that found nothing to do may now have work.
@@ -77,15 +75,7 @@ void RayBuffer::admit(Cycle now) {
 
 bool RayBuffer::next_batch(Cycle now, uint32_t& treelet, std::deque<uint32_t>& rays) {
     admit(now);
-    if (params_.policy == RayBufferParams::Policy::MostRays) {
-        if (by_count_.empty()) return false;
-        treelet = by_count_.begin()->second;
-    } else {
-        if (nonempty_.empty()) return false;
-        auto it = nonempty_.upper_bound(last_pick_);
-        treelet = it != nonempty_.end() ? *it : *nonempty_.begin();
-    }
-    last_pick_ = treelet;
+    if (!scheduler_->pick(treelet)) return false;
     std::deque<uint32_t>& q = queues_[treelet];
     const size_t before = q.size();
     const size_t take = std::min<size_t>(before, std::max<uint32_t>(1, params_.batch_rays));

@@ -11,7 +11,7 @@
 
 #include <cstdint>
 #include <deque>
-#include <set>
+#include <memory>
 #include <string>
 #include <systemc>
 #include <utility>
@@ -20,6 +20,7 @@
 #include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/treelet_scheduler.h"
 #include "workloads/step.h"
 
 namespace rtsim {
@@ -29,12 +30,9 @@ struct RayBufferParams {
     uint32_t ray_bytes = 64;  // one ray record: origin, direction, extent, hit, traversal state
     int ports = 2;            // ray records read or written per cycle
     Cycle latency_cycles = 2;
-    uint32_t batch_rays = 256;  // rays a core takes from one treelet's queue at once
-    enum class Policy : uint8_t {
-        MostRays,    // the treelet with the most queued rays (ties: the lowest id)
-        RoundRobin,  // the next treelet with queued rays after the one picked last
-    };
-    Policy policy = Policy::MostRays;
+    uint32_t batch_rays = 256;            // rays a core takes from one treelet's queue at once
+    std::string scheduler = "most_rays";  // a registered treelet scheduler (rtsim list)
+    uint32_t max_wait_batches = 0;        // its bound on starvation (age_ordered)
 };
 
 // Where a treelet's data lives: one run of node records and one of triangles.
@@ -84,7 +82,7 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     Cycle port(Cycle now);
     void admit(Cycle now);
     void enqueue(uint32_t handle, uint32_t treelet, Cycle now);
-    // Keeps the scheduler's indexes in step with a queue's length changing from `before`.
+    // Tells the scheduler that a queue's length changed from `before`.
     void recount(uint32_t treelet, size_t before);
 
     RayBufferParams params_;
@@ -95,16 +93,14 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
         RayWork work;
         size_t pos = 0;
         Cycle written = 0;  // cycle the record was last written: it cannot be read before
+        uint64_t seq = 0;   // queueing order (the scheduler's age)
     };
     std::vector<Entry> entries_;
     std::vector<uint32_t> free_;
     uint32_t occupancy_ = 0;
     std::vector<std::deque<uint32_t>> queues_;
-    // Treelets with queued rays, indexed for the policy in use: by (SIZE_MAX - count, id) for
-    // most rays (the first has the most), by id for round robin.
-    std::set<std::pair<size_t, uint32_t>> by_count_;
-    std::set<uint32_t> nonempty_;
-    uint32_t last_pick_ = 0;
+    std::unique_ptr<TreeletScheduler> scheduler_;
+    uint64_t next_seq_ = 0;
     PortCalendar ports_;
     bool wake_ = false;
     Cycle wake_cycle_ = 0;

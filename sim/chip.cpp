@@ -100,9 +100,8 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         rp.ports = int(cfg.integer("ray_buffer.ports"));
         rp.latency_cycles = Cycle(cfg.integer("ray_buffer.latency_cycles"));
         rp.batch_rays = uint32_t(cfg.integer("traversal.treelet_batch_rays"));
-        rp.policy = cfg.string("traversal.treelet_scheduler") == "round_robin"
-                        ? RayBufferParams::Policy::RoundRobin
-                        : RayBufferParams::Policy::MostRays;
+        rp.scheduler = cfg.string("traversal.treelet_scheduler");
+        rp.max_wait_batches = uint32_t(cfg.integer("traversal.treelet_max_wait_batches"));
         ray_buffer = std::make_unique<RayBuffer>("ray_buffer", rp, treelet_spans(layout), source);
         ray_buffer->register_stats(stats, "ray_buffer");
     }

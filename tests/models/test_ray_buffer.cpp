@@ -67,12 +67,12 @@ TEST(RayBuffer, MostRaysPicksTheFullestQueue) {
 
 // Equal queues: most-rays breaks the tie by the lowest id, round robin goes on from the last
 // treelet picked (initially 0) and wraps.
-std::vector<uint32_t> pick_order(RayBufferParams::Policy policy) {
+std::vector<uint32_t> pick_order(const std::string& policy) {
     TreeletSource src({{0}, {0}, {1}, {1}, {2}, {2}});
     RayBufferParams p;
     p.batch_rays = 6;  // the first request admits every ray
-    p.policy = policy;
-    RayBuffer rb(policy == RayBufferParams::Policy::MostRays ? "most" : "rr", p, spans(3), &src);
+    p.scheduler = policy;
+    RayBuffer rb(sc_core::sc_gen_unique_name(policy.c_str()), p, spans(3), &src);
     std::vector<uint32_t> picked;
     uint32_t t;
     std::deque<uint32_t> rays;
@@ -82,8 +82,8 @@ std::vector<uint32_t> pick_order(RayBufferParams::Policy policy) {
 }
 
 TEST(RayBuffer, PoliciesOrderEqualQueues) {
-    EXPECT_EQ(pick_order(RayBufferParams::Policy::MostRays), (std::vector<uint32_t>{0, 1, 2}));
-    EXPECT_EQ(pick_order(RayBufferParams::Policy::RoundRobin), (std::vector<uint32_t>{1, 2, 0}));
+    EXPECT_EQ(pick_order("most_rays"), (std::vector<uint32_t>{0, 1, 2}));
+    EXPECT_EQ(pick_order("round_robin"), (std::vector<uint32_t>{1, 2, 0}));
 }
 
 TEST(RayBuffer, PortsServeAccessesPerCycleAfterLatency) {
