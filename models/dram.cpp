@@ -59,4 +59,18 @@ void Dram::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for a bank or a bus");
 }
 
+namespace {
+std::unique_ptr<DramModel> make_simple(const char* module_name, const DramParams& p) {
+    return std::make_unique<Dram>(module_name, p);
+}
+}  // namespace
+
+RTSIM_REGISTER(DramModelEntry,
+               {"simple",
+                "open-page banks (tRCD, tCAS, tRP, tCCD), a bus per channel as the bandwidth cap, "
+                "a fixed controller latency",
+                {"latency_cycles", "bytes_per_cycle", "channels", "banks", "row_bytes",
+                 "burst_bytes", "t_rcd_cycles", "t_cas_cycles", "t_ccd_cycles", "t_rp_cycles"},
+                &make_simple})
+
 }  // namespace rtsim

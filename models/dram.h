@@ -1,4 +1,6 @@
-// DRAM: channels of banks with row buffers (open-page policy) and a data bus per channel.
+// DRAM models, registered by name (dram.model; `rtsim list`): DramModel is what the L2 and the
+// chip see of one. This file also holds the "simple" model:
+// channels of banks with row buffers (open-page policy) and a data bus per channel.
 // A read waits for its bank, pays tCAS on a row hit, tRCD + tCAS on an empty bank, and
 // tRP + tRCD + tCAS on a row conflict; a bank takes its next column command tCCD after the last
 // (so reads to an open row pipeline); the data then crosses the channel's bus at
@@ -8,11 +10,13 @@
 // reads from different banks reach it out of order.
 #pragma once
 
+#include <memory>
 #include <string>
 #include <systemc>
 #include <vector>
 
 #include "models/calendar.h"
+#include "models/registry.h"
 #include "models/stats.h"
 #include "models/timing.h"
 
@@ -29,14 +33,32 @@ struct DramParams {
     Cycle t_ccd_cycles = 0;  // column command to column command in one bank (reads pipeline)
 };
 
-class Dram : public sc_core::sc_module, public MemoryPort {
+// A DRAM model: a memory level that counts what the report reads (reads, bytes, row hits, empty
+// banks, conflicts, busy and queue cycles, under those names) and may run requests out of time
+// order but never behind the time floor it follows.
+class DramModel : public MemoryPort {
+  public:
+    virtual void register_stats(StatsRegistry& reg, const std::string& block) = 0;
+    virtual void set_series(TimeSeries* bytes) = 0;  // bytes moved per window
+    virtual void follow(const TimeFloor* floor) = 0;
+};
+
+struct DramModelEntry {
+    static constexpr const char* kKind = "dram_model";
+    std::string name, description;
+    std::vector<std::string> params;
+    std::unique_ptr<DramModel> (*make)(const char* module_name, const DramParams&) = nullptr;
+};
+using DramModelRegistry = Registry<DramModelEntry>;
+
+class Dram final : public sc_core::sc_module, public DramModel {
   public:
     Dram(sc_core::sc_module_name name, const DramParams& params);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    void register_stats(StatsRegistry& reg, const std::string& block);
-    void set_series(TimeSeries* bytes) { bytes_series_ = bytes; }
-    void follow(const TimeFloor* floor) {
+    void register_stats(StatsRegistry& reg, const std::string& block) override;
+    void set_series(TimeSeries* bytes) override { bytes_series_ = bytes; }
+    void follow(const TimeFloor* floor) override {
         for (auto& bus : buses_) bus.follow(floor);
     }
     const DramParams& params() const { return params_; }

@@ -20,8 +20,9 @@ struct ComponentInfo {
     std::string kind;         // "replacement", "treelet_scheduler", ...
     std::string name;         // the config value that selects it
     std::string description;  // one line
-    // Config fields it reads beyond its kind's common ones, relative to the section that selects
-    // it ("rrpv_bits" for l1.replacement = srrip reads l1.rrpv_bits).
+    // Config fields it reads beyond its kind's common ones: relative to the section of the field
+    // that selects it ("rrpv_bits": l1.replacement = srrip reads l1.rrpv_bits), or a full path
+    // when it holds a dot ("ray_buffer.ports").
     std::vector<std::string> params;
 };
 

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include "models/traversal_mode.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -66,7 +67,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     dp.t_cas_cycles = Cycle(cfg.integer("dram.t_cas_cycles"));
     dp.t_rp_cycles = Cycle(cfg.integer("dram.t_rp_cycles"));
     dp.t_ccd_cycles = Cycle(cfg.integer("dram.t_ccd_cycles"));
-    dram = std::make_unique<Dram>("dram", dp);
+    dram = DramModelRegistry::at(cfg.string("dram.model")).make("dram", dp);
     dram->register_stats(stats, "dram");
     dram->set_series(series.dram_bytes.get());
     l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2", layout), dram.get(), kLevelL2);
@@ -87,13 +88,13 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     cp.node_step_instructions = int(cfg.integer("core.node_step_instructions"));
     cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
     cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
-    const std::string mode = cfg.string("traversal.mode");
+    const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.string("traversal.mode"));
     const int64_t treelet_cache_kib =
-        mode == "treelet" ? cfg.integer("traversal.treelet_cache_kib") : 0;
-    // (A treelet cache needs a unified L1: check_config_combination refuses it before.)
-    if (mode == "packet") cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
+        mode.ray_buffer ? cfg.integer("traversal.treelet_cache_kib") : 0;
+    // (A treelet cache needs a unified L1: the config's cross-field checks refuse it before.)
+    if (mode.packets) cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
     cp.treelet_prefetch = cfg.boolean("traversal.treelet_prefetch");
-    if (mode == "treelet") {
+    if (mode.ray_buffer) {
         RayBufferParams rp;
         rp.capacity_rays = uint32_t(cfg.integer("ray_buffer.capacity_rays"));
         rp.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
@@ -108,7 +109,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     CacheParams l1p = cache_params(cfg, "l1", layout);
     // A core's L1 lookups follow its one in-order issue port, except a treelet load (at the
     // cycle a batch starts, which may precede a step's lookup issued just before).
-    l1p.in_order_requests = mode != "treelet";
+    l1p.in_order_requests = mode.l1_in_order;
     UnitParams bp = unit_params(cfg, "box_unit");
     bp.width = int(cfg.integer("box_unit.width"));
     UnitParams tp = unit_params(cfg, "triangle_unit");

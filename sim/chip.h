@@ -26,7 +26,7 @@ class Chip {
     Cycle total_cycles() const;
 
     StatsRegistry stats;
-    std::unique_ptr<Dram> dram;
+    std::unique_ptr<DramModel> dram;
     std::unique_ptr<Cache> l2;
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;

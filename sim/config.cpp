@@ -10,6 +10,7 @@
 
 #include "models/registry.h"
 #include "models/replacement.h"
+#include "models/traversal_mode.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -200,6 +201,18 @@ void validate_cross(const json& c, const std::string& where) {
             throw InputError(
                 fmt::format("{}: {}.replacement: {} {}", where, level, policy.name, why));
     }
+    const TraversalModeEntry& mode = TraversalModeRegistry::at(c["traversal"]["mode"]);
+    if (mode.needs_treelets && c["bvh"]["treelet_bytes"].get<int64_t>() == 0)
+        throw InputError(fmt::format(
+            "{}: traversal.mode={} queues rays by treelet, but bvh.treelet_bytes is 0 (no "
+            "treelets); set it, e.g. to the L1 size in bytes",
+            where, mode.name));
+    if (mode.ray_buffer && c["traversal"]["treelet_cache_kib"].get<int64_t>() > 0 &&
+        c["l1"]["split"].get<bool>())
+        throw InputError(fmt::format(
+            "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
+            "l1.split to false or the treelet cache to 0",
+            where));
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(
             "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,

@@ -7,6 +7,7 @@
 #include "sim/compare.h"
 #include "sim/config.h"
 #include "sim/errors.h"
+#include "sim/list_cmd.h"
 #include "sim/run.h"
 #include "sim/sweep.h"
 #include "sim/trace_cmd.h"
@@ -85,6 +86,15 @@ int main_impl(int argc, char** argv) {
     cfg_cmd->add_option("--set", cfg_sets, "Override a field, KEY=VALUE; repeatable");
     cfg_cmd->add_flag("--doc", cfg_doc, "Print the reference of every field (Markdown)");
 
+    std::string list_kind;
+    bool list_json = false;
+    CLI::App* list_cmd = app.add_subcommand(
+        "list",
+        "List the registered components (replacement policies, treelet schedulers, DRAM "
+        "models, traversal modes, ...), their descriptions and parameters");
+    list_cmd->add_option("kind", list_kind, "Only this kind (e.g. replacement)");
+    list_cmd->add_flag("--json", list_json, "Print as JSON");
+
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -112,6 +122,7 @@ int main_impl(int argc, char** argv) {
         if (*info_cmd) return rtsim::trace_info_command(info_path, info_json);
         if (*compare_cmd) return rtsim::compare_command(compare);
         if (*sweep_cmd) return rtsim::sweep_command(sweep);
+        if (*list_cmd) return rtsim::list_command(list_kind, list_json);
         if (*cfg_cmd) {
             if (cfg_doc) {
                 fmt::print("{}", rtsim::config_reference_markdown());

@@ -19,6 +19,7 @@
 #include <thread>
 #include <utility>
 
+#include "models/traversal_mode.h"
 #include "sim/chip.h"
 #include "sim/config.h"
 #include "sim/errors.h"
@@ -563,21 +564,12 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
 }
 
 void check_config_combination(const Config& cfg, const std::string& trace_path) {
-    const std::string mode = cfg.string("traversal.mode");
-    if (mode == "treelet" && cfg.integer("bvh.treelet_bytes") == 0)
+    const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.string("traversal.mode"));
+    if (!mode.replays_traces && !trace_path.empty())
         throw InputError(
-            "traversal.mode=treelet queues rays by treelet, but bvh.treelet_bytes is 0 (no "
-            "treelets); set it, e.g. to the L1 size in bytes");
-    if (mode == "treelet" && cfg.integer("traversal.treelet_cache_kib") > 0 &&
-        cfg.boolean("l1.split"))
-        throw InputError(
-            "traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
-            "l1.split to false or the treelet cache to 0");
-    if (mode == "packet" && !trace_path.empty())
-        throw InputError(fmt::format(
-            "{}: a trace records single-ray traversal; traversal.mode=packet needs rays "
-            "generated on the fly (drop --trace)",
-            trace_path));
+            fmt::format("{}: a trace records single-ray traversal; traversal.mode={} needs rays "
+                        "generated on the fly (drop --trace)",
+                        trace_path, mode.name));
 }
 
 void check_trace_matches_config(const json& bvh, const Config& cfg, const std::string& where) {
@@ -637,7 +629,9 @@ int run_command(const RunOptions& opt) {
                 {"bvh", bvh_summary(*bvh)},
                 {"workload", workload_summary(rg, gen->ao_length())}};
         source_ptr = std::make_unique<GeneratedWorkSource>(
-            *bvh, *gen, progress, mode == "packet" ? int(cfg.integer("traversal.packet_size")) : 0);
+            *bvh, *gen, progress,
+            TraversalModeRegistry::at(mode).packets ? int(cfg.integer("traversal.packet_size"))
+                                                    : 0);
     } else {
         reader = std::make_unique<TraceReader>(opt.trace_path);
         meta = open_trace_metadata(*reader, opt.trace_path);
