@@ -22,12 +22,13 @@
 
 namespace rtsim {
 
+// Defaults: the schema's l1 defaults (tests/sim/test_params.cpp checks they agree).
 struct CacheParams {
     uint64_t size_bytes = 32 * 1024;
     int ways = 4;
     uint32_t line_bytes = 64;
     Cycle hit_latency_cycles = 4;
-    int mshrs = 0;  // misses in flight at once (miss status holding registers); 0: unlimited
+    int mshrs = 16;  // misses in flight at once (miss status holding registers); 0: unlimited
     std::string replacement = "lru";  // a registered replacement policy (rtsim list)
     int rrpv_bits = 2;                // SRRIP: bits of a re-reference prediction value
     int banks = 1;                    // line-interleaved banks, each starting one lookup per cycle

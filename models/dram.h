@@ -22,15 +22,16 @@
 
 namespace rtsim {
 
+// Defaults: the schema's (tests/sim/test_params.cpp checks they agree).
 struct DramParams {
-    Cycle latency_cycles = 200;
-    double bytes_per_cycle = 32.0;  // per channel
-    int channels = 1;
-    int banks = 1;              // per channel
+    Cycle latency_cycles = 150;
+    double bytes_per_cycle = 16.0;  // per channel
+    int channels = 2;
+    int banks = 8;              // per channel
     uint32_t row_bytes = 2048;  // row-buffer size; consecutive rows interleave channels, then banks
     uint32_t burst_bytes = 64;  // reads are whole bursts
-    Cycle t_rcd_cycles = 0, t_cas_cycles = 0, t_rp_cycles = 0;
-    Cycle t_ccd_cycles = 0;  // column command to column command in one bank (reads pipeline)
+    Cycle t_rcd_cycles = 14, t_cas_cycles = 14, t_rp_cycles = 14;
+    Cycle t_ccd_cycles = 4;  // column command to column command in one bank (reads pipeline)
 };
 
 // A DRAM model: a memory level that counts what the report reads (reads, bytes, row hits, empty

@@ -25,14 +25,15 @@
 
 namespace rtsim {
 
+// Defaults: the schema's (tests/sim/test_params.cpp checks they agree).
 struct RayBufferParams {
-    uint32_t capacity_rays = 4096;
+    uint32_t capacity_rays = 8192;
     uint32_t ray_bytes = 64;  // one ray record: origin, direction, extent, hit, traversal state
     int ports = 2;            // ray records read or written per cycle
     Cycle latency_cycles = 2;
     uint32_t batch_rays = 256;            // rays a core takes from one treelet's queue at once
     std::string scheduler = "most_rays";  // a registered treelet scheduler (rtsim list)
-    uint32_t max_wait_batches = 0;        // its bound on starvation (age_ordered)
+    uint32_t max_wait_batches = 8;        // its bound on starvation (age_ordered)
 };
 
 // Where a treelet's data lives: one run of node records and one of triangles.

@@ -14,12 +14,13 @@
 
 namespace rtsim {
 
+// Defaults: the schema's box_unit defaults (tests/sim/test_params.cpp checks they agree).
 struct UnitParams {
     int count = 1;
-    Cycle latency_cycles = 1;
+    Cycle latency_cycles = 8;
     Cycle interval_cycles = 1;
     // Items (child boxes) one operation handles; wider work takes several operations.
-    int width = 1;
+    int width = 8;
     // Ideal mode: as many pipelines as needed, so an operation never waits for one.
     bool unlimited = false;
 };

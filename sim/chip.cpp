@@ -8,29 +8,12 @@
 namespace rtsim {
 namespace {
 
-CacheParams cache_params(const Config& cfg, const std::string& level, const BvhLayout& layout) {
-    CacheParams p;
-    // Every fetch lies in the layout's node records or triangles.
-    p.address_limit_bytes = std::max(layout.node_addr(layout.inner_node_count),
-                                     layout.tri_addr(layout.triangle_count)) +
-                            1;
-    p.size_bytes = uint64_t(cfg.integer(level + ".size_kib")) * 1024;
-    p.ways = int(cfg.integer(level + ".ways"));
-    p.line_bytes = uint32_t(cfg.integer(level + ".line_bytes"));
-    p.hit_latency_cycles = Cycle(cfg.integer(level + ".hit_latency_cycles"));
-    p.mshrs = int(cfg.integer(level + ".mshrs"));
-    p.banks = int(cfg.integer(level + ".banks"));
-    p.replacement = cfg.string(level + ".replacement");
-    p.rrpv_bits = int(cfg.integer(level + ".rrpv_bits"));
-    return p;
-}
-
-UnitParams unit_params(const Config& cfg, const std::string& unit) {
-    UnitParams p;
-    p.count = int(cfg.integer(unit + ".count"));
-    p.latency_cycles = Cycle(cfg.integer(unit + ".latency_cycles"));
-    p.interval_cycles = Cycle(cfg.integer(unit + ".interval_cycles"));
-    return p;
+// Every fetch lies in the layout's node records or triangles: the caches' tags need only reach
+// the end of them.
+uint64_t address_limit(const BvhLayout& layout) {
+    return std::max(layout.node_addr(layout.inner_node_count),
+                    layout.tri_addr(layout.triangle_count)) +
+           1;
 }
 
 }  // namespace
@@ -50,76 +33,50 @@ std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
     return spans;
 }
 
-Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
-    const auto window = uint64_t(cfg.integer("sim.window_cycles"));
-    if (window > 0)
+Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
+    if (P.sim.window_cycles > 0)
         for (auto* p : {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes,
                         &series.box_busy, &series.triangle_busy, &series.rays})
-            *p = std::make_unique<TimeSeries>(window);
-    DramParams dp;
-    dp.latency_cycles = Cycle(cfg.integer("dram.latency_cycles"));
-    dp.bytes_per_cycle = cfg.number("dram.bytes_per_cycle");
-    dp.channels = int(cfg.integer("dram.channels"));
-    dp.banks = int(cfg.integer("dram.banks"));
-    dp.row_bytes = uint32_t(cfg.integer("dram.row_bytes"));
-    dp.burst_bytes = uint32_t(cfg.integer("dram.burst_bytes"));
-    dp.t_rcd_cycles = Cycle(cfg.integer("dram.t_rcd_cycles"));
-    dp.t_cas_cycles = Cycle(cfg.integer("dram.t_cas_cycles"));
-    dp.t_rp_cycles = Cycle(cfg.integer("dram.t_rp_cycles"));
-    dp.t_ccd_cycles = Cycle(cfg.integer("dram.t_ccd_cycles"));
-    dram = DramModelRegistry::at(cfg.string("dram.model")).make("dram", dp);
+            *p = std::make_unique<TimeSeries>(P.sim.window_cycles);
+    dram = DramModelRegistry::at(P.dram_model).make("dram", P.dram);
     dram->register_stats(stats, "dram");
     dram->set_series(series.dram_bytes.get());
-    l2 = std::make_unique<Cache>("l2", cache_params(cfg, "l2", layout), dram.get(), kLevelL2);
+    CacheParams l2p = P.l2;
+    l2p.address_limit_bytes = address_limit(layout);
+    l2 = std::make_unique<Cache>("l2", l2p, dram.get(), kLevelL2);
     l2->register_stats(stats, "l2");
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
-    if (cfg.number("crossbar.bytes_per_cycle") > 0) {
-        crossbar = std::make_unique<Crossbar>("crossbar", cfg.number("crossbar.bytes_per_cycle"),
-                                              l2.get());
+    if (P.crossbar_bytes_per_cycle > 0) {
+        crossbar = std::make_unique<Crossbar>("crossbar", P.crossbar_bytes_per_cycle, l2.get());
         crossbar->register_stats(stats, "crossbar");
         below_l1 = crossbar.get();
     }
 
-    CoreParams cp;
-    cp.ray_slots = int(cfg.integer("core.ray_slots"));
-    cp.issue_width = int(cfg.integer("core.issue_width"));
-    cp.issue_latency_cycles = Cycle(cfg.integer("core.issue_latency_cycles"));
-    cp.node_step_instructions = int(cfg.integer("core.node_step_instructions"));
-    cp.triangle_step_instructions = int(cfg.integer("core.triangle_step_instructions"));
-    cp.ray_setup_instructions = int(cfg.integer("core.ray_setup_instructions"));
-    const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.string("traversal.mode"));
-    const int64_t treelet_cache_kib =
-        mode.ray_buffer ? cfg.integer("traversal.treelet_cache_kib") : 0;
+    CoreParams cp = P.core;
+    const TraversalModeEntry& mode = TraversalModeRegistry::at(P.traversal.mode);
+    const uint64_t treelet_cache_bytes = mode.ray_buffer ? P.traversal.treelet_cache_bytes : 0;
     // (A treelet cache needs a unified L1: the config's cross-field checks refuse it before.)
-    if (mode.packets) cp.packet_lanes = int(cfg.integer("traversal.packet_size"));
-    cp.treelet_prefetch = cfg.boolean("traversal.treelet_prefetch");
+    if (mode.packets) cp.packet_lanes = P.traversal.packet_size;
     if (mode.ray_buffer) {
-        RayBufferParams rp;
-        rp.capacity_rays = uint32_t(cfg.integer("ray_buffer.capacity_rays"));
-        rp.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
-        rp.ports = int(cfg.integer("ray_buffer.ports"));
-        rp.latency_cycles = Cycle(cfg.integer("ray_buffer.latency_cycles"));
-        rp.batch_rays = uint32_t(cfg.integer("traversal.treelet_batch_rays"));
-        rp.scheduler = cfg.string("traversal.treelet_scheduler");
-        rp.max_wait_batches = uint32_t(cfg.integer("traversal.treelet_max_wait_batches"));
-        ray_buffer = std::make_unique<RayBuffer>("ray_buffer", rp, treelet_spans(layout), source);
+        ray_buffer =
+            std::make_unique<RayBuffer>("ray_buffer", P.ray_buffer, treelet_spans(layout), source);
         ray_buffer->register_stats(stats, "ray_buffer");
     }
-    CacheParams l1p = cache_params(cfg, "l1", layout);
+    CacheParams l1p = P.l1;
+    l1p.address_limit_bytes = address_limit(layout);
     // A core's L1 lookups follow its one in-order issue port, except a treelet load (at the
     // cycle a batch starts, which may precede a step's lookup issued just before).
     l1p.in_order_requests = mode.l1_in_order;
-    UnitParams bp = unit_params(cfg, "box_unit");
-    bp.width = int(cfg.integer("box_unit.width"));
-    UnitParams tp = unit_params(cfg, "triangle_unit");
-    bp.unlimited = tp.unlimited = cfg.boolean("sim.ideal_units");
-    if (cfg.boolean("sim.ideal_memory"))
-        ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
-    const int n = int(cfg.integer("core.count"));
+    UnitParams bp = P.box_unit;
+    UnitParams tp = P.triangle_unit;
+    tp.width = 1;  // one triangle per operation
+    bp.unlimited = tp.unlimited = P.sim.ideal_units;
+    if (P.sim.ideal_memory) ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
+    const int n = P.core_count;
     // Units may serve several cores (shared_by): core i uses unit i / shared_by.
-    const int box_share = int(cfg.integer("box_unit.shared_by"));
-    const int tri_share = int(cfg.integer("triangle_unit.shared_by"));
+    const int box_share = P.box_unit_shared_by;
+    const int tri_share = P.triangle_unit_shared_by;
     cp.units_shared = box_share > 1 || tri_share > 1;
     for (int u = 0; u < (n + box_share - 1) / box_share; ++u) {
         box_units.push_back(
@@ -138,7 +95,7 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, below_l1));
         l1.back()->register_stats(stats, "l1" + idx);
         l1.back()->set_series(series.l1_fill_bytes.get());
-        if (cfg.boolean("l1.split")) {
+        if (P.l1_split) {
             l1_tri.push_back(
                 std::make_unique<Cache>(("l1_tri_" + std::to_string(i)).c_str(), l1p, below_l1));
             l1_tri.back()->register_stats(stats, "l1_tri" + idx);
@@ -146,11 +103,11 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
         }
         MemoryPort* memory =
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
-        if (treelet_cache_kib > 0 && !ideal_memory) {
+        if (treelet_cache_bytes > 0 && !ideal_memory) {
             // A dedicated treelet cache in front of the L1: batches load their treelet into it.
             CacheParams tp = l1p;
-            tp.size_bytes = uint64_t(treelet_cache_kib) * 1024;
-            tp.hit_latency_cycles = Cycle(cfg.integer("traversal.treelet_cache_latency_cycles"));
+            tp.size_bytes = treelet_cache_bytes;
+            tp.hit_latency_cycles = P.traversal.treelet_cache_latency_cycles;
             tp.mshrs = 0;  // its misses are bounded by the L1's MSHRs
             tp.banks = 1;
             treelet_caches.push_back(std::make_unique<Cache>(
@@ -175,9 +132,8 @@ Chip::Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout) {
     }
     std::vector<Core*> core_ptrs;
     for (auto& c : cores) core_ptrs.push_back(c.get());
-    scheduler =
-        std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
-                                        Cycle(cfg.integer("sim.quantum_cycles")), ray_buffer.get());
+    scheduler = std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
+                                                P.sim.quantum_cycles, ray_buffer.get());
     // Shared blocks forget what lies behind the earliest core.
     const TimeFloor* shared = scheduler->floor();
     l2->follow(shared);

@@ -13,7 +13,7 @@
 #include "models/ray_buffer.h"
 #include "models/stats.h"
 #include "models/unit.h"
-#include "sim/config.h"
+#include "sim/params.h"
 #include "workloads/bvh.h"
 
 namespace rtsim {
@@ -21,7 +21,7 @@ namespace rtsim {
 class Chip {
   public:
     // `layout`: where the treelets are (treelet mode loads them); the chip sees only addresses.
-    Chip(const Config& cfg, RayWorkSource* source, const BvhLayout& layout);
+    Chip(const Params& params, RayWorkSource* source, const BvhLayout& layout);
     // Cycle the last ray finished (valid after the simulation ran).
     Cycle total_cycles() const;
 

@@ -219,28 +219,7 @@ void validate_cross(const json& c, const std::string& where) {
             c["l1"]["line_bytes"].get<int64_t>(), c["l2"]["line_bytes"].get<int64_t>()));
 }
 
-const json& lookup(const json& values, const std::string& path) {
-    const json* node = &values;
-    std::stringstream ss(path);
-    std::string part;
-    while (std::getline(ss, part, '.')) node = &node->at(part);
-    return *node;
-}
-
 }  // namespace
-
-int64_t Config::integer(const std::string& path) const {
-    return lookup(values, path).get<int64_t>();
-}
-double Config::number(const std::string& path) const {
-    return lookup(values, path).get<double>();
-}
-bool Config::boolean(const std::string& path) const {
-    return lookup(values, path).get<bool>();
-}
-std::string Config::string(const std::string& path) const {
-    return lookup(values, path).get<std::string>();
-}
 
 std::string Config::hash() const {
     uint64_t h = 1469598103934665603ull;
@@ -283,6 +262,7 @@ Config load_config(const std::string& path, const std::vector<std::string>& sets
         cfg.overrides.push_back(s);
     }
     validate_cross(cfg.values, path.empty() ? (sets.empty() ? "defaults" : "--set") : path);
+    cfg.typed = bind_params(cfg.values);
     return cfg;
 }
 

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/params.h"
+
 namespace rtsim {
 
 class Config {
@@ -16,11 +18,9 @@ class Config {
     std::vector<std::string> files;  // files read, parent first
     std::vector<std::string> overrides;  // --set arguments applied, in order
 
-    // Typed access by dotted path ("l1.size_kib"). The path must be in the schema.
-    int64_t integer(const std::string& path) const;
-    double number(const std::string& path) const;
-    std::string string(const std::string& path) const;
-    bool boolean(const std::string& path) const;
+    // The same values as typed block parameters, bound from `values` through config_bindings()
+    // (the only way the simulator reads a config).
+    Params typed;
     // FNV-1a 64 over the canonical (sorted-key) dump of `values`, as 16 hex digits.
     std::string hash() const;
 };

@@ -51,18 +51,10 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
 }
 
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
-    BvhBuildOptions bo;
-    bo.builder = parse_bvh_builder(cfg.string("bvh.builder"), "bvh.builder");
-    bo.width = int(cfg.integer("bvh.width"));
-    bo.restructure_passes = int(cfg.integer("bvh.restructure_passes"));
-    bo.node_format = parse_node_format(cfg.string("bvh.node_format"), "bvh.node_format");
-    bo.sah_buckets = int(cfg.integer("bvh.sah_buckets"));
-    bo.max_leaf_size = int(cfg.integer("bvh.max_leaf_size"));
-    bo.treelet_bytes = uint32_t(cfg.integer("bvh.treelet_bytes"));
     BvhLayout layout;
-    layout.node_size_bytes = uint32_t(cfg.integer("bvh.node_size_bytes"));
-    layout.tri_size_bytes = uint32_t(cfg.integer("bvh.triangle_size_bytes"));
-    return build_bvh(scene, bo, layout);
+    layout.node_size_bytes = cfg.typed.node_size_bytes;
+    layout.tri_size_bytes = cfg.typed.triangle_size_bytes;
+    return build_bvh(scene, cfg.typed.bvh, layout);
 }
 
 double peak_rss_mib() {
@@ -564,7 +556,7 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
 }
 
 void check_config_combination(const Config& cfg, const std::string& trace_path) {
-    const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.string("traversal.mode"));
+    const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.typed.traversal.mode);
     if (!mode.replays_traces && !trace_path.empty())
         throw InputError(
             fmt::format("{}: a trace records single-ray traversal; traversal.mode={} needs rays "
@@ -580,22 +572,23 @@ void check_trace_matches_config(const json& bvh, const Config& cfg, const std::s
             "or use a config with the same BVH layout",
             where, field, recorded, wanted));
     };
+    const Params& P = cfg.typed;
     const int width = bvh.value("width", 0);
-    if (width != cfg.integer("bvh.width"))
-        refuse("bvh.width", std::to_string(width), std::to_string(cfg.integer("bvh.width")));
+    if (width != P.bvh.width)
+        refuse("bvh.width", std::to_string(width), std::to_string(P.bvh.width));
     const std::string format = bvh.value("node_format", std::string("?"));
-    if (format != cfg.string("bvh.node_format"))
-        refuse("bvh.node_format", format, cfg.string("bvh.node_format"));
+    if (format != node_format_name(P.bvh.node_format))
+        refuse("bvh.node_format", format, node_format_name(P.bvh.node_format));
     const BvhLayout L = layout_from_summary(bvh, where);
-    const int64_t node_size = cfg.integer("bvh.node_size_bytes");
-    if (node_size != 0 && uint32_t(node_size) != L.node_size_bytes)
-        refuse("bvh.node_size_bytes", std::to_string(L.node_size_bytes), std::to_string(node_size));
-    if (uint32_t(cfg.integer("bvh.triangle_size_bytes")) != L.tri_size_bytes)
+    if (P.node_size_bytes != 0 && P.node_size_bytes != L.node_size_bytes)
+        refuse("bvh.node_size_bytes", std::to_string(L.node_size_bytes),
+               std::to_string(P.node_size_bytes));
+    if (P.triangle_size_bytes != L.tri_size_bytes)
         refuse("bvh.triangle_size_bytes", std::to_string(L.tri_size_bytes),
-               std::to_string(cfg.integer("bvh.triangle_size_bytes")));
-    if (uint32_t(cfg.integer("bvh.treelet_bytes")) != L.treelet_bytes)
+               std::to_string(P.triangle_size_bytes));
+    if (P.bvh.treelet_bytes != L.treelet_bytes)
         refuse("bvh.treelet_bytes", std::to_string(L.treelet_bytes),
-               std::to_string(cfg.integer("bvh.treelet_bytes")));
+               std::to_string(P.bvh.treelet_bytes));
 }
 
 int run_command(const RunOptions& opt) {
@@ -611,7 +604,6 @@ int run_command(const RunOptions& opt) {
         throw InputError(
             fmt::format("--out {}: cannot create output folder: {}", out_dir, ec.message()));
 
-    const std::string mode = cfg.string("traversal.mode");
     check_config_combination(cfg, opt.trace_path);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
     const auto t_prepare = Clock::now();
@@ -630,8 +622,9 @@ int run_command(const RunOptions& opt) {
                 {"workload", workload_summary(rg, gen->ao_length())}};
         source_ptr = std::make_unique<GeneratedWorkSource>(
             *bvh, *gen, progress,
-            TraversalModeRegistry::at(mode).packets ? int(cfg.integer("traversal.packet_size"))
-                                                    : 0);
+            TraversalModeRegistry::at(cfg.typed.traversal.mode).packets
+                ? cfg.typed.traversal.packet_size
+                : 0);
     } else {
         reader = std::make_unique<TraceReader>(opt.trace_path);
         meta = open_trace_metadata(*reader, opt.trace_path);
@@ -641,7 +634,7 @@ int run_command(const RunOptions& opt) {
     const double prepare_seconds = std::chrono::duration<double>(Clock::now() - t_prepare).count();
     CountingSource& source = *source_ptr;
 
-    Chip chip(cfg, &source, bvh ? bvh->layout : reader->layout());
+    Chip chip(cfg.typed, &source, bvh ? bvh->layout : reader->layout());
     const auto t_sim = Clock::now();
     // A run stopped by bad input mid-way reports its own one-line error; the kernel's note that
     // sc_stop() was called would only add noise on stdout.
@@ -660,16 +653,16 @@ int run_command(const RunOptions& opt) {
     ReportInputs ri;
     ri.stats = &chip.stats;
     ri.total_cycles = chip.total_cycles();
-    ri.clock_ghz = cfg.number("clock_ghz");
-    ri.cores = int(cfg.integer("core.count"));
-    ri.box_pipelines_per_core = int(cfg.integer("box_unit.count"));
-    ri.triangle_pipelines_per_core = int(cfg.integer("triangle_unit.count"));
-    ri.ray_slots_per_core = int(cfg.integer("core.ray_slots"));
+    ri.clock_ghz = cfg.typed.clock_ghz;
+    ri.cores = cfg.typed.core_count;
+    ri.box_pipelines_per_core = cfg.typed.box_unit.count;
+    ri.triangle_pipelines_per_core = cfg.typed.triangle_unit.count;
+    ri.ray_slots_per_core = cfg.typed.core.ray_slots;
     ri.box_units = int(chip.box_units.size());
     ri.triangle_units = int(chip.triangle_units.size());
-    ri.dram_channels = int(cfg.integer("dram.channels"));
-    ri.ray_bytes = uint32_t(cfg.integer("ray_buffer.ray_bytes"));
-    ri.ray_capacity = uint64_t(cfg.integer("ray_buffer.capacity_rays"));
+    ri.dram_channels = cfg.typed.dram.channels;
+    ri.ray_bytes = cfg.typed.ray_buffer.ray_bytes;
+    ri.ray_capacity = cfg.typed.ray_buffer.capacity_rays;
     for (uint64_t r : source.rays_by_kind) ri.rays += r;
     json timing = timing_report(ri);
 
@@ -708,7 +701,7 @@ int run_command(const RunOptions& opt) {
     out["simulated_seconds"] = sim_s;
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
     for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
-    out["traversal_mode"] = mode;
+    out["traversal_mode"] = cfg.typed.traversal.mode;
     for (const char* k : {"ray_buffer", "packets"})
         if (timing.contains(k)) out[k] = timing[k];
     if (chip.series.rays) out["time_series"] = time_series_report(chip, ri);
@@ -747,7 +740,7 @@ int run_command(const RunOptions& opt) {
             kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", k, v.get<uint64_t>());
         const json& sc = meta["scene"];
         const json& bv = meta["bvh"];
-        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles){}\n", cfg.string("name"),
+        fmt::print("rtsim run  config {} ({})  scene {} ({} triangles){}\n", cfg.typed.name,
                    cfg.hash(), sc.value("name", std::string("?")), sc.value("triangles", 0),
                    reader ? "  replayed from " + opt.trace_path : std::string());
         fmt::print(

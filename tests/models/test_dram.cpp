@@ -4,8 +4,21 @@
 
 using namespace rtsim;
 
+namespace {
+// A bandwidth-only DRAM: one channel, one bank, no row timings; `latency` after the bus.
+DramParams bus_only(Cycle latency, double bytes_per_cycle) {
+    DramParams p;
+    p.latency_cycles = latency;
+    p.bytes_per_cycle = bytes_per_cycle;
+    p.channels = 1;
+    p.banks = 1;
+    p.t_rcd_cycles = p.t_cas_cycles = p.t_rp_cycles = p.t_ccd_cycles = 0;
+    return p;
+}
+}  // namespace
+
 TEST(Dram, StreamsAtPeakBytesPerCycle) {
-    Dram d("dram", DramParams{100, 32.0});
+    Dram d("dram", bus_only(100, 32.0));
     const uint64_t n = 1000;
     Cycle last = 0;
     for (uint64_t i = 0; i < n; ++i) last = d.access(i * 64, 64, 0);
@@ -16,14 +29,14 @@ TEST(Dram, StreamsAtPeakBytesPerCycle) {
 }
 
 TEST(Dram, FractionalBandwidthIsExactOverTime) {
-    Dram d("dram", DramParams{10, 12.8});
+    Dram d("dram", bus_only(10, 12.8));
     Cycle last = 0;
     for (int i = 0; i < 10; ++i) last = d.access(0, 64, 0);
     EXPECT_EQ(last, 50u + 10);  // 640 bytes / 12.8 = 50 cycles
 }
 
 TEST(Dram, IdleChannelServesAtLatency) {
-    Dram d("dram", DramParams{100, 32.0});
+    Dram d("dram", bus_only(100, 32.0));
     EXPECT_EQ(d.access(0, 64, 1000), 1000u + 2 + 100);
     EXPECT_EQ(d.queue_cycles, 0u);
 }

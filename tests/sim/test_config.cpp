@@ -48,7 +48,7 @@ TEST(Config, DefaultsAreValidAndBaselineSpellsThemOut) {
     // baseline.json writes every field out; it must not drift from the schema's defaults.
     EXPECT_EQ(d.values, b.values);
     EXPECT_EQ(d.hash(), b.hash());
-    EXPECT_EQ(b.integer("l1.size_kib"), 32);
+    EXPECT_EQ(b.typed.l1.size_bytes, 32u * 1024);
 }
 
 TEST(Config, EveryShippedConfigLoads) {
@@ -119,10 +119,10 @@ TEST(Config, ExtendsInheritsAndOverrides) {
     const auto child = write_cfg(
         "child.json", R"({"extends": "parent.json", "name": "child", "l1": {"ways": 2}})");
     const Config c = load_config(child, {});
-    EXPECT_EQ(c.string("name"), "child");
-    EXPECT_EQ(c.integer("l1.size_kib"), 64);    // from the parent
-    EXPECT_EQ(c.integer("l1.ways"), 2);         // overridden
-    EXPECT_EQ(c.integer("l2.size_kib"), 1024);  // default
+    EXPECT_EQ(c.typed.name, "child");
+    EXPECT_EQ(c.typed.l1.size_bytes, 64u * 1024);    // from the parent
+    EXPECT_EQ(c.typed.l1.ways, 2);                   // overridden
+    EXPECT_EQ(c.typed.l2.size_bytes, 1024u * 1024);  // default
     ASSERT_EQ(c.files.size(), 2u);
     EXPECT_NE(c.files[0].find("parent.json"), std::string::npos);
 }
@@ -140,8 +140,8 @@ TEST(Config, ExtendsCycleAndMissingParent) {
 TEST(Config, SetOverridesOnTop) {
     const Config c =
         load_config(kBaseline, {"l1.size_kib=64", "bvh.builder=sah", "dram.bytes_per_cycle=12.8"});
-    EXPECT_EQ(c.integer("l1.size_kib"), 64);
-    EXPECT_DOUBLE_EQ(c.number("dram.bytes_per_cycle"), 12.8);
+    EXPECT_EQ(c.typed.l1.size_bytes, 64u * 1024);
+    EXPECT_DOUBLE_EQ(c.typed.dram.bytes_per_cycle, 12.8);
     EXPECT_NE(c.hash(), load_config(kBaseline, {}).hash());
     EXPECT_EQ(c.hash(),
               load_config(kBaseline, {"l1.size_kib=64", "dram.bytes_per_cycle=12.8"}).hash());

@@ -1,0 +1,165 @@
+#include "sim/params.h"
+
+#include <type_traits>
+
+namespace rtsim {
+
+using nlohmann::json;
+
+namespace {
+
+// A row for a member reached by `at`, converted by `scale` (schema unit x scale = member unit:
+// 1024 for KiB to bytes).
+template <typename At>
+FieldBinding field(const char* path, At at, int64_t scale = 1, bool mirrors = true) {
+    using T = std::remove_reference_t<decltype(at(std::declval<Params&>()))>;
+    FieldBinding b;
+    b.path = path;
+    b.cpp_default_mirrors_schema = mirrors;
+    b.set = [at, scale](Params& p, const json& v) {
+        if constexpr (std::is_same_v<T, std::string> || std::is_same_v<T, bool>)
+            at(p) = v.get<T>();
+        else if constexpr (std::is_floating_point_v<T>)
+            at(p) = T(v.get<double>() * double(scale));
+        else
+            at(p) = T(v.get<int64_t>() * scale);
+    };
+    b.get = [at, scale](const Params& p) -> json {
+        const T& m = at(const_cast<Params&>(p));
+        if constexpr (std::is_same_v<T, std::string> || std::is_same_v<T, bool>)
+            return m;
+        else if constexpr (std::is_floating_point_v<T>)
+            return double(m) / double(scale);
+        else
+            return int64_t(m) / scale;
+    };
+    return b;
+}
+
+// A row whose value is converted by hand (names to enums).
+FieldBinding custom(const char* path, std::function<void(Params&, const json&)> set,
+                    std::function<json(const Params&)> get) {
+    return FieldBinding{path, std::move(set), std::move(get), true};
+}
+
+#define M(expr)               \
+    [](Params & p) -> auto& { \
+        return p.expr;        \
+    }
+
+std::vector<FieldBinding> make_bindings() {
+    constexpr bool kNotMirrored = false;
+    return {
+        field("name", M(name), 1, kNotMirrored),
+        field("clock_ghz", M(clock_ghz), 1, kNotMirrored),
+        field("core.count", M(core_count), 1, kNotMirrored),
+        field("core.ray_slots", M(core.ray_slots)),
+        field("core.issue_width", M(core.issue_width)),
+        field("core.issue_latency_cycles", M(core.issue_latency_cycles)),
+        field("core.node_step_instructions", M(core.node_step_instructions)),
+        field("core.triangle_step_instructions", M(core.triangle_step_instructions)),
+        field("core.ray_setup_instructions", M(core.ray_setup_instructions)),
+        field("box_unit.count", M(box_unit.count)),
+        field("box_unit.shared_by", M(box_unit_shared_by), 1, kNotMirrored),
+        field("box_unit.width", M(box_unit.width)),
+        field("box_unit.latency_cycles", M(box_unit.latency_cycles)),
+        field("box_unit.interval_cycles", M(box_unit.interval_cycles)),
+        field("triangle_unit.count", M(triangle_unit.count), 1, kNotMirrored),
+        field("triangle_unit.shared_by", M(triangle_unit_shared_by), 1, kNotMirrored),
+        field("triangle_unit.latency_cycles", M(triangle_unit.latency_cycles), 1, kNotMirrored),
+        field("triangle_unit.interval_cycles", M(triangle_unit.interval_cycles), 1, kNotMirrored),
+        field("l1.size_kib", M(l1.size_bytes), 1024),
+        field("l1.ways", M(l1.ways)),
+        field("l1.line_bytes", M(l1.line_bytes)),
+        field("l1.hit_latency_cycles", M(l1.hit_latency_cycles)),
+        field("l1.mshrs", M(l1.mshrs)),
+        field("l1.replacement", M(l1.replacement)),
+        field("l1.rrpv_bits", M(l1.rrpv_bits)),
+        field("l1.banks", M(l1.banks)),
+        field("l1.split", M(l1_split), 1, kNotMirrored),
+        field("l2.size_kib", M(l2.size_bytes), 1024, kNotMirrored),
+        field("l2.ways", M(l2.ways), 1, kNotMirrored),
+        field("l2.line_bytes", M(l2.line_bytes), 1, kNotMirrored),
+        field("l2.hit_latency_cycles", M(l2.hit_latency_cycles), 1, kNotMirrored),
+        field("l2.mshrs", M(l2.mshrs), 1, kNotMirrored),
+        field("l2.replacement", M(l2.replacement), 1, kNotMirrored),
+        field("l2.rrpv_bits", M(l2.rrpv_bits), 1, kNotMirrored),
+        field("l2.banks", M(l2.banks), 1, kNotMirrored),
+        field("crossbar.bytes_per_cycle", M(crossbar_bytes_per_cycle), 1, kNotMirrored),
+        field("dram.model", M(dram_model), 1, kNotMirrored),
+        field("dram.latency_cycles", M(dram.latency_cycles)),
+        field("dram.bytes_per_cycle", M(dram.bytes_per_cycle)),
+        field("dram.channels", M(dram.channels)),
+        field("dram.banks", M(dram.banks)),
+        field("dram.row_bytes", M(dram.row_bytes)),
+        field("dram.burst_bytes", M(dram.burst_bytes)),
+        field("dram.t_rcd_cycles", M(dram.t_rcd_cycles)),
+        field("dram.t_cas_cycles", M(dram.t_cas_cycles)),
+        field("dram.t_ccd_cycles", M(dram.t_ccd_cycles)),
+        field("dram.t_rp_cycles", M(dram.t_rp_cycles)),
+        custom(
+            "bvh.builder",
+            [](Params& p, const json& v) {
+                p.bvh.builder = parse_bvh_builder(v.get<std::string>(), "bvh.builder");
+            },
+            [](const Params& p) -> json { return bvh_builder_name(p.bvh.builder); }),
+        field("bvh.restructure_passes", M(bvh.restructure_passes)),
+        field("bvh.width", M(bvh.width)),
+        field("bvh.sah_buckets", M(bvh.sah_buckets)),
+        field("bvh.max_leaf_size", M(bvh.max_leaf_size)),
+        custom(
+            "bvh.node_format",
+            [](Params& p, const json& v) {
+                p.bvh.node_format = parse_node_format(v.get<std::string>(), "bvh.node_format");
+            },
+            [](const Params& p) -> json { return node_format_name(p.bvh.node_format); }),
+        field("bvh.node_size_bytes", M(node_size_bytes), 1, kNotMirrored),
+        field("bvh.triangle_size_bytes", M(triangle_size_bytes), 1, kNotMirrored),
+        field("bvh.treelet_bytes", M(bvh.treelet_bytes)),
+        field("traversal.mode", M(traversal.mode), 1, kNotMirrored),
+        field("traversal.packet_size", M(traversal.packet_size), 1, kNotMirrored),
+        field("traversal.treelet_scheduler", M(ray_buffer.scheduler)),
+        field("traversal.treelet_max_wait_batches", M(ray_buffer.max_wait_batches)),
+        field("traversal.treelet_batch_rays", M(ray_buffer.batch_rays)),
+        field("traversal.treelet_prefetch", M(core.treelet_prefetch)),
+        field("traversal.treelet_cache_kib", M(traversal.treelet_cache_bytes), 1024, kNotMirrored),
+        field("traversal.treelet_cache_latency_cycles", M(traversal.treelet_cache_latency_cycles),
+              1, kNotMirrored),
+        field("ray_buffer.capacity_rays", M(ray_buffer.capacity_rays)),
+        field("ray_buffer.ray_bytes", M(ray_buffer.ray_bytes)),
+        field("ray_buffer.ports", M(ray_buffer.ports)),
+        field("ray_buffer.latency_cycles", M(ray_buffer.latency_cycles)),
+        field("sim.ideal_memory", M(sim.ideal_memory), 1, kNotMirrored),
+        field("sim.ideal_units", M(sim.ideal_units), 1, kNotMirrored),
+        field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),
+        field("sim.quantum_cycles", M(sim.quantum_cycles), 1, kNotMirrored),
+    };
+}
+
+#undef M
+
+const json& at_path(const json& values, const std::string& path) {
+    const json* node = &values;
+    size_t start = 0;
+    while (true) {
+        const size_t dot = path.find('.', start);
+        node = &node->at(path.substr(start, dot - start));
+        if (dot == std::string::npos) return *node;
+        start = dot + 1;
+    }
+}
+
+}  // namespace
+
+const std::vector<FieldBinding>& config_bindings() {
+    static const std::vector<FieldBinding> table = make_bindings();
+    return table;
+}
+
+Params bind_params(const json& values) {
+    Params p;
+    for (const FieldBinding& b : config_bindings()) b.set(p, at_path(values, b.path));
+    return p;
+}
+
+}  // namespace rtsim

@@ -1,0 +1,77 @@
+// The effective config as typed block parameters. Every schema field reaches exactly one member
+// through one table (config_bindings, sim/params.cpp): the schema path, the member, and the unit
+// conversion if any. Nothing else reads a config value by its path, so a field cannot be dead or
+// read twice (tests/sim/test_params.cpp checks the table against the schema).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "models/cache.h"
+#include "models/core.h"
+#include "models/dram.h"
+#include "models/ray_buffer.h"
+#include "models/timing.h"
+#include "models/unit.h"
+#include "workloads/bvh.h"
+
+namespace rtsim {
+
+struct TraversalParams {
+    std::string mode;                  // a registered traversal mode
+    int packet_size = 0;               // packet mode: rays per packet (SIMD lanes)
+    uint64_t treelet_cache_bytes = 0;  // treelet mode: per-core treelet cache; 0: none
+    Cycle treelet_cache_latency_cycles = 0;
+};
+
+struct SimParams {
+    bool ideal_memory = false;
+    bool ideal_units = false;
+    uint64_t window_cycles = 0;  // time series windows; 0: none
+    Cycle quantum_cycles = 0;    // temporal-decoupling quantum; 0: exact order
+};
+
+// Members outside the model structs have no meaningful C++ default: only binding sets them.
+struct Params {
+    std::string name;
+    double clock_ghz = 0;
+    int core_count = 0;
+    CoreParams core;  // core.*, and traversal.treelet_prefetch
+    UnitParams box_unit, triangle_unit;
+    int box_unit_shared_by = 0, triangle_unit_shared_by = 0;
+    CacheParams l1, l2;
+    bool l1_split = false;
+    double crossbar_bytes_per_cycle = 0;  // 0: no crossbar
+    std::string dram_model;               // a registered DRAM model
+    DramParams dram;
+    BvhBuildOptions bvh;
+    uint32_t node_size_bytes = 0;  // 0: the stated size for the width and format
+    uint32_t triangle_size_bytes = 0;
+    TraversalParams traversal;
+    RayBufferParams ray_buffer;  // ray_buffer.*, and traversal's treelet scheduler and batches
+    SimParams sim;
+};
+
+// One row of the table: a schema path and how its value reaches its member.
+struct FieldBinding {
+    std::string path;
+    std::function<void(Params&, const nlohmann::json&)> set;
+    // The member's value as JSON in the schema's unit (to compare a model struct's C++ default
+    // with the schema's).
+    std::function<nlohmann::json(const Params&)> get;
+    // The member belongs to a model struct whose C++ default initializer must equal this field's
+    // schema default (false where one struct serves two sections, e.g. CacheParams for l1 and
+    // l2: its defaults are the first section's).
+    bool cpp_default_mirrors_schema = true;
+};
+
+// Every schema field, in schema order.
+const std::vector<FieldBinding>& config_bindings();
+
+// Fills Params from an effective (validated) config document.
+Params bind_params(const nlohmann::json& values);
+
+}  // namespace rtsim
