@@ -52,6 +52,10 @@ CASES = {
     "ideal_compressed_lbvh": ["--rays", "primary,diffuse", "--res", "64x64", "--set",
                               "sim.ideal_memory=true", "--set", "bvh.builder=lbvh", "--set",
                               "bvh.node_format=compressed", "--set", "bvh.width=4"],
+    # {trace}: a trace the old binary records first (bunny, BVH4 with treelets, primary+diffuse)
+    "replay": ["--trace", "{trace}", "--set", "bvh.width=4", "--set", "bvh.treelet_bytes=8192",
+               "--set", "l1.size_kib=8"],
+    "replay_treelet": ["--trace", "{trace}", "--config", cfg("treelet.json")],
     "ideal_units_quantum": ["--scene", BUNNY, "--rays", "ao", "--res", "64x64", "--set",
                             "sim.ideal_units=true", "--set", "sim.quantum_cycles=100", "--set",
                             "dram.channels=4", "--set", "crossbar.bytes_per_cycle=0"],
@@ -121,9 +125,17 @@ def main():
         if n not in CASES:
             sys.exit(f"--only: unknown case {n} (known: {', '.join(CASES)})")
     work = a.keep or tempfile.mkdtemp(prefix="same_stats_")
+    trace = os.path.join(work, "bunny.rtt")
+    if any("{trace}" in CASES[n] for n in names):
+        r = subprocess.run([a.old, "trace", "-q", "--scene", BUNNY, "--rays", "primary,diffuse",
+                            "--res", "64x64", "--set", "bvh.width=4", "--set",
+                            "bvh.treelet_bytes=8192", "-o", trace], capture_output=True, text=True)
+        if r.returncode != 0:
+            sys.exit(f"recording the replay trace failed: {r.stderr.strip()}")
     for n in names:
-        old = run(a.old, CASES[n], os.path.join(work, n, "old"))
-        new = run(a.new, CASES[n], os.path.join(work, n, "new"))
+        args = [x.replace("{trace}", trace) for x in CASES[n]]
+        old = run(a.old, args, os.path.join(work, n, "old"))
+        new = run(a.new, args, os.path.join(work, n, "new"))
         added = []
         drop_added(old.get("config", {}), new.get("config", {}), "config", added)
         if added:  # the hash covers the added fields; the rest of the config is compared

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <memory>
 
+#include "sim/run_report.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 #include "workloads/packet.h"

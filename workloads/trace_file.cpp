@@ -1,5 +1,9 @@
 #include "workloads/trace_file.h"
 
+#include <nlohmann/json.hpp>
+
+#include "workloads/bvh_summary.h"
+
 #include <zlib.h>
 #include <zstd.h>
 
@@ -199,6 +203,11 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     if (crc32(metadata_.data(), metadata_.size()) != meta_crc)
         fail(20, "header metadata checksum mismatch");
     header_end_ = 24 + uint64_t(meta_len);
+    // An RTSim trace's header describes the BVH layout its steps' ids map through: the reader
+    // sets it up itself (other writers' metadata, as in tests, leave it to set_layout).
+    const auto meta = nlohmann::json::parse(metadata_, nullptr, false);
+    if (meta.is_object() && meta.contains("bvh") && meta["bvh"].is_object())
+        layout_ = layout_from_summary(meta["bvh"], path);
 
     if (file_size_ < header_end_ + kFooterBytes)
         fail(header_end_, "file ends before the footer (truncated)");

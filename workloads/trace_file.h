@@ -78,7 +78,8 @@ class TraceReader {
     uint64_t rays() const { return total_rays_; }
     uint64_t steps() const { return total_steps_; }
     uint64_t file_bytes() const { return file_size_; }
-    // Step addresses and sizes are derived from this layout (set it from the metadata).
+    // Step addresses and sizes are derived from this layout: the header's bvh.layout when the
+    // metadata has one (an RTSim trace), else whatever set_layout gives.
     void set_layout(const BvhLayout& layout) { layout_ = layout; }
     const BvhLayout& layout() const { return layout_; }
 

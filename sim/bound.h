@@ -1,0 +1,18 @@
+// rtsim run --bound: the same rays again with ideal memory and unlimited units.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "sim/run.h"
+
+namespace rtsim {
+
+// Runs the command in `opt` again in a child process with ideal memory and unlimited units (a
+// SystemC kernel runs once per process) and returns the child's stats.json. Throws
+// std::runtime_error if it fails.
+nlohmann::json run_bound(const RunOptions& opt);
+
+// stats.json's "bound" section from the run's stats and the ideal run's.
+nlohmann::json bound_section(const nlohmann::json& run, const nlohmann::json& ideal);
+
+}  // namespace rtsim

@@ -1,0 +1,206 @@
+#include "sim/run_report.h"
+
+#include <sys/resource.h>
+
+#include <fmt/format.h>
+
+#include "models/calendar.h"
+
+namespace rtsim {
+
+using nlohmann::json;
+
+double peak_rss_mib() {
+    rusage ru{};
+    getrusage(RUSAGE_SELF, &ru);
+    return double(ru.ru_maxrss) / 1024.0;  // Linux reports KiB
+}
+
+namespace {
+
+// Per-window figures for plots: bandwidth in GB/s at each level and unit utilisation.
+json time_series_report(const Chip& chip, const ReportInputs& ri) {
+    const auto& S = chip.series;
+    const uint64_t window = S.rays->window_cycles();
+    const size_t n = size_t((ri.total_cycles + window - 1) / window);
+    const double window_seconds = double(window) / (ri.clock_ghz * 1e9);
+    auto values = [&](const TimeSeries& t, double scale) {
+        json a = json::array();
+        for (size_t w = 0; w < n; ++w)
+            a.push_back(w < t.buckets().size() ? double(t.buckets()[w]) * scale : 0.0);
+        return a;
+    };
+    const double gbps = 1.0 / window_seconds / 1e9;
+    return {
+        {"window_cycles", window},
+        {"windows", n},
+        {"dram_gbps", values(*S.dram_bytes, gbps)},
+        {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
+        {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
+        {"box_unit_utilization",
+         values(*S.box_busy, 1.0 / (double(window) * ri.box_pipelines_per_core * ri.box_units))},
+        {"triangle_unit_utilization",
+         values(*S.triangle_busy,
+                1.0 / (double(window) * ri.triangle_pipelines_per_core * ri.triangle_units))},
+        {"rays", values(*S.rays, 1.0)}};
+}
+
+// stats.json's "rays": per kind the rays and hits, counting the kinds the workload asked for
+// (or, for rays from a file, those seen).
+json rays_section(const json& workload, const CountingSource& source) {
+    std::array<bool, kRayKindCount> listed{};
+    const std::string kinds_text = workload.value("rays", std::string());
+    if (!kinds_text.empty()) listed = parse_ray_kinds(kinds_text, "workload.rays");
+    uint64_t total_rays = 0;
+    json rays = json::object(), hits = json::object();
+    for (int k = 0; k < kRayKindCount; ++k) {
+        if (!listed[k] && source.rays_by_kind[k] == 0) continue;
+        rays[ray_kind_name(RayKind(k))] = source.rays_by_kind[k];
+        hits[ray_kind_name(RayKind(k))] = source.hits_by_kind[k];
+        total_rays += source.rays_by_kind[k];
+    }
+    return {
+        {"total", total_rays}, {"by_kind", rays}, {"hits_by_kind", hits}, {"steps", source.steps}};
+}
+
+}  // namespace
+
+ReportInputs report_inputs(const Params& P, const Chip& chip, uint64_t rays) {
+    ReportInputs ri;
+    ri.stats = &chip.stats;
+    ri.total_cycles = chip.total_cycles();
+    ri.clock_ghz = P.clock_ghz;
+    ri.cores = P.core_count;
+    ri.box_pipelines_per_core = P.box_unit.count;
+    ri.triangle_pipelines_per_core = P.triangle_unit.count;
+    ri.ray_slots_per_core = P.core.ray_slots;
+    ri.box_units = int(chip.box_units.size());
+    ri.triangle_units = int(chip.triangle_units.size());
+    ri.dram_channels = P.dram.channels;
+    ri.ray_bytes = P.ray_buffer.ray_bytes;
+    ri.ray_capacity = P.ray_buffer.capacity_rays;
+    ri.rays = rays;
+    return ri;
+}
+
+json run_report(const Config& cfg, const Chip& chip, const json& meta, const CountingSource& source,
+                const HostTimes& host) {
+    const json rays = rays_section(meta["workload"], source);
+    const uint64_t total_rays = rays["total"].get<uint64_t>();
+    uint64_t rays_simulated = 0;
+    for (uint64_t r : source.rays_by_kind) rays_simulated += r;
+    const ReportInputs ri = report_inputs(cfg.typed, chip, rays_simulated);
+    json timing = timing_report(ri);
+    const double sim_s = timing["simulated_seconds"].get<double>();
+    // Host time split: the cores' scheduler running (models, and waiting for rays:
+    // functional_s), the rest is the SystemC kernel.
+    const double cores_busy = chip.scheduler->host_busy_seconds();
+
+    json out;
+    out["rtsim_version"] = RTSIM_VERSION;
+    out["config"] = cfg.values;
+    out["config_hash"] = cfg.hash();
+    out["config_files"] = cfg.files;
+    out["config_overrides"] = cfg.overrides;
+    for (const char* k : {"scene", "bvh", "workload"}) out[k] = meta[k];
+    if (out["bvh"].contains("layout"))  // a trace's treelet tables stay in the trace
+        for (const char* k : {"treelet_node_start", "treelet_tri_start"})
+            out["bvh"]["layout"].erase(k);
+    out["rays"] = rays;
+    out["total_cycles"] = timing["total_cycles"];
+    out["clock_ghz"] = ri.clock_ghz;
+    out["simulated_seconds"] = sim_s;
+    out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
+    for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
+    out["traversal_mode"] = cfg.typed.traversal.mode;
+    for (const char* k : {"ray_buffer", "packets"})
+        if (timing.contains(k)) out[k] = timing[k];
+    if (chip.series.rays) out["time_series"] = time_series_report(chip, ri);
+    // Host timings live apart: everything outside "host" is identical for identical inputs.
+    const double sim_seconds = host.simulation_s;
+    out["host"] = {{"run_time_s", host.run_time_s},
+                   {"prepare_s", host.prepare_s},
+                   {"simulation_s", sim_seconds},
+                   {"functional_s", source.functional_seconds},
+                   {"simulated_rays_per_host_second",
+                    sim_seconds > 0 ? double(total_rays) / sim_seconds : 0.0},
+                   {"models_s", std::max(0.0, cores_busy - source.functional_seconds)},
+                   {"kernel_s", std::max(0.0, sim_seconds - cores_busy)},
+                   {"peak_rss_mib", peak_rss_mib()}};
+    if (host.bvh_build_s >= 0) out["host"]["bvh_build_s"] = host.bvh_build_s;
+    if (!host.trace.empty()) out["host"]["trace"] = host.trace;
+    return out;
+}
+
+void print_run_summary(const json& out, const std::string& stats_path) {
+    const json& bw = out["bandwidth"];
+    const json& un = out["units"];
+    const json& ca = out["caches"];
+    std::string kinds;
+    for (auto& [k, v] : out["rays"]["by_kind"].items())
+        kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ", k, v.get<uint64_t>());
+    const json& sc = out["scene"];
+    const json& bv = out["bvh"];
+    const std::string trace = out["host"].value("trace", std::string());
+    fmt::print("rtsim run  config {} ({})  scene {} ({} triangles){}\n",
+               out["config"]["name"].get<std::string>(), out["config_hash"].get<std::string>(),
+               sc.value("name", std::string("?")), sc.value("triangles", 0),
+               trace.empty() ? std::string() : "  replayed from " + trace);
+    fmt::print(
+        "  bvh      {} BVH{} {}: {} nodes, {} leaves, depth {}, SAH cost {:.2f}, {:.2f} MiB\n",
+        bv.value("builder", std::string("?")), bv.value("width", 0),
+        bv.value("node_format", std::string("?")), bv.value("nodes", 0), bv.value("leaves", 0),
+        bv.value("max_depth", 0), bv.value("sah_cost", 0.0), bv.value("bytes", 0.0) / 1048576.0);
+    fmt::print("  rays     {} ({}), {} steps\n", out["rays"]["total"].get<uint64_t>(), kinds,
+               out["rays"]["steps"].get<uint64_t>());
+    fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n",
+               out["total_cycles"].get<uint64_t>(), out["simulated_seconds"].get<double>() * 1e3,
+               out["clock_ghz"].get<double>(), out["rays_per_second"].get<double>() / 1e6);
+    fmt::print("  units    box {:.1f}% busy, triangle {:.1f}% busy\n",
+               100 * un["box_unit_total"]["utilization"].get<double>(),
+               100 * un["triangle_unit_total"]["utilization"].get<double>());
+    const json& share = out["stalls"]["total"]["share"];
+    fmt::print(
+        "  slots    issue {:.1f}%, L1 {:.1f}%, L2 {:.1f}%, DRAM {:.1f}%, box unit {:.1f}%, "
+        "triangle unit {:.1f}%{}, no work {:.1f}%\n",
+        100 * share["issue"].get<double>(), 100 * share["l1"].get<double>(),
+        100 * share["l2"].get<double>(), 100 * share["dram"].get<double>(),
+        100 * share["box_unit"].get<double>(), 100 * share["triangle_unit"].get<double>(),
+        out.contains("ray_buffer")
+            ? fmt::format(", ray buffer {:.1f}%", 100 * share["ray_buffer"].get<double>())
+            : std::string(),
+        100 * share["no_work"].get<double>());
+    if (out.contains("ray_buffer")) {
+        const json& rb = out["ray_buffer"];
+        fmt::print(
+            "  treelets {} batches of {:.1f} rays, {:.2f} crossings per ray, {:.1f} MB of "
+            "treelets loaded, ray buffer {:.1f} MB moved, peak {} rays\n",
+            rb["batches"].get<uint64_t>(), rb["rays_per_batch"].get<double>(),
+            rb["crossings_per_ray"].get<double>(), rb["treelet_load_bytes"].get<double>() / 1e6,
+            rb["bytes"].get<double>() / 1e6, rb["peak_rays"].get<uint64_t>());
+    }
+    if (out.contains("packets"))
+        fmt::print("  packets  lane utilisation {:.1f}%\n",
+                   100 * out["packets"]["lane_utilization"].get<double>());
+    fmt::print("  caches   L1 hit rate {:.1f}%, L2 hit rate {:.1f}%\n",
+               100 * ca["l1_total"]["hit_rate"].get<double>(),
+               100 * ca["l2"]["hit_rate"].get<double>());
+    fmt::print(
+        "  traffic  L1 {:.1f} MB ({:.1f} GB/s), L2 {:.1f} MB ({:.1f} GB/s), DRAM {:.1f} MB "
+        "({:.1f} GB/s)\n",
+        bw["l1"]["bytes"].get<double>() / 1e6, bw["l1"]["gbps"].get<double>(),
+        bw["l2"]["bytes"].get<double>() / 1e6, bw["l2"]["gbps"].get<double>(),
+        bw["dram"]["bytes"].get<double>() / 1e6, bw["dram"]["gbps"].get<double>());
+    fmt::print(
+        "  host     {:.2f} s total, {:.2f} s simulating -> {:.3f} M simulated rays per host "
+        "second\n",
+        out["host"]["run_time_s"].get<double>(), out["host"]["simulation_s"].get<double>(),
+        out["host"]["simulated_rays_per_host_second"].get<double>() / 1e6);
+    if (out.contains("bound"))
+        fmt::print("  bound    ideal memory and units: {:.2f} Mrays/s; achieved {:.1f}% of it\n",
+                   out["bound"]["rays_per_second"].get<double>() / 1e6,
+                   100 * out["bound"]["achieved_over_bound"].get<double>());
+    fmt::print("  stats    {}\n", stats_path);
+}
+
+}  // namespace rtsim

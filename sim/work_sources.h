@@ -1,0 +1,316 @@
+// Work sources: the chip's shared queue of ray work, filled one batch ahead on a helper thread,
+// from rays generated and traced on the fly (GeneratedWorkSource) or from a recorded trace
+// (TraceWorkSource). They count rays, hits and steps for the report and show progress.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <mutex>
+#include <string>
+#include <systemc>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "models/core.h"
+#include "sim/errors.h"
+#include "workloads/bvh.h"
+#include "workloads/error.h"
+#include "workloads/packet.h"
+#include "workloads/raygen.h"
+#include "workloads/trace_file.h"
+#include "workloads/tracer.h"
+
+namespace rtsim {
+
+using WorkClock = std::chrono::steady_clock;
+
+// The chip's shared work queue. Counts what it hands out and shows progress on a terminal;
+// subclasses produce the rays.
+class CountingSource : public RayWorkSource {
+  public:
+    explicit CountingSource(bool progress) : progress_(progress) {}
+
+    bool next(RayWork& work) override {
+        uint32_t hit = 0;
+        const bool more = failed() ? false : produce(work, hit);
+        if (!more) return false;
+        rays_by_kind[static_cast<int>(work.kind)] += work.rays;
+        hits_by_kind[static_cast<int>(work.kind)] += hit;
+        steps += work.steps.size();
+        return true;
+    }
+
+    void finish_progress() {
+        if (progress_ && printed_) std::fprintf(stderr, "\r%70s\r", "");
+    }
+
+    std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
+    uint64_t steps = 0;
+    double functional_seconds = 0;  // time the simulation waited for rays to be produced
+                                    // (subclasses measure it where they block)
+    // Bad input found mid-run (a damaged trace chunk) stops the simulation; run_command reports
+    // it after the kernel returns, without throwing (exceptions must not cross SystemC's
+    // coroutine stacks, which AddressSanitizer cannot follow either).
+    std::string failure;
+    bool failure_is_input = false;
+    bool failed() const { return !failure.empty(); }
+
+  protected:
+    // Fills the next work item (a ray, or a packet of work.rays rays); `hits`: how many hit.
+    virtual bool produce(RayWork& work, uint32_t& hits) = 0;
+
+    void report_progress(double fraction, const char* what) {
+        if (!progress_) return;
+        const auto now = WorkClock::now();
+        if (printed_ && now - last_print_ < std::chrono::milliseconds(250)) return;
+        last_print_ = now;
+        printed_ = true;
+        uint64_t rays = 0;
+        for (uint64_t r : rays_by_kind) rays += r;
+        std::fprintf(stderr, "\r[rtsim] %5.1f%% of %s, %llu rays, %.4g simulated us   ",
+                     100.0 * fraction, what, (unsigned long long)rays,
+                     sc_core::sc_time_stamp().to_seconds() * 1e6);
+        std::fflush(stderr);
+    }
+
+  private:
+    bool progress_, printed_ = false;
+    WorkClock::time_point last_print_;
+};
+
+// Work prepared on a helper thread, one batch ahead of the simulation: the simulation never
+// waits for ray generation, tracing or trace decoding while a second host core is free, and
+// errors (a damaged trace chunk) surface on that thread, never inside a SystemC process (whose
+// coroutine stacks exceptions must not cross, and which AddressSanitizer cannot follow).
+class PrefetchingSource : public CountingSource {
+  public:
+    PrefetchingSource(bool progress, const char* unit) : CountingSource(progress), unit_(unit) {}
+    // Derived destructors stop the helper first (see prefetch); this only makes sure no thread
+    // is left joinable.
+    ~PrefetchingSource() override { stop_helper(); }
+
+  protected:
+    struct Batch {
+        std::vector<TraceRecord> records;
+        // Packet mode: per record (a packet), its rays and how many of them hit.
+        std::vector<uint8_t> packet_rays;
+        std::vector<uint32_t> packet_hits;
+        double progress = 0;  // fraction of the work done once this batch is used
+        bool last = false;    // nothing follows
+        std::string error;
+        bool input_error = false;
+    };
+    // Fills the next batch, on the helper thread. It starts with the records of a used batch
+    // (their contents are stale; only their memory is worth keeping).
+    virtual void fill(Batch& batch) = 0;
+
+    // Derived constructors start the first batch; derived destructors call stop_helper() first, so
+    // fill() never runs on a half-destroyed object.
+    // `used`: the batch just consumed. Its records (holding the step vectors the ray slots gave
+    // back) start the next batch, so a fill may reuse their memory instead of allocating per
+    // ray; whatever it does not reuse is freed on the helper thread, which allocated it (a
+    // free on another thread's arena costs the simulation thread a lock).
+    // One helper thread serves every batch (batches are small, and a thread per batch cost
+    // more than decoding one).
+    void prefetch() { prefetch(Batch{}); }
+    void prefetch(Batch used) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (!helper_.joinable()) helper_ = std::thread([this] { help(); });
+        recycled_ = std::move(used);
+        requested_ = true;
+        outstanding_ = true;
+        cv_.notify_all();
+    }
+    // Stops the helper thread once it has finished the batch it may be filling.
+    void stop_helper() {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            stopping_ = true;
+            cv_.notify_all();
+        }
+        if (helper_.joinable()) helper_.join();
+    }
+
+    bool produce(RayWork& work, uint32_t& hits) override {
+        while (pos_ == batch_.records.size()) {
+            if (!outstanding_) return false;
+            const auto t0 = WorkClock::now();
+            Batch used = std::exchange(batch_, take());
+            functional_seconds += std::chrono::duration<double>(WorkClock::now() - t0).count();
+            pos_ = 0;
+            if (!batch_.error.empty()) {
+                failure = batch_.error;
+                failure_is_input = batch_.input_error;
+                sc_core::sc_stop();
+                return false;
+            }
+            report_progress(batch_.progress, unit_);
+            if (!batch_.last) prefetch(std::move(used));
+        }
+        // The next rays' steps were written on the helper thread: start moving them into this
+        // core's caches before a ray slot needs them.
+        if (pos_ + kPrefetchAheadRays < batch_.records.size()) {
+            const auto& ahead = batch_.records[pos_ + kPrefetchAheadRays].steps;
+            const char* p = reinterpret_cast<const char*>(ahead.data());
+            for (size_t b = 0; b < ahead.size() * sizeof(Step); b += 64) __builtin_prefetch(p + b);
+        }
+        TraceRecord& r = batch_.records[pos_++];
+        work.ray_id = r.ray_id;
+        work.kind = r.kind;
+        work.steps.swap(r.steps);
+        work.rays = 1;
+        hits = r.prim != kInvalidPrim;
+        if (pos_ <= batch_.packet_hits.size()) {
+            work.rays = batch_.packet_rays[pos_ - 1];
+            hits = batch_.packet_hits[pos_ - 1];
+        }
+        return true;
+    }
+
+  private:
+    // The helper thread: fills a batch whenever one is requested, until stopped.
+    void help() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        for (;;) {
+            cv_.wait(lock, [this] { return requested_ || stopping_; });
+            if (stopping_) return;
+            requested_ = false;
+            Batch used = std::move(recycled_);
+            lock.unlock();
+            Batch b;
+            b.records = std::move(used.records);
+            used = Batch();
+            try {
+                fill(b);
+            } catch (const InputError& e) {
+                b.error = e.what();
+                b.input_error = true;
+            } catch (const std::exception& e) {
+                b.error = e.what();
+            }
+            lock.lock();
+            filled_ = std::move(b);
+            ready_ = true;
+            cv_.notify_all();
+        }
+    }
+    // The batch requested last, once the helper has filled it.
+    Batch take() {
+        std::unique_lock<std::mutex> lock(mutex_);
+        cv_.wait(lock, [this] { return ready_; });
+        ready_ = false;
+        outstanding_ = false;
+        return std::move(filled_);
+    }
+
+    static constexpr size_t kPrefetchAheadRays = 4;
+    const char* unit_;
+    Batch batch_;
+    size_t pos_ = 0;
+    bool outstanding_ = false;  // a batch was requested and not taken yet (simulation thread)
+    std::thread helper_;
+    std::mutex mutex_;  // guards what follows
+    std::condition_variable cv_;
+    Batch recycled_, filled_;
+    bool requested_ = false, ready_ = false, stopping_ = false;
+};
+
+// Rays from the generator, traced a batch of tiles at a time: only about two batches of rays
+// hold step streams at any time.
+class GeneratedWorkSource : public PrefetchingSource {
+  public:
+    // packet_size > 0: runs of consecutive rays of one kind are traced as packets of up to
+    // that many rays, each packet one work item.
+    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0)
+        : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen), packet_size_(packet_size) {
+        gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
+        prefetch();
+    }
+    ~GeneratedWorkSource() override { stop_helper(); }
+
+  protected:
+    void fill(Batch& b) override {
+        b.records.clear();  // steps are moved in from the tracer: nothing to reuse
+        constexpr size_t kBatchRays = 4096;
+        std::vector<GeneratedRay> rays;
+        bool more = true;
+        while (rays.size() < kBatchRays && (more = gen_.next_tile(rays))) ++tiles_done_;
+        if (packet_size_ > 0) {
+            fill_packets(rays, b);
+        } else {
+            b.records.resize(rays.size());
+            for (size_t i = 0; i < rays.size(); ++i) {
+                TraceRecord& r = b.records[i];
+                r.ray_id = rays[i].id;
+                r.kind = rays[i].kind;
+                if (rays[i].traced) {  // the generator traced it already, for its hit
+                    r.steps = std::move(rays[i].steps);
+                    r.prim = rays[i].prim;
+                } else {
+                    r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
+                }
+            }
+        }
+        b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());
+        b.last = !more;
+    }
+
+  private:
+    void fill_packets(const std::vector<GeneratedRay>& rays, Batch& b) {
+        Ray packet[kMaxPacketSize];
+        Hit hits[kMaxPacketSize];
+        PacketOptions po;
+        po.size = packet_size_;
+        PacketStats ps;
+        for (const auto& [i, e] :
+             packet_runs(rays.size(), packet_size_, [&](size_t k) { return rays[k].kind; })) {
+            const int n = int(e - i);
+            for (int k = 0; k < n; ++k) packet[k] = rays[i + size_t(k)].ray;
+            TraceRecord r;
+            r.ray_id = rays[i].id;
+            r.kind = rays[i].kind;
+            trace_packet(bvh_, packet, n, rays[i].query, hits, po, ps, &r.steps);
+            uint32_t hit_count = 0;
+            for (int k = 0; k < n; ++k) hit_count += hits[k].valid();
+            b.records.push_back(std::move(r));
+            b.packet_rays.push_back(uint8_t(n));
+            b.packet_hits.push_back(hit_count);
+        }
+    }
+
+    const Bvh& bvh_;
+    RayGenerator& gen_;
+    int packet_size_;
+    int tiles_done_ = 0;  // touched by the helper thread only
+};
+
+// Rays replayed from a trace file, a chunk at a time.
+class TraceWorkSource : public PrefetchingSource {
+  public:
+    TraceWorkSource(TraceReader& reader, bool progress)
+        : PrefetchingSource(progress, "chunks"), reader_(reader) {
+        prefetch();
+    }
+    ~TraceWorkSource() override { stop_helper(); }
+
+  protected:
+    void fill(Batch& b) override {
+        // A batch is at most kBatchRays of a chunk: its steps (~300 bytes a ray) stay in the
+        // host's caches until the cores run them, even with the decoding on the same core.
+        constexpr size_t kBatchRays = 1024;
+        if (reader_.chunk_rays_left() == 0 && next_chunk_ < reader_.chunk_count())
+            reader_.open_chunk(next_chunk_++);
+        reader_.read_records(kBatchRays, b.records);
+        b.progress = double(next_chunk_) / double(std::max<size_t>(1, reader_.chunk_count()));
+        b.last = next_chunk_ == reader_.chunk_count() && reader_.chunk_rays_left() == 0;
+    }
+
+  private:
+    TraceReader& reader_;
+    size_t next_chunk_ = 0;  // touched by the helper thread only
+};
+
+}  // namespace rtsim

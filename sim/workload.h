@@ -1,0 +1,55 @@
+// What a run or a trace works on: the scene and ray options, the BVH the config asks for, the
+// summaries stats.json and trace headers carry, and the checks that a trace and a config fit.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "sim/config.h"
+#include "workloads/bvh.h"
+#include "workloads/bvh_summary.h"
+#include "workloads/raygen.h"
+#include "workloads/scene.h"
+
+namespace CLI {
+class App;
+}
+
+namespace rtsim {
+
+class TraceReader;
+
+// Scene and ray options shared by every command that produces rays (run, trace).
+struct WorkloadOptions {
+    std::string scene = "builtin:cornell";
+    std::string rays = "primary";  // parsed into gen.kinds
+    std::string res = "128x128";   // parsed into gen.width, gen.height
+    std::string light = "point";   // parsed into gen.light
+    RayGenOptions gen;
+
+    // Parses the text options into `gen` and validates it. Throws InputError.
+    void resolve();
+};
+
+// Adds the scene and ray options (--scene, --rays, --res, ...) to a command.
+void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
+// "WxH" -> width, height. Throws InputError naming `what`.
+void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);
+
+// The BVH the config's "bvh" section asks for.
+Bvh build_bvh_from_config(const Config& cfg, const Scene& scene);
+
+// Sections of stats.json and of a trace's header metadata.
+nlohmann::json scene_summary(const Scene& scene);
+nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
+// A trace's header metadata, checked to be an RTSim trace's (the reader has set its layout
+// from it). Throws InputError.
+nlohmann::json open_trace_metadata(TraceReader& reader, const std::string& path);
+// A run's inputs that are valid one by one but not together (a traversal mode that cannot
+// replay traces given one). Config-only combinations are checked when the config loads.
+void check_config_combination(const Config& cfg, const std::string& trace_path);
+// A trace's BVH summary against the config's BVH fields; `where` names the trace in the error.
+void check_trace_matches_config(const nlohmann::json& bvh, const Config& cfg,
+                                const std::string& where);
+
+}  // namespace rtsim

@@ -1,0 +1,72 @@
+#include "workloads/bvh_summary.h"
+
+#include <fmt/format.h>
+
+#include "workloads/error.h"
+
+namespace rtsim {
+
+using nlohmann::json;
+
+json bvh_summary(const Bvh& bvh, bool treelet_tables) {
+    const BvhQuality& q = bvh.quality;
+    const BvhBuildOptions& bo = bvh.options;
+    const BvhLayout& L = bvh.layout;
+    json out = {{"builder", bvh_builder_name(bo.builder)},
+                {"restructure_passes", bo.restructure_passes},
+                {"width", bvh.width()},
+                {"node_format", node_format_name(bo.node_format)},
+                {"sah_cost", q.sah_cost},
+                {"sah_traversal_cost", bo.traversal_cost},
+                {"sah_intersection_cost", bo.intersection_cost},
+                {"nodes", q.node_count},
+                {"inner_nodes", q.inner_count},
+                {"leaves", q.leaf_count},
+                {"max_depth", q.max_depth},
+                {"mean_leaf_size", q.mean_leaf_size},
+                {"mean_children", q.mean_children},
+                {"bytes", q.bytes},
+                {"layout",
+                 {{"node_base_addr", L.node_base_addr},
+                  {"node_size_bytes", L.node_size_bytes},
+                  {"inner_node_count", L.inner_node_count},
+                  {"triangle_base_addr", L.tri_base_addr},
+                  {"triangle_size_bytes", L.tri_size_bytes},
+                  {"triangle_count", L.triangle_count},
+                  {"treelet_bytes", L.treelet_bytes},
+                  {"treelets", L.treelet_bytes ? L.treelet_count() : 0}}}};
+    // Stats keep the figures, traces also the tables (a replay needs them to know treelets).
+    if (treelet_tables) {
+        out["layout"]["treelet_node_start"] = L.treelet_node_start;
+        out["layout"]["treelet_tri_start"] = L.treelet_tri_start;
+    }
+    return out;
+}
+
+BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
+    try {
+        const json& l = bvh.at("layout");
+        BvhLayout L;
+        L.node_base_addr = l.at("node_base_addr").get<uint64_t>();
+        L.node_size_bytes = l.at("node_size_bytes").get<uint32_t>();
+        L.inner_node_count = l.at("inner_node_count").get<uint32_t>();
+        L.tri_base_addr = l.at("triangle_base_addr").get<uint64_t>();
+        L.tri_size_bytes = l.at("triangle_size_bytes").get<uint32_t>();
+        L.triangle_count = l.at("triangle_count").get<uint32_t>();
+        // Traces from before treelets carry no treelet fields: a layout without treelets.
+        L.treelet_bytes = l.value("treelet_bytes", 0u);
+        L.treelet_node_start = l.value("treelet_node_start", std::vector<uint32_t>());
+        L.treelet_tri_start = l.value("treelet_tri_start", std::vector<uint32_t>());
+        if (!L.index_treelets() || (L.treelet_bytes == 0) != L.treelet_node_start.empty())
+            throw InputError(fmt::format(
+                "{}: header metadata bvh.layout has treelet tables that do not cover its {} "
+                "nodes and {} triangles",
+                where, L.inner_node_count, L.triangle_count));
+        return L;
+    } catch (const json::exception& e) {
+        throw InputError(
+            fmt::format("{}: header metadata has no valid bvh.layout ({})", where, e.what()));
+    }
+}
+
+}  // namespace rtsim
