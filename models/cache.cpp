@@ -133,7 +133,8 @@ void Cache::replace_earliest_mshr(Cycle ready) {
     h[slot] = ready;
 }
 
-void Cache::register_stats(StatsRegistry& reg, const std::string& block) {
+void Cache::register_stats(StatsRegistry& reg) {
+    const std::string block = name();
     reg.add(block, "accesses", &accesses, "line lookups");
     reg.add(block, "hits", &hits, "lookups that found the line (including lines still filling)");
     reg.add(block, "misses", &misses, "lookups that fetched the line from the next level");
@@ -143,6 +144,43 @@ void Cache::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "mshr_wait_cycles", &mshr_wait_cycles, "cycles misses waited for a free MSHR");
     reg.add(block, "bank_conflict_cycles", &bank_conflict_cycles,
             "cycles lookups waited for their bank");
+}
+
+namespace {
+nlohmann::json cache_entry(uint64_t accesses, uint64_t hits, uint64_t misses, uint64_t merged) {
+    return {{"accesses", accesses},
+            {"hits", hits},
+            {"misses", misses},
+            {"merged_misses", merged},
+            {"hit_rate", ReportContext::ratio(double(hits), double(accesses))}};
+}
+}  // namespace
+
+nlohmann::json Cache::report(const ReportContext&) const {
+    return cache_entry(accesses, hits, misses, merged_misses);
+}
+
+nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, const ReportContext&) {
+    uint64_t a = 0, h = 0, m = 0, mm = 0;
+    for (const Cache* c : caches) {
+        a += c->accesses;
+        h += c->hits;
+        m += c->misses;
+        mm += c->merged_misses;
+    }
+    return cache_entry(a, h, m, mm);
+}
+
+uint64_t Cache::bytes_requested_of(const std::vector<const Cache*>& caches) {
+    uint64_t b = 0;
+    for (const Cache* c : caches) b += c->bytes_requested;
+    return b;
+}
+
+uint64_t Cache::fill_bytes_of(const std::vector<const Cache*>& caches) {
+    uint64_t b = 0;
+    for (const Cache* c : caches) b += c->fill_bytes;
+    return b;
 }
 
 }  // namespace rtsim

@@ -74,7 +74,16 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
                       AccessBreakdown* breakdown = nullptr) override {
         return (this->*local_fn_)(addr, size_bytes, now, ready, breakdown);
     }
-    void register_stats(StatsRegistry& reg, const std::string& block);
+    void register_stats(StatsRegistry& reg);  // under this module's name (l1[3].hits)
+    // stats.json "caches" entry: lookups, hits, misses, merged misses, hit rate.
+    nlohmann::json report(const ReportContext& ctx) const;
+    // The same over several caches (all L1s: "l1_total").
+    static nlohmann::json report_total(const std::vector<const Cache*>& caches,
+                                       const ReportContext& ctx);
+    // Bytes the caches delivered to the level above, and read from the level below (the
+    // bandwidth at the boundaries above and below them).
+    static uint64_t bytes_requested_of(const std::vector<const Cache*>& caches);
+    static uint64_t fill_bytes_of(const std::vector<const Cache*>& caches);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
     // Tests: start the replacement stamps' counter here (to see it wrap).

@@ -230,7 +230,8 @@ const char* Core::stall_name(int s) {
     return names[s];
 }
 
-void Core::register_stats(StatsRegistry& reg, const std::string& block) {
+void Core::register_stats(StatsRegistry& reg) {
+    const std::string block = name();
     for (int k = 0; k < kStallKinds; ++k)
         reg.add(block, std::string("stall_") + stall_name(k) + "_cycles", &stall_cycles[k],
                 "ray-slot cycles charged to this cause");
@@ -314,6 +315,51 @@ void CoreScheduler::run() {
     }
     host_busy_seconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
+}
+
+namespace {
+// Stall causes charged over `cores`, and the slot cycles they had.
+nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles) {
+    nlohmann::json e = nlohmann::json::object();
+    uint64_t charged = 0;
+    for (int k = 0; k < Core::kStallKinds; ++k) {
+        uint64_t v = 0;
+        for (const Core* c : cores) v += c->stall_cycles[k];
+        e[Core::stall_name(k)] = v;
+        charged += v;
+    }
+    e["no_work"] = slot_cycles >= charged ? slot_cycles - charged : 0;
+    e["slot_cycles"] = slot_cycles;
+    nlohmann::json share = nlohmann::json::object();
+    for (int k = 0; k < Core::kStallKinds; ++k)
+        share[Core::stall_name(k)] =
+            ReportContext::ratio(e[Core::stall_name(k)].get<double>(), double(slot_cycles));
+    share["no_work"] = ReportContext::ratio(e["no_work"].get<double>(), double(slot_cycles));
+    e["share"] = share;
+    return e;
+}
+}  // namespace
+
+nlohmann::json Core::stall_report(const ReportContext& ctx) const {
+    return stall_entry({this}, uint64_t(params_.ray_slots) * ctx.total_cycles);
+}
+
+nlohmann::json Core::stall_report_total(const std::vector<const Core*>& cores,
+                                        const ReportContext& ctx) {
+    uint64_t slots = 0;
+    for (const Core* c : cores) slots += uint64_t(c->params_.ray_slots);
+    return stall_entry(cores, slots * ctx.total_cycles);
+}
+
+nlohmann::json Core::packet_report(const std::vector<const Core*>& cores) {
+    uint64_t active = 0, slots = 0;
+    for (const Core* c : cores) {
+        active += c->active_lanes;
+        slots += c->lane_slots;
+    }
+    return {{"active_lanes", active},
+            {"lane_slots", slots},
+            {"lane_utilization", ReportContext::ratio(double(active), double(slots))}};
 }
 
 }  // namespace rtsim

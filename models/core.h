@@ -95,7 +95,16 @@ class Core : public sc_core::sc_module {
     Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
          PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
          MemoryPort* triangle_l1 = nullptr);
-    void register_stats(StatsRegistry& reg, const std::string& block);
+    void register_stats(StatsRegistry& reg);  // under this module's name (core[0].rays)
+    const CoreParams& params() const { return params_; }
+    // stats.json "stalls" entry: ray-slot cycles per cause, the cycles without a ray (no_work:
+    // what the causes leave of slots x cycles), and their shares.
+    nlohmann::json stall_report(const ReportContext& ctx) const;
+    // The same over several cores (the "total" entry).
+    static nlohmann::json stall_report_total(const std::vector<const Core*>& cores,
+                                             const ReportContext& ctx);
+    // stats.json "packets" (packet mode): active lanes of the lane slots operations occupied.
+    static nlohmann::json packet_report(const std::vector<const Core*>& cores);
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
     // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
     // from the source) instead of one by one from the source.

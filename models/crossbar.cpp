@@ -20,11 +20,19 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
     return end;
 }
 
-void Crossbar::register_stats(StatsRegistry& reg, const std::string& block) {
+void Crossbar::register_stats(StatsRegistry& reg) {
+    const std::string block = name();
     reg.add(block, "transfers", &transfers, "line transfers from the L2 to the L1s");
     reg.add(block, "bytes", &bytes, "bytes moved");
     reg.add(block, "busy_cycles", &busy_cycles, "cycles spent transferring");
     reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for bandwidth");
+}
+
+nlohmann::json Crossbar::report(const ReportContext& ctx) const {
+    return {{"bytes", bytes},
+            {"gbps", ctx.gbps(bytes)},
+            {"queue_cycles", queue_cycles},
+            {"utilization", ReportContext::ratio(double(busy_cycles), double(ctx.total_cycles))}};
 }
 
 }  // namespace rtsim

@@ -19,7 +19,9 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    void register_stats(StatsRegistry& reg, const std::string& block);
+    void register_stats(StatsRegistry& reg);  // under this module's name
+    // stats.json "bandwidth.crossbar": bytes, GB/s, queueing and utilisation.
+    nlohmann::json report(const ReportContext& ctx) const;
     void follow(const TimeFloor* floor) { link_.follow(floor); }
 
     uint64_t transfers = 0;

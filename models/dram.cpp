@@ -49,7 +49,8 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
     return done;
 }
 
-void Dram::register_stats(StatsRegistry& reg, const std::string& block) {
+void Dram::register_stats(StatsRegistry& reg) {
+    const std::string block = name();
     reg.add(block, "reads", &reads, "read bursts");
     reg.add(block, "bytes", &bytes, "bytes read");
     reg.add(block, "row_hits", &row_hits, "reads to the open row of their bank");
@@ -57,6 +58,19 @@ void Dram::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "row_conflicts", &row_conflicts, "reads that closed another row first");
     reg.add(block, "busy_cycles", &busy_cycles, "cycles the buses were transferring");
     reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for a bank or a bus");
+}
+
+nlohmann::json Dram::report(const ReportContext& ctx) const {
+    using R = ReportContext;
+    return {{"bytes", bytes},
+            {"gbps", ctx.gbps(bytes)},
+            {"busy_cycles", busy_cycles},
+            {"row_hits", row_hits},
+            {"row_empty", row_empty},
+            {"row_conflicts", row_conflicts},
+            {"row_hit_rate", R::ratio(double(row_hits), double(reads))},
+            {"utilization",
+             R::ratio(double(busy_cycles), double(ctx.total_cycles) * params_.channels)}};
 }
 
 namespace {

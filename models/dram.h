@@ -34,12 +34,13 @@ struct DramParams {
     Cycle t_ccd_cycles = 4;  // column command to column command in one bank (reads pipeline)
 };
 
-// A DRAM model: a memory level that counts what the report reads (reads, bytes, row hits, empty
-// banks, conflicts, busy and queue cycles, under those names) and may run requests out of time
-// order but never behind the time floor it follows.
+// A DRAM model: a memory level that owns its counters and its report section, and may run
+// requests out of time order but never behind the time floor it follows.
 class DramModel : public MemoryPort {
   public:
-    virtual void register_stats(StatsRegistry& reg, const std::string& block) = 0;
+    virtual void register_stats(StatsRegistry& reg) = 0;  // under its module's name
+    // stats.json "bandwidth.dram": bytes and GB/s, row-buffer figures, utilisation.
+    virtual nlohmann::json report(const ReportContext& ctx) const = 0;
     virtual void set_series(TimeSeries* bytes) = 0;  // bytes moved per window
     virtual void follow(const TimeFloor* floor) = 0;
 };
@@ -57,7 +58,8 @@ class Dram final : public sc_core::sc_module, public DramModel {
     Dram(sc_core::sc_module_name name, const DramParams& params);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
-    void register_stats(StatsRegistry& reg, const std::string& block) override;
+    void register_stats(StatsRegistry& reg) override;
+    nlohmann::json report(const ReportContext& ctx) const override;
     void set_series(TimeSeries* bytes) override { bytes_series_ = bytes; }
     void follow(const TimeFloor* floor) override {
         for (auto& bus : buses_) bus.follow(floor);

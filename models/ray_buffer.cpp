@@ -121,7 +121,8 @@ void RayBuffer::release(uint32_t handle) {
     }
 }
 
-void RayBuffer::register_stats(StatsRegistry& reg, const std::string& block) {
+void RayBuffer::register_stats(StatsRegistry& reg) {
+    const std::string block = name();
     reg.add(block, "reads", &reads, "ray records read by cores");
     reg.add(block, "writes", &writes, "ray records written (admissions and treelet crossings)");
     reg.add(block, "port_wait_cycles", &port_wait_cycles, "cycles accesses waited for a port");
@@ -132,6 +133,28 @@ void RayBuffer::register_stats(StatsRegistry& reg, const std::string& block) {
     reg.add(block, "batches", &batches, "treelet batches handed to cores");
     reg.add(block, "batch_rays", &batch_rays, "rays handed out in batches");
     reg.add(block, "crossings", &crossings, "rays queued again for another treelet");
+}
+
+nlohmann::json RayBuffer::report(const ReportContext& ctx, uint64_t treelet_loads,
+                                 uint64_t treelet_load_bytes) const {
+    using R = ReportContext;
+    const uint64_t capacity = params_.capacity_rays, record = params_.ray_bytes;
+    const uint64_t moved = (reads + writes) * record;
+    return {{"capacity_rays", capacity},
+            {"size_bytes", capacity * record},
+            {"reads", reads},
+            {"writes", writes},
+            {"bytes", moved},
+            {"gbps", ctx.gbps(moved)},
+            {"peak_rays", peak_rays},
+            {"admission_blocked", admission_blocked},
+            {"port_wait_cycles", port_wait_cycles},
+            {"batches", batches},
+            {"rays_per_batch", R::ratio(double(batch_rays), double(batches))},
+            {"crossings", crossings},
+            {"crossings_per_ray", R::ratio(double(crossings), double(ctx.rays))},
+            {"treelet_loads", treelet_loads},
+            {"treelet_load_bytes", treelet_load_bytes}};
 }
 
 }  // namespace rtsim

@@ -46,7 +46,11 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
   public:
     RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params,
               std::vector<TreeletSpan> treelets, RayWorkSource* source);
-    void register_stats(StatsRegistry& reg, const std::string& block);
+    void register_stats(StatsRegistry& reg);  // under this module's name
+    // stats.json "ray_buffer": its size, traffic, batches and crossings, and the treelets the
+    // cores loaded for its batches.
+    nlohmann::json report(const ReportContext& ctx, uint64_t treelet_loads,
+                          uint64_t treelet_load_bytes) const;
     const RayBufferParams& params() const { return params_; }
     const TreeletSpan& span(uint32_t treelet) const { return treelets_[treelet]; }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,20 @@ class TimeSeries {
   private:
     uint64_t window_;
     std::vector<uint64_t> buckets_;
+};
+
+// What a block's report section needs of the run beyond its own counters (gem5-style derived
+// figures, computed at dump time so that counting stays one increment).
+struct ReportContext {
+    uint64_t total_cycles = 0;
+    double clock_ghz = 1.0;
+    uint64_t rays = 0;  // rays simulated
+    double seconds() const { return double(total_cycles) / (clock_ghz * 1e9); }
+    double gbps(uint64_t bytes) const {
+        return seconds() > 0 ? double(bytes) / seconds() / 1e9 : 0.0;
+    }
+    // a / b, 0 when b is 0 (a rate of nothing).
+    static double ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 };
 
 class StatsRegistry {

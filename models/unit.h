@@ -7,6 +7,7 @@
 #include <array>
 #include <string>
 #include <systemc>
+#include <vector>
 
 #include "models/calendar.h"
 #include "models/stats.h"
@@ -36,7 +37,13 @@ class PipelinedUnit : public sc_core::sc_module {
     Cycle issue(Cycle ready, int items = 1, int rays = 1);
     // No operation will come ready before `floor` (its users' earliest cycle).
     void follow(const TimeFloor* floor) { calendar_.follow(floor); }
-    void register_stats(StatsRegistry& reg, const std::string& block);
+    // Registers the counters under this module's name (box_unit[0].ops).
+    void register_stats(StatsRegistry& reg);
+    // stats.json "units" section: counters and utilisation of this unit's pipelines.
+    nlohmann::json report(const ReportContext& ctx) const;
+    // The same over several units (the "_total" entry).
+    static nlohmann::json report_total(const std::vector<const PipelinedUnit*>& units,
+                                       const ReportContext& ctx);
     void set_series(TimeSeries* busy_cycles) { busy_series_ = busy_cycles; }
     const UnitParams& params() const { return params_; }
 

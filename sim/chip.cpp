@@ -8,6 +8,12 @@
 namespace rtsim {
 namespace {
 
+// A block's instance name: its kind and index, as in stats (l1[3], l1[3].misses) and SystemC's
+// module hierarchy alike.
+std::string indexed(const char* kind, int i) {
+    return fmt::format("{}[{}]", kind, i);
+}
+
 // Every fetch lies in the layout's node records or triangles: the caches' tags need only reach
 // the end of them.
 uint64_t address_limit(const BvhLayout& layout) {
@@ -39,17 +45,17 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
                         &series.box_busy, &series.triangle_busy, &series.rays})
             *p = std::make_unique<TimeSeries>(P.sim.window_cycles);
     dram = DramModelRegistry::at(P.dram_model).make("dram", P.dram);
-    dram->register_stats(stats, "dram");
+    dram->register_stats(stats);
     dram->set_series(series.dram_bytes.get());
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
     l2 = std::make_unique<Cache>("l2", l2p, dram.get(), kLevelL2);
-    l2->register_stats(stats, "l2");
+    l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
     if (P.crossbar_bytes_per_cycle > 0) {
         crossbar = std::make_unique<Crossbar>("crossbar", P.crossbar_bytes_per_cycle, l2.get());
-        crossbar->register_stats(stats, "crossbar");
+        crossbar->register_stats(stats);
         below_l1 = crossbar.get();
     }
 
@@ -61,7 +67,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     if (mode.ray_buffer) {
         ray_buffer =
             std::make_unique<RayBuffer>("ray_buffer", P.ray_buffer, treelet_spans(layout), source);
-        ray_buffer->register_stats(stats, "ray_buffer");
+        ray_buffer->register_stats(stats);
     }
     CacheParams l1p = P.l1;
     l1p.address_limit_bytes = address_limit(layout);
@@ -79,26 +85,23 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     const int tri_share = P.triangle_unit_shared_by;
     cp.units_shared = box_share > 1 || tri_share > 1;
     for (int u = 0; u < (n + box_share - 1) / box_share; ++u) {
-        box_units.push_back(
-            std::make_unique<PipelinedUnit>(("box_unit_" + std::to_string(u)).c_str(), bp));
-        box_units.back()->register_stats(stats, fmt::format("box_unit[{}]", u));
+        box_units.push_back(std::make_unique<PipelinedUnit>(indexed("box_unit", u).c_str(), bp));
+        box_units.back()->register_stats(stats);
         box_units.back()->set_series(series.box_busy.get());
     }
     for (int u = 0; u < (n + tri_share - 1) / tri_share; ++u) {
         triangle_units.push_back(
-            std::make_unique<PipelinedUnit>(("triangle_unit_" + std::to_string(u)).c_str(), tp));
-        triangle_units.back()->register_stats(stats, fmt::format("triangle_unit[{}]", u));
+            std::make_unique<PipelinedUnit>(indexed("triangle_unit", u).c_str(), tp));
+        triangle_units.back()->register_stats(stats);
         triangle_units.back()->set_series(series.triangle_busy.get());
     }
     for (int i = 0; i < n; ++i) {
-        const std::string idx = fmt::format("[{}]", i);
-        l1.push_back(std::make_unique<Cache>(("l1_" + std::to_string(i)).c_str(), l1p, below_l1));
-        l1.back()->register_stats(stats, "l1" + idx);
+        l1.push_back(std::make_unique<Cache>(indexed("l1", i).c_str(), l1p, below_l1));
+        l1.back()->register_stats(stats);
         l1.back()->set_series(series.l1_fill_bytes.get());
         if (P.l1_split) {
-            l1_tri.push_back(
-                std::make_unique<Cache>(("l1_tri_" + std::to_string(i)).c_str(), l1p, below_l1));
-            l1_tri.back()->register_stats(stats, "l1_tri" + idx);
+            l1_tri.push_back(std::make_unique<Cache>(indexed("l1_tri", i).c_str(), l1p, below_l1));
+            l1_tri.back()->register_stats(stats);
             l1_tri.back()->set_series(series.l1_fill_bytes.get());
         }
         MemoryPort* memory =
@@ -110,17 +113,17 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
             tp.hit_latency_cycles = P.traversal.treelet_cache_latency_cycles;
             tp.mshrs = 0;  // its misses are bounded by the L1's MSHRs
             tp.banks = 1;
-            treelet_caches.push_back(std::make_unique<Cache>(
-                ("treelet_cache_" + std::to_string(i)).c_str(), tp, l1.back().get()));
-            treelet_caches.back()->register_stats(stats, "treelet_cache" + idx);
+            treelet_caches.push_back(
+                std::make_unique<Cache>(indexed("treelet_cache", i).c_str(), tp, l1.back().get()));
+            treelet_caches.back()->register_stats(stats);
             memory = treelet_caches.back().get();
         }
-        cores.push_back(std::make_unique<Core>(("core_" + std::to_string(i)).c_str(), cp, memory,
+        cores.push_back(std::make_unique<Core>(indexed("core", i).c_str(), cp, memory,
                                                box_units[size_t(i / box_share)].get(),
                                                triangle_units[size_t(i / tri_share)].get(), source,
                                                l1_tri.empty() ? nullptr : l1_tri.back().get()));
         cores.back()->set_ray_buffer(ray_buffer.get());
-        cores.back()->register_stats(stats, "core" + idx);
+        cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
         // A core's private blocks forget what lies behind its own earliest slot.
         const TimeFloor* own = cores.back()->floor();
@@ -152,6 +155,64 @@ Cycle Chip::total_cycles() const {
     Cycle c = 0;
     for (const auto& core : cores) c = std::max<Cycle>(c, core->last_cycle);
     return c;
+}
+
+namespace {
+template <typename T>
+std::vector<const T*> views(const std::vector<std::unique_ptr<T>>& blocks) {
+    std::vector<const T*> out;
+    for (const auto& b : blocks) out.push_back(b.get());
+    return out;
+}
+}  // namespace
+
+nlohmann::json Chip::report(const ReportContext& ctx) const {
+    using nlohmann::json;
+    json out;
+    json units = json::object();
+    for (const auto* group : {&box_units, &triangle_units}) {
+        for (const auto& u : *group) units[u->name()] = u->report(ctx);
+        const std::string kind = group == &box_units ? "box_unit" : "triangle_unit";
+        units[kind + "_total"] = PipelinedUnit::report_total(views(*group), ctx);
+    }
+    out["units"] = units;
+
+    json caches = json::object();
+    std::vector<const Cache*> all_l1 = views(l1);  // unified, or node and triangle caches
+    for (const auto& c : l1_tri) all_l1.push_back(c.get());
+    for (const Cache* c : all_l1) caches[c->name()] = c->report(ctx);
+    caches["l1_total"] = Cache::report_total(all_l1, ctx);
+    if (!treelet_caches.empty()) {
+        for (const auto& c : treelet_caches) caches[c->name()] = c->report(ctx);
+        caches["treelet_cache_total"] = Cache::report_total(views(treelet_caches), ctx);
+    }
+    caches[l2->name()] = l2->report(ctx);
+    out["caches"] = caches;
+
+    // Bytes crossing each boundary: core<-L1 (requested), L1<-L2 (L1 fills), L2<-DRAM.
+    const uint64_t l1_bytes = Cache::bytes_requested_of(all_l1);
+    const uint64_t l2_bytes = Cache::fill_bytes_of(all_l1);
+    out["bandwidth"] = {{"l1", {{"bytes", l1_bytes}, {"gbps", ctx.gbps(l1_bytes)}}},
+                        {"l2", {{"bytes", l2_bytes}, {"gbps", ctx.gbps(l2_bytes)}}},
+                        {"dram", dram->report(ctx)}};
+    if (crossbar) out["bandwidth"]["crossbar"] = crossbar->report(ctx);
+
+    // Stall attribution: every ray-slot cycle charged to one cause, per core and in total.
+    json stalls = json::object();
+    for (const auto& c : cores) stalls[c->name()] = c->stall_report(ctx);
+    stalls["total"] = Core::stall_report_total(views(cores), ctx);
+    out["stalls"] = stalls;
+
+    if (ray_buffer) {
+        uint64_t loads = 0, load_bytes = 0;
+        for (const auto& c : cores) {
+            loads += c->treelet_loads;
+            load_bytes += c->treelet_load_bytes;
+        }
+        out["ray_buffer"] = ray_buffer->report(ctx, loads, load_bytes);
+    }
+    if (cores[0]->params().packet_lanes > 0) out["packets"] = Core::packet_report(views(cores));
+    return out;
 }
 
 }  // namespace rtsim

@@ -24,6 +24,9 @@ class Chip {
     Chip(const Params& params, RayWorkSource* source, const BvhLayout& layout);
     // Cycle the last ray finished (valid after the simulation ran).
     Cycle total_cycles() const;
+    // stats.json's sections "units", "caches", "bandwidth", "stalls", and "ray_buffer" and
+    // "packets" when those blocks ran, each block's part from the block itself.
+    nlohmann::json report(const ReportContext& ctx) const;
 
     StatsRegistry stats;
     std::unique_ptr<DramModel> dram;

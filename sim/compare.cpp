@@ -9,6 +9,7 @@
 #include <map>
 
 #include "sim/config.h"
+#include "sim/figures.h"
 #include "sim/stats_report.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
@@ -20,35 +21,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
-
-// The number at `pointer` (a JSON pointer such as /bandwidth/dram/bytes), or NaN.
-double number_at(const json& j, const char* pointer) {
-    const json::json_pointer p(pointer);
-    if (!j.contains(p)) return kNone;
-    const json& v = j.at(p);
-    return v.is_number() ? v.get<double>() : kNone;
-}
-
-// `field` averaged over the sections of `group` whose name starts with `prefix` ("box_unit[").
-double mean_over(const json& j, const char* group, const std::string& prefix, const char* field) {
-    if (!j.contains(group) || !j[group].is_object()) return kNone;
-    double sum = 0;
-    int n = 0;
-    for (const auto& [name, section] : j[group].items())
-        if (name.rfind(prefix, 0) == 0 && section.is_object() && section.contains(field) &&
-            section[field].is_number()) {
-            sum += section[field].get<double>();
-            ++n;
-        }
-    return n ? sum / n : kNone;
-}
-
-double per_ray(const json& j, const char* pointer) {
-    const double rays = number_at(j, "/rays/total");
-    return rays > 0 ? number_at(j, pointer) / rays : kNone;
-}
-
 // "a.b.c" -> value text, for every leaf of a config object.
 void flatten(const json& j, const std::string& prefix, std::map<std::string, std::string>& out) {
     if (j.is_object()) {
@@ -58,77 +30,7 @@ void flatten(const json& j, const std::string& prefix, std::map<std::string, std
     }
 }
 
-struct Metric {
-    std::string name;
-    Comparison::Relative relative;
-    bool percent;
-    std::function<double(const json&)> value;
-};
-
-std::vector<Metric> metrics() {
-    using R = Comparison::Relative;
-    auto at = [](const char* p) { return [p](const json& j) { return number_at(j, p); }; };
-    auto share = [](const std::string& cause) {
-        const std::string p = "/stalls/total/share/" + cause;
-        return [p](const json& j) { return number_at(j, p.c_str()); };
-    };
-    std::vector<Metric> list = {
-        {"cycles", R::Ratio, false, at("/total_cycles")},
-        {"simulated Mrays/s", R::Ratio, false,
-         [](const json& j) { return number_at(j, "/rays_per_second") / 1e6; }},
-        {"rays", R::Ratio, false, at("/rays/total")},
-        {"steps per ray", R::Ratio, false, [](const json& j) { return per_ray(j, "/rays/steps"); }},
-        {"L1 hit rate", R::Points, true, at("/caches/l1_total/hit_rate")},
-        {"L2 hit rate", R::Points, true, at("/caches/l2/hit_rate")},
-        {"L2->L1 bytes per ray", R::Ratio, false,
-         [](const json& j) { return per_ray(j, "/bandwidth/l2/bytes"); }},
-        {"DRAM bytes per ray", R::Ratio, false,
-         [](const json& j) { return per_ray(j, "/bandwidth/dram/bytes"); }},
-        {"DRAM GB/s", R::Ratio, false, at("/bandwidth/dram/gbps")},
-        {"DRAM utilisation", R::Points, true, at("/bandwidth/dram/utilization")},
-        {"DRAM row hit rate", R::Points, true, at("/bandwidth/dram/row_hit_rate")},
-        {"crossbar utilisation", R::Points, true, at("/bandwidth/crossbar/utilization")},
-        {"box unit utilisation", R::Points, true,
-         [](const json& j) { return mean_over(j, "units", "box_unit[", "utilization"); }},
-        {"triangle unit utilisation", R::Points, true,
-         [](const json& j) { return mean_over(j, "units", "triangle_unit[", "utilization"); }},
-    };
-    for (const std::string& cause : stall_causes())
-        list.push_back({"stall: " + stall_cause_label(cause), R::Points, true, share(cause)});
-    list.insert(
-        list.end(),
-        {
-            // Treelet and packet modes (absent from other runs' stats).
-            {"ray buffer bytes per ray", R::Ratio, false,
-             [](const json& j) { return per_ray(j, "/ray_buffer/bytes"); }},
-            {"treelet crossings per ray", R::Ratio, false, at("/ray_buffer/crossings_per_ray")},
-            {"rays per treelet batch", R::Ratio, false, at("/ray_buffer/rays_per_batch")},
-            {"packet lane utilisation", R::Points, true, at("/packets/lane_utilization")},
-            {"host: simulated Mrays/host s", R::Ratio, false,
-             [](const json& j) {
-                 return number_at(j, "/host/simulated_rays_per_host_second") / 1e6;
-             }},
-        });
-    return list;
-}
-
 }  // namespace
-
-std::string format_figure(double v, bool percent) {
-    if (std::isnan(v)) return "-";
-    if (percent) return fmt::format("{:.1f}%", 100 * v);
-    const double a = std::fabs(v);
-    if (a < 1000) return fmt::format("{:#.4g}", v);
-    std::string s = fmt::format("{:.0f}", a);  // counts and large figures: digits grouped
-    for (int i = int(s.size()) - 3; i > 0; i -= 3) s.insert(size_t(i), ",");
-    return v < 0 ? "-" + s : s;
-}
-
-std::vector<Figure> key_figures(const json& stats) {
-    std::vector<Figure> out;
-    for (const Metric& m : metrics()) out.push_back({m.name, m.value(stats), m.percent});
-    return out;
-}
 
 namespace {
 
@@ -187,7 +89,7 @@ Comparison compare_runs(std::vector<ComparedRun> runs) {
         }
         if (differs) c.differences.emplace_back(key, std::move(values));
     }
-    for (const Metric& m : metrics()) {
+    for (const FigureDef& m : figure_list()) {
         Comparison::Row row{m.name, m.relative, m.percent, {}};
         bool any = false;
         for (const auto& run : c.runs) {

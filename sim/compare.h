@@ -6,6 +6,8 @@
 #include <string>
 #include <vector>
 
+#include "sim/figures.h"
+
 namespace rtsim {
 
 struct CompareOptions {
@@ -24,7 +26,7 @@ struct ComparedRun {
 ComparedRun load_compared_run(const std::string& path, const std::string& label);
 
 struct Comparison {
-    enum class Relative { Ratio, Points };  // run / first, or run - first in percentage points
+    using Relative = FigureDef::Relative;
     struct Row {
         std::string name;
         Relative relative = Relative::Ratio;
@@ -39,18 +41,6 @@ struct Comparison {
 
 Comparison compare_runs(std::vector<ComparedRun> runs);
 
-// The figures compare shows, read from one stats.json (NaN where the run has none), and how
-// one is printed.
-struct Figure {
-    std::string name;
-    double value;
-    bool percent;  // a fraction, shown as a percentage
-};
-std::vector<Figure> key_figures(const nlohmann::json& stats);
-std::string format_figure(double value, bool percent);
-// Rows of cells as aligned text columns: right-aligned, but the first column left-aligned when
-// `first_left`.
-std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left);
 // Rows of cells as aligned text columns: numbers right-aligned, the first column left-aligned
 // when `first_left`.
 std::string format_table(const std::vector<std::vector<std::string>>& rows, bool first_left);

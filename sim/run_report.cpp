@@ -19,11 +19,15 @@ double peak_rss_mib() {
 namespace {
 
 // Per-window figures for plots: bandwidth in GB/s at each level and unit utilisation.
-json time_series_report(const Chip& chip, const ReportInputs& ri) {
+json time_series_report(const Chip& chip, const ReportContext& ctx) {
     const auto& S = chip.series;
     const uint64_t window = S.rays->window_cycles();
-    const size_t n = size_t((ri.total_cycles + window - 1) / window);
-    const double window_seconds = double(window) / (ri.clock_ghz * 1e9);
+    const size_t n = size_t((ctx.total_cycles + window - 1) / window);
+    const double window_seconds = double(window) / (ctx.clock_ghz * 1e9);
+    // Pipelines of all units of a kind (each unit has the same count).
+    const double box_pipelines = double(chip.box_units.size()) * chip.box_units[0]->params().count;
+    const double triangle_pipelines =
+        double(chip.triangle_units.size()) * chip.triangle_units[0]->params().count;
     auto values = [&](const TimeSeries& t, double scale) {
         json a = json::array();
         for (size_t w = 0; w < n; ++w)
@@ -31,18 +35,15 @@ json time_series_report(const Chip& chip, const ReportInputs& ri) {
         return a;
     };
     const double gbps = 1.0 / window_seconds / 1e9;
-    return {
-        {"window_cycles", window},
-        {"windows", n},
-        {"dram_gbps", values(*S.dram_bytes, gbps)},
-        {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
-        {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
-        {"box_unit_utilization",
-         values(*S.box_busy, 1.0 / (double(window) * ri.box_pipelines_per_core * ri.box_units))},
-        {"triangle_unit_utilization",
-         values(*S.triangle_busy,
-                1.0 / (double(window) * ri.triangle_pipelines_per_core * ri.triangle_units))},
-        {"rays", values(*S.rays, 1.0)}};
+    return {{"window_cycles", window},
+            {"windows", n},
+            {"dram_gbps", values(*S.dram_bytes, gbps)},
+            {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
+            {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
+            {"box_unit_utilization", values(*S.box_busy, 1.0 / (double(window) * box_pipelines))},
+            {"triangle_unit_utilization",
+             values(*S.triangle_busy, 1.0 / (double(window) * triangle_pipelines))},
+            {"rays", values(*S.rays, 1.0)}};
 }
 
 // stats.json's "rays": per kind the rays and hits, counting the kinds the workload asked for
@@ -65,22 +66,12 @@ json rays_section(const json& workload, const CountingSource& source) {
 
 }  // namespace
 
-ReportInputs report_inputs(const Params& P, const Chip& chip, uint64_t rays) {
-    ReportInputs ri;
-    ri.stats = &chip.stats;
-    ri.total_cycles = chip.total_cycles();
-    ri.clock_ghz = P.clock_ghz;
-    ri.cores = P.core_count;
-    ri.box_pipelines_per_core = P.box_unit.count;
-    ri.triangle_pipelines_per_core = P.triangle_unit.count;
-    ri.ray_slots_per_core = P.core.ray_slots;
-    ri.box_units = int(chip.box_units.size());
-    ri.triangle_units = int(chip.triangle_units.size());
-    ri.dram_channels = P.dram.channels;
-    ri.ray_bytes = P.ray_buffer.ray_bytes;
-    ri.ray_capacity = P.ray_buffer.capacity_rays;
-    ri.rays = rays;
-    return ri;
+ReportContext report_context(const Params& P, const Chip& chip, uint64_t rays) {
+    ReportContext ctx;
+    ctx.total_cycles = chip.total_cycles();
+    ctx.clock_ghz = P.clock_ghz;
+    ctx.rays = rays;
+    return ctx;
 }
 
 json run_report(const Config& cfg, const Chip& chip, const json& meta, const CountingSource& source,
@@ -89,8 +80,8 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
     const uint64_t total_rays = rays["total"].get<uint64_t>();
     uint64_t rays_simulated = 0;
     for (uint64_t r : source.rays_by_kind) rays_simulated += r;
-    const ReportInputs ri = report_inputs(cfg.typed, chip, rays_simulated);
-    json timing = timing_report(ri);
+    const ReportContext ctx = report_context(cfg.typed, chip, rays_simulated);
+    json timing = timing_report(chip, ctx);
     const double sim_s = timing["simulated_seconds"].get<double>();
     // Host time split: the cores' scheduler running (models, and waiting for rays:
     // functional_s), the rest is the SystemC kernel.
@@ -108,14 +99,14 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
             out["bvh"]["layout"].erase(k);
     out["rays"] = rays;
     out["total_cycles"] = timing["total_cycles"];
-    out["clock_ghz"] = ri.clock_ghz;
+    out["clock_ghz"] = ctx.clock_ghz;
     out["simulated_seconds"] = sim_s;
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
     for (const char* k : {"units", "caches", "bandwidth", "stalls", "counters"}) out[k] = timing[k];
     out["traversal_mode"] = cfg.typed.traversal.mode;
     for (const char* k : {"ray_buffer", "packets"})
         if (timing.contains(k)) out[k] = timing[k];
-    if (chip.series.rays) out["time_series"] = time_series_report(chip, ri);
+    if (chip.series.rays) out["time_series"] = time_series_report(chip, ctx);
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     const double sim_seconds = host.simulation_s;
     out["host"] = {{"run_time_s", host.run_time_s},

@@ -19,8 +19,8 @@ struct HostTimes {
     std::string trace;        // the trace replayed, if any
 };
 
-// What the timing report needs of the config and the chip.
-ReportInputs report_inputs(const Params& params, const Chip& chip, uint64_t rays);
+// What the blocks' reports need of the run.
+ReportContext report_context(const Params& params, const Chip& chip, uint64_t rays);
 // stats.json without "bound": config echo, scene, BVH and workload (`meta`), rays, cycles, the
 // blocks' sections, time series, host times.
 nlohmann::json run_report(const Config& cfg, const Chip& chip, const nlohmann::json& meta,

@@ -47,10 +47,6 @@ std::string point_name(size_t index, const std::vector<std::pair<std::string, st
     return name;
 }
 
-// The table's columns: the figures that tell designs apart at a glance.
-const char* const kTableFigures[] = {"cycles",      "simulated Mrays/s",    "L1 hit rate",
-                                     "L2 hit rate", "L2->L1 bytes per ray", "DRAM bytes per ray"};
-
 std::string fresh_sweep_dir(const std::string& stem) {
     for (int i = 0;; ++i) {
         const std::string d = fmt::format("out/sweep-{}{}", stem, i ? fmt::format("-{}", i) : "");
@@ -279,7 +275,9 @@ int sweep_command(const SweepOptions& opt) {
     json results = json::array();
     std::vector<std::vector<std::string>> table;
     std::vector<std::string> head = plan.keys;
-    head.insert(head.end(), std::begin(kTableFigures), std::end(kTableFigures));
+    // The table's columns: the figures that tell designs apart at a glance.
+    for (const FigureDef& f : figure_list())
+        if (f.sweep_table) head.push_back(f.name);
     table.push_back(head);
     std::string csv;
     for (size_t i = 0; i < plan.points.size(); ++i) {
@@ -296,9 +294,9 @@ int sweep_command(const SweepOptions& opt) {
         results.push_back(row);
         std::vector<std::string> cells;
         for (const auto& kv : p.values) cells.push_back(kv.second);
-        for (const char* name : kTableFigures)
-            for (const Figure& f : figures)
-                if (f.name == name) cells.push_back(format_figure(f.value, f.percent));
+        for (size_t k = 0; k < figures.size(); ++k)
+            if (figure_list()[k].sweep_table)
+                cells.push_back(format_figure(figures[k].value, figures[k].percent));
         table.push_back(cells);
         if (i == 0) {
             std::vector<std::string> names = plan.keys;

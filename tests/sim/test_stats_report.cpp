@@ -1,63 +1,79 @@
 #include <gtest/gtest.h>
 
+#include "../models/fixed_memory.h"
+#include "models/cache.h"
+#include "models/core.h"
+#include "models/crossbar.h"
+#include "models/dram.h"
+#include "models/unit.h"
 #include "sim/stats_report.h"
 
 using namespace rtsim;
 
-namespace {
+// Each block's report section from its own counters, against figures worked by hand: 1000
+// cycles at 2 GHz are 0.5 us.
+TEST(StatsReport, BlocksDeriveTheirFiguresFromTheirCounters) {
+    ReportContext ctx;
+    ctx.total_cycles = 1000;
+    ctx.clock_ghz = 2.0;
+    ctx.rays = 50;
+    EXPECT_DOUBLE_EQ(ctx.seconds(), 0.5e-6);
 
-struct Blocks {
-    // Counters of one core's blocks plus L2 and DRAM, as the chip registers them.
-    uint64_t box[3] = {500, 500, 0}, tri[3] = {100, 200, 0};
-    uint64_t l1[6] = {1000, 900, 100, 10, 64000, 6400};
-    uint64_t l2[6] = {100, 60, 40, 0, 6400, 2560};
-    uint64_t dram[7] = {40, 2560, 80, 0, 30, 6, 4};
-    uint64_t stalls[7] = {100, 200, 300, 400,
-                          500, 600, 0};  // one core of 3 slots: 2100 of 3000 cycles
-    StatsRegistry reg;
-    Blocks() {
-        const char* unit[] = {"ops", "busy_cycles", "queue_cycles"};
-        const char* cache[] = {"accesses",        "hits",      "misses", "merged_misses",
-                               "bytes_requested", "fill_bytes"};
-        const char* mem[] = {"reads",    "bytes",     "busy_cycles",  "queue_cycles",
-                             "row_hits", "row_empty", "row_conflicts"};
-        for (int i = 0; i < 3; ++i) reg.add("box_unit[0]", unit[i], &box[i], "");
-        for (int i = 0; i < 3; ++i) reg.add("triangle_unit[0]", unit[i], &tri[i], "");
-        for (int i = 0; i < 6; ++i) reg.add("l1[0]", cache[i], &l1[i], "");
-        for (int i = 0; i < 6; ++i) reg.add("l2", cache[i], &l2[i], "");
-        for (int i = 0; i < 7; ++i) reg.add("dram", mem[i], &dram[i], "");
-        const char* cause[] = {"issue",         "l1",        "l2", "dram", "box_unit",
-                               "triangle_unit", "ray_buffer"};
-        for (int i = 0; i < 7; ++i)
-            reg.add("core[0]", std::string("stall_") + cause[i] + "_cycles", &stalls[i], "");
-    }
-};
+    UnitParams up;
+    up.count = 1;
+    PipelinedUnit box("box_unit[0]", up);
+    box.ops = box.busy_cycles = 500;
+    up.count = 2;
+    PipelinedUnit tri("triangle_unit[0]", up);
+    tri.busy_cycles = 200;
+    EXPECT_DOUBLE_EQ(box.report(ctx)["utilization"].get<double>(), 0.5);
+    EXPECT_DOUBLE_EQ(tri.report(ctx)["utilization"].get<double>(), 0.1);  // 200 / (1000 * 2)
+    // Together: 700 busy of 3 pipelines x 1000 cycles.
+    EXPECT_DOUBLE_EQ(PipelinedUnit::report_total({&box, &tri}, ctx)["utilization"].get<double>(),
+                     700.0 / 3000.0);
 
-}  // namespace
+    test::FixedLatencyMemory mem(10);
+    Cache l1("l1[0]", CacheParams{}, &mem), l1b("l1[1]", CacheParams{}, &mem);
+    l1.accesses = 1000, l1.hits = 900, l1.misses = 100, l1.fill_bytes = 6400;
+    l1b.accesses = 1000, l1b.hits = 500, l1b.misses = 500, l1b.fill_bytes = 32000;
+    EXPECT_DOUBLE_EQ(l1.report(ctx)["hit_rate"].get<double>(), 0.9);
+    EXPECT_DOUBLE_EQ(Cache::report_total({&l1, &l1b}, ctx)["hit_rate"].get<double>(), 0.7);
+    EXPECT_EQ(Cache::fill_bytes_of({&l1, &l1b}), 38400u);
 
-TEST(StatsReport, DerivedFiguresFromCounters) {
-    Blocks b;
-    ReportInputs in;
-    in.stats = &b.reg;
-    in.total_cycles = 1000;
-    in.clock_ghz = 2.0;  // 1000 cycles = 0.5 us
-    in.cores = 1;
-    in.triangle_pipelines_per_core = 2;
-    in.ray_slots_per_core = 3;
-    const auto r = timing_report(in);
-    EXPECT_DOUBLE_EQ(r["simulated_seconds"].get<double>(), 0.5e-6);
-    EXPECT_DOUBLE_EQ(r["units"]["box_unit[0]"]["utilization"].get<double>(), 0.5);
-    EXPECT_DOUBLE_EQ(r["units"]["triangle_unit[0]"]["utilization"].get<double>(),
-                     0.1);  // 200 / (1000 * 2)
-    EXPECT_DOUBLE_EQ(r["caches"]["l1[0]"]["hit_rate"].get<double>(), 0.9);
-    EXPECT_DOUBLE_EQ(r["caches"]["l2"]["hit_rate"].get<double>(), 0.6);
-    EXPECT_EQ(r["bandwidth"]["l2"]["bytes"].get<uint64_t>(), 6400u);
-    EXPECT_DOUBLE_EQ(r["bandwidth"]["dram"]["gbps"].get<double>(), 2560 / 0.5e-6 / 1e9);
-    EXPECT_EQ(r["counters"]["l1[0].misses"].get<uint64_t>(), 100u);
-    EXPECT_DOUBLE_EQ(r["bandwidth"]["dram"]["row_hit_rate"].get<double>(), 0.75);
-    // 3 slots x 1000 cycles, 2100 charged: 900 without work.
-    EXPECT_EQ(r["stalls"]["total"]["no_work"].get<uint64_t>(), 900u);
-    EXPECT_DOUBLE_EQ(r["stalls"]["core[0]"]["share"]["dram"].get<double>(), 400.0 / 3000.0);
+    DramParams dp;
+    dp.channels = 2;
+    Dram dram("dram", dp);
+    dram.reads = 40, dram.bytes = 2560, dram.busy_cycles = 80, dram.row_hits = 30;
+    const auto d = dram.report(ctx);
+    EXPECT_DOUBLE_EQ(d["gbps"].get<double>(), 2560 / 0.5e-6 / 1e9);
+    EXPECT_DOUBLE_EQ(d["row_hit_rate"].get<double>(), 0.75);
+    EXPECT_DOUBLE_EQ(d["utilization"].get<double>(), 80.0 / 2000.0);  // two channels' buses
+
+    Crossbar xbar("crossbar", 64.0, &mem);
+    xbar.bytes = 5000, xbar.busy_cycles = 250;
+    EXPECT_DOUBLE_EQ(xbar.report(ctx)["utilization"].get<double>(), 0.25);
+}
+
+// Stall attribution: a core of 3 slots over 1000 cycles has 3000 slot cycles; what its causes
+// do not claim is no_work.
+TEST(StatsReport, StallSharesLeaveTheRestToNoWork) {
+    test::FixedLatencyMemory mem(0);
+    PipelinedUnit box("box", UnitParams{}), tri("tri", UnitParams{});
+    struct None : RayWorkSource {
+        bool next(RayWork&) override { return false; }
+    } none;
+    CoreParams cp;
+    cp.ray_slots = 3;
+    Core core("core[0]", cp, &mem, &box, &tri, &none);
+    const uint64_t charged[] = {100, 200, 300, 400, 500, 600, 0};
+    for (int k = 0; k < Core::kStallKinds; ++k) core.stall_cycles[k] = charged[k];
+    ReportContext ctx;
+    ctx.total_cycles = 1000;
+    const auto e = core.stall_report(ctx);
+    EXPECT_EQ(e["slot_cycles"].get<uint64_t>(), 3000u);
+    EXPECT_EQ(e["no_work"].get<uint64_t>(), 900u);
+    EXPECT_DOUBLE_EQ(e["share"]["dram"].get<double>(), 400.0 / 3000.0);
+    EXPECT_EQ(Core::stall_report_total({&core}, ctx), e);
 }
 
 TEST(StatsReport, RegistryRejectsDuplicatesAndSums) {
