@@ -35,22 +35,21 @@ struct LeastTwo {
 }
 }  // namespace
 
-Core::Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
-           PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
-           MemoryPort* triangle_l1)
+Core::Core(sc_core::sc_module_name name, const CoreParams& params,
+           const std::array<MemoryPort*, kStepKinds>& memory,
+           const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source)
     : sc_core::sc_module(name),
       params_(params),
       source_(source),
       slots_(static_cast<size_t>(params.ray_slots)),
       ready_(padded_to_8(slots_.size())),
-      keys_(ready_.size()),
-      mem_by_kind_{l1, triangle_l1 ? triangle_l1 : l1},
-      cache_by_kind_{dynamic_cast<Cache*>(mem_by_kind_[0]), dynamic_cast<Cache*>(mem_by_kind_[1])},
-      unit_by_kind_{box_unit, triangle_unit},
-      instructions_by_kind_{params.node_step_instructions, params.triangle_step_instructions} {
-    static_assert(
-        int(StepKind::Node) == 0 && int(StepKind::Triangle) == 1 && kTriangleUnit == kBoxUnit + 1,
-        "per-kind tables index by StepKind");
+      keys_(ready_.size()) {
+    for (int k = 0; k < kStepKinds; ++k) {
+        mem_by_kind_[k] = memory[size_t(k)];
+        cache_by_kind_[k] = dynamic_cast<Cache*>(memory[size_t(k)]);
+        unit_by_kind_[k] = units[size_t(k)];
+        instructions_by_kind_[k] = params.step_instructions[k];
+    }
     // Slots beyond ray_slots pad the keys to the eights the pick unrolls; they never run.
     for (size_t i = 0; i < ready_.size(); ++i) set_ready(i, i < slots_.size() ? 0 : kNeverCycle);
     issue_port_.per_cycle = params.issue_width;
@@ -209,14 +208,13 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             active_lanes += st.lanes;
             lane_slots += uint64_t(params_.packet_lanes);
         }
-        const int items = kind == size_t(StepKind::Node) ? st.count : 1;
-        const Cycle done = unit_by_kind_[kind]->issue(fetched, items, lanes);
+        const Cycle done = unit_by_kind_[kind]->issue(fetched, st.count, lanes);
         set_ready(i, done);
         stall_cycles[kIssue] += issued - t;
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
-        stall_cycles[kBoxUnit + kind] += done - fetched;
+        stall_cycles[kUnitStall + kind] += done - fetched;
         // (No host prefetch of the L1 sets the slot's next step will look up: it comes dozens
         // of steps later, by when the prefetched lines were mostly gone again; dropping it made
         // replays 1-5% faster on an AMD Zen 5 host.)
@@ -225,9 +223,10 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
 }
 
 const char* Core::stall_name(int s) {
-    static const char* const names[kStallKinds] = {
-        "issue", "l1", "l2", "dram", "box_unit", "triangle_unit", "ray_buffer"};
-    return names[s];
+    static const char* const names[kUnitStall] = {"issue", "l1", "l2", "dram"};
+    if (s < kUnitStall) return names[s];
+    if (s < kRayBuffer) return step_kind_info(s - kUnitStall).unit;
+    return "ray_buffer";
 }
 
 void Core::register_stats(StatsRegistry& reg) {

@@ -38,10 +38,11 @@ struct CoreParams {
     int ray_slots = 8;
     int issue_width = 1;             // instructions the core issues per cycle, over all slots
     Cycle issue_latency_cycles = 1;  // pipeline depth from the last issued instruction to the fetch
-    int node_step_instructions = 1;  // control instructions per node step (traversal)
-    int triangle_step_instructions = 1;  // control instructions per triangle step (intersection)
-    int ray_setup_instructions = 1;      // instructions to start a ray
-    bool units_shared = false;           // units serve several cores: every step synchronises
+    // Per StepKind, control instructions issued before the step's fetch (a node step's traversal
+    // control, a triangle step's intersection control).
+    int step_instructions[kStepKinds] = {1, 1};
+    int ray_setup_instructions = 1;  // instructions to start a ray
+    bool units_shared = false;       // units serve several cores: every step synchronises
     // Packet mode: a work item is a packet and its box and triangle operations occupy this
     // many SIMD lanes whether or not every lane's ray takes part (lockstep). 0: single rays.
     int packet_lanes = 0;
@@ -91,10 +92,11 @@ class RayBuffer;
 
 class Core : public sc_core::sc_module {
   public:
-    // triangle_l1: a separate L1 for triangle fetches (a split L1); nullptr: `l1` serves both.
-    Core(sc_core::sc_module_name name, const CoreParams& params, MemoryPort* l1,
-         PipelinedUnit* box_unit, PipelinedUnit* triangle_unit, RayWorkSource* source,
-         MemoryPort* triangle_l1 = nullptr);
+    // Per StepKind, the memory its fetches go to (the same L1 for all, or a split L1's node and
+    // triangle caches) and the unit that tests it.
+    Core(sc_core::sc_module_name name, const CoreParams& params,
+         const std::array<MemoryPort*, kStepKinds>& memory,
+         const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source);
     void register_stats(StatsRegistry& reg);  // under this module's name (core[0].rays)
     const CoreParams& params() const { return params_; }
     // stats.json "stalls" entry: ray-slot cycles per cause, the cycles without a ray (no_work:
@@ -126,7 +128,16 @@ class Core : public sc_core::sc_module {
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
     // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
-    enum Stall { kIssue, kL1, kL2, kDram, kBoxUnit, kTriangleUnit, kRayBuffer, kStallKinds };
+    // The units' causes follow kUnitStall in StepKind order (box_unit, triangle_unit).
+    enum Stall {
+        kIssue,
+        kL1,
+        kL2,
+        kDram,
+        kUnitStall,
+        kRayBuffer = kUnitStall + kStepKinds,
+        kStallKinds
+    };
     static const char* stall_name(int s);
     uint64_t stall_cycles[kStallKinds] = {};
 
@@ -165,12 +176,12 @@ class Core : public sc_core::sc_module {
     void set_ready(size_t slot, Cycle c) { ready_[slot] = keys_.key(c, slot); }
     // Per StepKind: the L1 its fetches go to (nodes: the L1; triangles: the triangle L1 of a
     // split L1, else the same L1).
-    MemoryPort* mem_by_kind_[2];
+    MemoryPort* mem_by_kind_[kStepKinds];
     // ...and the same L1 when it is a Cache (not ideal memory): its hit path is called
     // directly, without a virtual call, on every step.
-    Cache* cache_by_kind_[2];
-    PipelinedUnit* unit_by_kind_[2];  // per StepKind: the unit its test runs on
-    int instructions_by_kind_[2];     // per StepKind: control instructions per step
+    Cache* cache_by_kind_[kStepKinds];
+    PipelinedUnit* unit_by_kind_[kStepKinds];  // per StepKind: the unit its test runs on
+    int instructions_by_kind_[kStepKinds];     // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
     std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
     uint32_t batch_treelet_ = 0;

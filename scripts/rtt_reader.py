@@ -14,6 +14,7 @@ import subprocess
 import sys
 import zlib
 
+STEP_KINDS = ["node", "triangle"]  # by the step kind number (workloads/step.h)
 KINDS = ["primary", "shadow", "ao", "diffuse", "reflection"]
 
 
@@ -57,7 +58,7 @@ class Trace:
         if len(d) < 40 or d[:8] != b"RTSIMTRC":
             raise TraceError(f"{path}: not an RTSim trace")
         self.version, flags, meta_len = struct.unpack_from("<III", d, 8)
-        if self.version != 1 or flags != 0:
+        if self.version not in (1, 2) or flags != 0:
             raise TraceError(f"{path}: unsupported version {self.version} or flags {flags}")
         meta = d[20:20 + meta_len]
         (crc,) = struct.unpack_from("<I", d, 20 + meta_len)
@@ -94,14 +95,23 @@ class Trace:
             kind = raw[pos]
             pos += 1
             count, pos = read_varint(raw, pos)
-            prev = [0, 0]
+            prev = [0] * len(STEP_KINDS)
             steps = []
             for _ in range(count):
                 b = raw[pos]
                 pos += 1
+                if self.version == 1:  # bit 0 the kind, bits 1-7 the count
+                    sk, n = b & 1, b >> 1
+                else:  # low 4 bits the kind, high 4 the count (15: plus a varint)
+                    sk, n = b & 15, b >> 4
+                    if n == 15:
+                        extra, pos = read_varint(raw, pos)
+                        n += extra
+                    if sk >= len(STEP_KINDS):
+                        raise TraceError(f"chunk {k}: unknown step kind {sk}")
                 v, pos = read_varint(raw, pos)
-                prev[b & 1] += unzigzag(v)
-                steps.append(("node" if b & 1 == 0 else "triangle", b >> 1, prev[b & 1]))
+                prev[sk] += unzigzag(v)
+                steps.append((STEP_KINDS[sk], n, prev[sk]))
             prim, pos = read_varint(raw, pos)
             t = None
             if prim:

@@ -41,8 +41,8 @@ std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
 
 Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     if (P.sim.window_cycles > 0)
-        for (auto* p : {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes,
-                        &series.box_busy, &series.triangle_busy, &series.rays})
+        for (auto* p :
+             {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes, &series.rays})
             *p = std::make_unique<TimeSeries>(P.sim.window_cycles);
     dram = DramModelRegistry::at(P.dram_model).make("dram", P.dram);
     dram->register_stats(stats);
@@ -74,26 +74,24 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     // A core's L1 lookups follow its one in-order issue port, except a treelet load (at the
     // cycle a batch starts, which may precede a step's lookup issued just before).
     l1p.in_order_requests = mode.l1_in_order;
-    UnitParams bp = P.box_unit;
-    UnitParams tp = P.triangle_unit;
-    tp.width = 1;  // one triangle per operation
-    bp.unlimited = tp.unlimited = P.sim.ideal_units;
     if (P.sim.ideal_memory) ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
     const int n = P.core_count;
-    // Units may serve several cores (shared_by): core i uses unit i / shared_by.
-    const int box_share = P.box_unit_shared_by;
-    const int tri_share = P.triangle_unit_shared_by;
-    cp.units_shared = box_share > 1 || tri_share > 1;
-    for (int u = 0; u < (n + box_share - 1) / box_share; ++u) {
-        box_units.push_back(std::make_unique<PipelinedUnit>(indexed("box_unit", u).c_str(), bp));
-        box_units.back()->register_stats(stats);
-        box_units.back()->set_series(series.box_busy.get());
-    }
-    for (int u = 0; u < (n + tri_share - 1) / tri_share; ++u) {
-        triangle_units.push_back(
-            std::make_unique<PipelinedUnit>(indexed("triangle_unit", u).c_str(), tp));
-        triangle_units.back()->register_stats(stats);
-        triangle_units.back()->set_series(series.triangle_busy.get());
+    // Per step kind, its unit kind's units; they may serve several cores (shared_by): core i
+    // uses unit i / shared_by.
+    cp.units_shared = false;
+    for (int k = 0; k < kStepKinds; ++k) {
+        UnitParams up = P.unit[size_t(k)];
+        up.unlimited = P.sim.ideal_units;
+        const int share = P.unit_shared_by[size_t(k)];
+        cp.units_shared = cp.units_shared || share > 1;
+        series.unit_busy[size_t(k)] =
+            P.sim.window_cycles > 0 ? std::make_unique<TimeSeries>(P.sim.window_cycles) : nullptr;
+        for (int u = 0; u < (n + share - 1) / share; ++u) {
+            auto& unit = units[size_t(k)].emplace_back(
+                std::make_unique<PipelinedUnit>(indexed(step_kind_info(k).unit, u).c_str(), up));
+            unit->register_stats(stats);
+            unit->set_series(series.unit_busy[size_t(k)].get());
+        }
     }
     for (int i = 0; i < n; ++i) {
         l1.push_back(std::make_unique<Cache>(indexed("l1", i).c_str(), l1p, below_l1));
@@ -118,10 +116,15 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
             treelet_caches.back()->register_stats(stats);
             memory = treelet_caches.back().get();
         }
-        cores.push_back(std::make_unique<Core>(indexed("core", i).c_str(), cp, memory,
-                                               box_units[size_t(i / box_share)].get(),
-                                               triangle_units[size_t(i / tri_share)].get(), source,
-                                               l1_tri.empty() ? nullptr : l1_tri.back().get()));
+        // Triangle fetches go to the split L1's triangle cache when there is one.
+        std::array<MemoryPort*, kStepKinds> memories;
+        memories.fill(memory);
+        if (!l1_tri.empty()) memories[size_t(StepKind::Triangle)] = l1_tri.back().get();
+        std::array<PipelinedUnit*, kStepKinds> core_units;
+        for (int k = 0; k < kStepKinds; ++k)
+            core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
+        cores.push_back(
+            std::make_unique<Core>(indexed("core", i).c_str(), cp, memories, core_units, source));
         cores.back()->set_ray_buffer(ray_buffer.get());
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
@@ -130,8 +133,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
         l1.back()->follow(own);
         if (!l1_tri.empty()) l1_tri.back()->follow(own);
         if (!treelet_caches.empty()) treelet_caches.back()->follow(own);
-        if (box_share == 1) box_units[size_t(i)]->follow(own);
-        if (tri_share == 1) triangle_units[size_t(i)]->follow(own);
+        for (int k = 0; k < kStepKinds; ++k)
+            if (P.unit_shared_by[size_t(k)] == 1) units[size_t(k)][size_t(i)]->follow(own);
     }
     std::vector<Core*> core_ptrs;
     for (auto& c : cores) core_ptrs.push_back(c.get());
@@ -142,10 +145,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     l2->follow(shared);
     dram->follow(shared);
     if (crossbar) crossbar->follow(shared);
-    if (box_share > 1)
-        for (auto& u : box_units) u->follow(shared);
-    if (tri_share > 1)
-        for (auto& u : triangle_units) u->follow(shared);
+    for (int k = 0; k < kStepKinds; ++k)
+        if (P.unit_shared_by[size_t(k)] > 1)
+            for (auto& u : units[size_t(k)]) u->follow(shared);
     g_calendar_late_requests = 0;  // one chip per run; counted from here
     stats.add("sim", "late_requests", &g_calendar_late_requests,
               "requests that came before their block's time floor (a model bug if not 0)");
@@ -169,13 +171,13 @@ std::vector<const T*> views(const std::vector<std::unique_ptr<T>>& blocks) {
 nlohmann::json Chip::report(const ReportContext& ctx) const {
     using nlohmann::json;
     json out;
-    json units = json::object();
-    for (const auto* group : {&box_units, &triangle_units}) {
-        for (const auto& u : *group) units[u->name()] = u->report(ctx);
-        const std::string kind = group == &box_units ? "box_unit" : "triangle_unit";
-        units[kind + "_total"] = PipelinedUnit::report_total(views(*group), ctx);
+    json unit_sections = json::object();
+    for (int k = 0; k < kStepKinds; ++k) {
+        for (const auto& u : units[size_t(k)]) unit_sections[u->name()] = u->report(ctx);
+        unit_sections[std::string(step_kind_info(k).unit) + "_total"] =
+            PipelinedUnit::report_total(views(units[size_t(k)]), ctx);
     }
-    out["units"] = units;
+    out["units"] = unit_sections;
 
     json caches = json::object();
     std::vector<const Cache*> all_l1 = views(l1);  // unified, or node and triangle caches

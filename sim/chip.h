@@ -2,6 +2,7 @@
 // cores -> L1 -> shared L2 -> DRAM, registering every block's counters in one registry.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,14 +37,15 @@ class Chip {
     std::vector<std::unique_ptr<Cache>> l1_tri;          // l1.split: per-core triangle caches
     std::vector<std::unique_ptr<Cache>> treelet_caches;  // traversal.treelet_cache_kib > 0
     std::unique_ptr<IdealMemory> ideal_memory;           // sim.ideal_memory: the cores' only memory
-    std::vector<std::unique_ptr<PipelinedUnit>> box_units, triangle_units;
+    // Per StepKind, the units of the unit kind that tests it (box_unit[i], triangle_unit[i]).
+    std::array<std::vector<std::unique_ptr<PipelinedUnit>>, kStepKinds> units;
     std::unique_ptr<RayBuffer> ray_buffer;  // traversal.mode = treelet
     std::vector<std::unique_ptr<Core>> cores;
     std::unique_ptr<CoreScheduler> scheduler;
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
     struct Series {
-        std::unique_ptr<TimeSeries> dram_bytes, l1_fill_bytes, l2_fill_bytes, box_busy,
-            triangle_busy, rays;
+        std::unique_ptr<TimeSeries> dram_bytes, l1_fill_bytes, l2_fill_bytes, rays;
+        std::array<std::unique_ptr<TimeSeries>, kStepKinds> unit_busy;  // per StepKind's units
     } series;
 };
 

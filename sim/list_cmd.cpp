@@ -42,7 +42,10 @@ int list_command(const std::string& kind, bool as_json) {
         const auto sel = selectors.count(k) ? selectors.at(k) : std::vector<std::string>{};
         std::string selected_by;
         for (const auto& s : sel) selected_by += (selected_by.empty() ? "" : ", ") + s;
-        text += fmt::format("{} (selected by {})\n", k, selected_by.empty() ? "-" : selected_by);
+        // Kinds no field selects (unit kinds) are each configured by the section of their name.
+        text += selected_by.empty()
+                    ? fmt::format("{} (each configured by the config section of its name)\n", k)
+                    : fmt::format("{} (selected by {})\n", k, selected_by);
         size_t width = 0;
         for (const auto& c : components) width = std::max(width, c.name.size());
         json list = json::array();

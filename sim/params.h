@@ -4,6 +4,7 @@
 // read twice (tests/sim/test_params.cpp checks the table against the schema).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <nlohmann/json.hpp>
@@ -40,8 +41,10 @@ struct Params {
     double clock_ghz = 0;
     int core_count = 0;
     CoreParams core;  // core.*, and traversal.treelet_prefetch
-    UnitParams box_unit, triangle_unit;
-    int box_unit_shared_by = 0, triangle_unit_shared_by = 0;
+    // Per StepKind, the unit kind that tests it (box_unit.*, triangle_unit.*) and how many cores
+    // share one (shared_by).
+    std::array<UnitParams, kStepKinds> unit;
+    std::array<int, kStepKinds> unit_shared_by{};
     CacheParams l1, l2;
     bool l1_split = false;
     double crossbar_bytes_per_cycle = 0;  // 0: no crossbar

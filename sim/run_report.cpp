@@ -24,10 +24,6 @@ json time_series_report(const Chip& chip, const ReportContext& ctx) {
     const uint64_t window = S.rays->window_cycles();
     const size_t n = size_t((ctx.total_cycles + window - 1) / window);
     const double window_seconds = double(window) / (ctx.clock_ghz * 1e9);
-    // Pipelines of all units of a kind (each unit has the same count).
-    const double box_pipelines = double(chip.box_units.size()) * chip.box_units[0]->params().count;
-    const double triangle_pipelines =
-        double(chip.triangle_units.size()) * chip.triangle_units[0]->params().count;
     auto values = [&](const TimeSeries& t, double scale) {
         json a = json::array();
         for (size_t w = 0; w < n; ++w)
@@ -35,15 +31,20 @@ json time_series_report(const Chip& chip, const ReportContext& ctx) {
         return a;
     };
     const double gbps = 1.0 / window_seconds / 1e9;
-    return {{"window_cycles", window},
-            {"windows", n},
-            {"dram_gbps", values(*S.dram_bytes, gbps)},
-            {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
-            {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
-            {"box_unit_utilization", values(*S.box_busy, 1.0 / (double(window) * box_pipelines))},
-            {"triangle_unit_utilization",
-             values(*S.triangle_busy, 1.0 / (double(window) * triangle_pipelines))},
-            {"rays", values(*S.rays, 1.0)}};
+    json out = {{"window_cycles", window},
+                {"windows", n},
+                {"dram_gbps", values(*S.dram_bytes, gbps)},
+                {"l2_to_l1_gbps", values(*S.l1_fill_bytes, gbps)},
+                {"dram_to_l2_gbps", values(*S.l2_fill_bytes, gbps)},
+                {"rays", values(*S.rays, 1.0)}};
+    for (int k = 0; k < kStepKinds; ++k) {
+        // Pipelines of all units of the kind (each unit has the same count).
+        const auto& units = chip.units[size_t(k)];
+        const double pipelines = double(units.size()) * units[0]->params().count;
+        out[std::string(step_kind_info(k).unit) + "_utilization"] =
+            values(*S.unit_busy[size_t(k)], 1.0 / (double(window) * pipelines));
+    }
+    return out;
 }
 
 // stats.json's "rays": per kind the rays and hits, counting the kinds the workload asked for

@@ -99,6 +99,7 @@ struct BvhLayout {
         uint32_t size_bytes, count;
         const uint32_t* treelets;
     };
+    // The records of a step kind (a new kind adds its own here).
     Records records(StepKind kind) const {
         return kind == StepKind::Node
                    ? Records{node_base_addr, node_size_bytes, inner_node_count,

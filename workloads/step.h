@@ -7,18 +7,41 @@
 
 namespace rtsim {
 
-// One traversal step as the hardware sees it.
+// One traversal step as the hardware sees it: what it fetches and which unit tests it. Every
+// per-kind table (a core's memories, units, instructions and stall causes, the chip's units,
+// the trace decoder's records) is sized by kStepKinds. Adding a kind (a ray-sphere or an
+// instance-transform unit) is local: a value here, its row of kStepKindInfo (below),
+// its records in the BVH layout, and its unit's schema section and binding rows.
 enum class StepKind : uint8_t {
     Node = 0,      // fetch an inner-node record, then one box test of `count` child boxes
-    Triangle = 1,  // fetch one triangle, then one ray-triangle test
+    Triangle = 1,  // fetch one triangle, then one ray-triangle test (`count` 1)
 };
+constexpr int kStepKinds = 2;
+
+struct StepKindInfo {
+    const char* name;  // "node"
+    // The unit kind that tests it, as configs and stats name it ("box_unit": the config section
+    // box_unit, the blocks box_unit[i], the stall cause box_unit).
+    const char* unit;
+};
+// Per StepKind, in order (models use it too, so it lives here, not in a library).
+inline constexpr StepKindInfo kStepKindInfo[kStepKinds] = {
+    {"node", "box_unit"},
+    {"triangle", "triangle_unit"},
+};
+constexpr const StepKindInfo& step_kind_info(StepKind kind) {
+    return kStepKindInfo[int(kind)];
+}
+constexpr const StepKindInfo& step_kind_info(int kind) {
+    return kStepKindInfo[kind];
+}
 
 struct Step {
     uint64_t addr;        // byte address in the BVH layout
     uint32_t id;          // inner-node record index, or leaf slot of the triangle
     uint16_t size_bytes;  // bytes fetched
     StepKind kind;
-    uint8_t count;         // Node: child boxes tested
+    uint8_t count;         // items the unit tests: a node's child boxes, 1 for a triangle
     uint32_t treelet = 0;  // treelet of the record (0 when the layout has no treelets)
     uint8_t lanes = 1;     // rays of a packet that take part (1 for a single ray)
 };

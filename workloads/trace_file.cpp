@@ -98,10 +98,17 @@ void TraceWriter::add(const TraceRecord& r) {
     last_ray_id_ = r.ray_id;
     raw_.push_back(char(r.kind));
     put_varint(raw_, r.steps.size());
-    int64_t prev[2] = {0, 0};  // per step kind, reset per ray: a ray starts at the root
+    // Per step kind the format can hold (16), reset per ray: a ray starts at the root.
+    int64_t prev[16] = {};
     for (const Step& s : r.steps) {
+        if (int(s.kind) >= 16)
+            throw std::logic_error("trace: a step kind above 15 does not fit the format");
+        // Version 2's step byte: the kind in the low 4 bits, the count in the high 4 (15: 15 or
+        // more, the rest in a varint that follows).
         const int k = int(s.kind);
-        raw_.push_back(char(uint8_t(k) | uint8_t(s.count << 1)));
+        const unsigned count_field = std::min<unsigned>(s.count, 15);
+        raw_.push_back(char(uint8_t(k) | uint8_t(count_field << 4)));
+        if (count_field == 15) put_varint(raw_, s.count - 15u);
         put_varint(raw_, zigzag(int64_t(s.id) - prev[k]));
         prev[k] = s.id;
     }
@@ -186,9 +193,9 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     read_at(0, head, sizeof head, "header");
     if (std::memcmp(head, kHeaderMagic, 8) != 0) fail(0, "not an RTSim trace (wrong magic)");
     version_ = get<uint32_t>(head + 8);
-    if (version_ != kTraceVersion)
-        fail(8, fmt::format("unknown trace format version {} (this build reads version {})",
-                            version_, kTraceVersion));
+    if (version_ < kOldestTraceVersion || version_ > kTraceVersion)
+        fail(8, fmt::format("unknown trace format version {} (this build reads versions {} to {})",
+                            version_, kOldestTraceVersion, kTraceVersion));
     if (get<uint32_t>(head + 12) != 0)
         fail(12, fmt::format("unknown header flags {:#x} (this build knows none)",
                              get<uint32_t>(head + 12)));
@@ -329,10 +336,12 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
         p += 1 + two;
         return (b0 & 0x7F) | ((b1 & 0x7F) << 7 & -two);
     };
-    // Per step kind (node 0, triangle 1), its records: picked by index, not by a branch on the
-    // kind, which alternates unpredictably.
-    const BvhLayout::Records kinds[2] = {layout_.records(StepKind::Node),
-                                         layout_.records(StepKind::Triangle)};
+    // Per step kind, its records: picked by index, not by a branch on the kind, which
+    // alternates unpredictably.
+    BvhLayout::Records kinds[kStepKinds];
+    for (int k = 0; k < kStepKinds; ++k) kinds[k] = layout_.records(StepKind(k));
+    // Version 1's step byte: bit 0 the kind (node or triangle), bits 1-7 a node's children.
+    const bool v1 = version_ == 1;
     const size_t rays = size_t(std::min<uint64_t>(max_rays, chunk_rays_left_));
     out.resize(rays);
     int64_t last_id = chunk_last_id_;
@@ -349,18 +358,28 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
             chunk_fail(fmt::format("ray {} claims {} steps, more than its chunk holds", r, count));
         rec.steps.resize(count);
         Step* step = rec.steps.data();
-        int64_t prev[2] = {0, 0};
+        int64_t prev[kStepKinds] = {};
         for (uint64_t i = 0; i < count; ++i) {
             const uint8_t b = byte();
-            const int sk = b & 1;
+            int sk;
+            uint64_t items;
+            if (v1) {
+                sk = b & 1;
+                items = ((b >> 1) & (sk - 1)) | sk;  // a triangle tests one
+            } else {
+                sk = b & 15;
+                items = b >> 4;
+                if (items == 15) items += varint();
+                if (sk >= kStepKinds || items > 255)
+                    chunk_fail(fmt::format("ray {} step {} has unknown kind {} or count {}", r, i,
+                                           sk, items));
+            }
             prev[sk] += unzigzag(end - p >= 2 ? short_varint() : varint());
             const BvhLayout::Records& K = kinds[sk];
             if (uint64_t(prev[sk]) >= K.count)  // negative ones too
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
-                                       i, sk ? "triangle" : "node", prev[sk], K.count));
-            // A triangle step tests one, a node step the children its byte states.
-            const auto items = uint8_t(((b >> 1) & (sk - 1)) | sk);
-            step[i] = BvhLayout::step(K, StepKind(sk), uint32_t(prev[sk]), items);
+                                       i, step_kind_info(sk).name, prev[sk], K.count));
+            step[i] = BvhLayout::step(K, StepKind(sk), uint32_t(prev[sk]), uint8_t(items));
         }
         const uint64_t prim = varint();
         if (prim == 0) {

@@ -18,7 +18,9 @@
 
 namespace rtsim {
 
-constexpr uint32_t kTraceVersion = 1;
+// Version written. Version 1 (a step byte of 1 kind bit and 7 count bits) is still read.
+constexpr uint32_t kTraceVersion = 2;
+constexpr uint32_t kOldestTraceVersion = 1;
 
 // One ray as recorded: what it did and what it hit.
 struct TraceRecord {

@@ -412,6 +412,26 @@ TEST(TraceFileRun, RecordThenReplayGivesIdenticalStats) {
     EXPECT_GT(a["rays"]["total"].get<uint64_t>(), 1600u);
 }
 
+// A version-1 trace (recorded before the step byte widened; tests/data holds one made by the
+// last version-1 build) replays with exactly the stats of the same rays generated on the fly,
+// and the Python reader reads it as rtsim does.
+TEST(TraceFileRun, VersionOneTracesStillReplay) {
+    const std::string v1 = std::string(RTSIM_SOURCE_DIR) + "/tests/data/cornell_16x16_v1.rtt";
+    const fs::path live = work_dir() / "v1_live", replay = work_dir() / "v1_replay";
+    ASSERT_EQ(run_rtsim("run -q --rays primary,shadow --res 16x16 --set bvh.width=4 --out '" +
+                        live.string() + "'")
+                  .status,
+              0);
+    const Result r =
+        run_rtsim("run -q --set bvh.width=4 --trace '" + v1 + "' --out '" + replay.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json a = stats_of(live), b = stats_of(replay);
+    EXPECT_EQ(without_host(a), without_host(b));
+    const Result info = run_rtsim("trace-info --json '" + v1 + "'");
+    ASSERT_EQ(info.status, 0) << info.err;
+    EXPECT_EQ(json::parse(info.out)["format_version"], 1);
+}
+
 TEST(TraceFileRun, MismatchedLayoutOrOptionsAreRefused) {
     const fs::path rtt = work_dir() / "w8.rtt";
     ASSERT_EQ(run_rtsim("trace -q --res 16x16 --set bvh.width=8 -o '" + rtt.string() + "'").status,

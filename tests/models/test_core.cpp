@@ -43,7 +43,7 @@ TEST(Core, FullPipelineThroughCoreFinishesInNPlusLMinusOne) {
     cp.ray_slots = n;
     cp.issue_width = n;
     cp.issue_latency_cycles = 0;
-    Core core("core", cp, &mem, &box, &tri, &src);
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
     CoreScheduler sched("sched", {&core}, 0);
     sc_core::sc_start();
     EXPECT_EQ(core.rays, uint64_t(n));
@@ -62,7 +62,7 @@ TEST(Core, SingleSlotLatenciesAdd) {
     CoreParams cp;
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
-    Core core("core", cp, &mem, &box, &tri, &src);
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
     CoreScheduler sched("sched", {&core}, 0);
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * (I + M + T)));
@@ -73,9 +73,10 @@ TEST(Core, SingleSlotLatenciesAdd) {
     // step.
     EXPECT_EQ(core.stall_cycles[Core::kIssue], Cycle(rays) * (I + steps * I));
     EXPECT_EQ(core.stall_cycles[Core::kDram], Cycle(rays) * steps * M);
-    EXPECT_EQ(core.stall_cycles[Core::kTriangleUnit], Cycle(rays) * steps * T);
-    EXPECT_EQ(core.stall_cycles[Core::kBoxUnit] + core.stall_cycles[Core::kL1] +
-                  core.stall_cycles[Core::kL2],
+    EXPECT_EQ(core.stall_cycles[Core::kUnitStall + int(StepKind::Triangle)],
+              Cycle(rays) * steps * T);
+    EXPECT_EQ(core.stall_cycles[Core::kUnitStall + int(StepKind::Node)] +
+                  core.stall_cycles[Core::kL1] + core.stall_cycles[Core::kL2],
               0u);
 }
 
@@ -90,7 +91,7 @@ TEST(Core, IssueWidthLimitsThroughput) {
     cp.ray_slots = k;
     cp.issue_width = 1;
     cp.issue_latency_cycles = 0;
-    Core core("core", cp, &mem, &box, &tri, &src);
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
     CoreScheduler sched("sched", {&core}, 0);
     sc_core::sc_start();
     // 2k issue slots at one per cycle: the last issues at 2k - 1, then the unit adds 1.
@@ -102,7 +103,7 @@ TEST(Core, NoWorkCostsNothing) {
     test::FixedLatencyMemory mem(0);
     PipelinedUnit box("box", UnitParams{}), tri("tri", UnitParams{});
     SyntheticSource src(0, 1, StepKind::Node);
-    Core core("core", CoreParams{}, &mem, &box, &tri, &src);
+    Core core("core", CoreParams{}, {&mem, &mem}, {&box, &tri}, &src);
     CoreScheduler sched("sched", {&core}, 0);
     sc_core::sc_start();
     EXPECT_EQ(core.rays, 0u);
@@ -121,8 +122,8 @@ TEST(Core, StepInstructionsOccupyTheIssuePort) {
     CoreParams cp;
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
-    cp.triangle_step_instructions = n;
-    Core core("core", cp, &mem, &box, &tri, &src);
+    cp.step_instructions[int(StepKind::Triangle)] = n;
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
     CoreScheduler sched("sched", {&core}, 0);
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * ((n - 1) + I + M + T)));
@@ -145,8 +146,10 @@ void run_cores_sharing_memory(Cycle quantum, std::vector<Cycle>& times, uint64_t
         units.push_back(std::make_unique<PipelinedUnit>(("tri" + n).c_str(),
                                                         UnitParams{1, Cycle(5 + 7 * i), 1}));
         sources.push_back(std::make_unique<SyntheticSource>(20 + 5 * i, 3 + i, StepKind::Triangle));
-        cores.push_back(std::make_unique<Core>(("core" + n).c_str(), cp, &mem, units.back().get(),
-                                               units.back().get(), sources.back().get()));
+        cores.push_back(std::make_unique<Core>(
+            ("core" + n).c_str(), cp, std::array<MemoryPort*, kStepKinds>{&mem, &mem},
+            std::array<PipelinedUnit*, kStepKinds>{units.back().get(), units.back().get()},
+            sources.back().get()));
         ptrs.push_back(cores.back().get());
     }
     CoreScheduler sched("sched", ptrs, quantum);

@@ -156,8 +156,10 @@ void run_cores_through_buffer(uint32_t capacity, uint64_t& rays_done, uint64_t& 
     CoreParams cp;
     cp.ray_slots = 4;
     for (int i = 0; i < 3; ++i) {
-        cores.push_back(std::make_unique<Core>(("core" + std::to_string(i)).c_str(), cp, &mem, &box,
-                                               &tri, &src));
+        cores.push_back(std::make_unique<Core>(("core" + std::to_string(i)).c_str(), cp,
+                                               std::array<MemoryPort*, kStepKinds>{&mem, &mem},
+                                               std::array<PipelinedUnit*, kStepKinds>{&box, &tri},
+                                               &src));
         cores.back()->set_ray_buffer(&rb);
         ptrs.push_back(cores.back().get());
     }

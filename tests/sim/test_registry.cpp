@@ -3,10 +3,12 @@
 // every parameter a component names is a schema field.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "models/registry.h"
+#include "models/unit_kind.h"
 #include "sim/config.h"
 #include "sim/list_cmd.h"
 
@@ -32,6 +34,7 @@ TEST(Registry, EveryKindIsSelectedBySchemaFieldsWhoseEnumIsTheRegisteredNames) {
     const auto selectors = component_selectors();
     ASSERT_FALSE(ComponentIndex::all().empty());
     for (const auto& [kind, components] : ComponentIndex::all()) {
+        if (kind == "unit_kind") continue;  // configured by sections (UnitKinds... below)
         ASSERT_TRUE(selectors.count(kind))
             << kind << " is registered but no schema field selects it";
         for (const std::string& path : selectors.at(kind)) {
@@ -50,9 +53,29 @@ TEST(Registry, EveryKindIsSelectedBySchemaFieldsWhoseEnumIsTheRegisteredNames) {
             << paths[0] << " names unknown kind " << kind;
 }
 
+// Unit kinds: each is a schema section of its name whose fields are its parameters, and the
+// step kinds' table and the registry name the same units for the same step kinds.
+TEST(Registry, UnitKindsAreSchemaSectionsAndMatchTheStepKinds) {
+    const auto& units = ComponentIndex::all().at("unit_kind");
+    EXPECT_EQ(units.size(), size_t(kStepKinds));
+    for (int k = 0; k < kStepKinds; ++k) {
+        const UnitKindEntry* u = UnitKindRegistry::find(step_kind_info(k).unit);
+        ASSERT_NE(u, nullptr) << step_kind_info(k).unit;
+        EXPECT_EQ(int(u->tests), k);
+        const json* section = field_at(u->name);
+        ASSERT_TRUE(section && section->contains("fields")) << u->name;
+        std::vector<std::string> fields;
+        for (auto& [f, v] : (*section)["fields"].items()) fields.push_back(f);
+        auto params = u->params;
+        std::sort(params.begin(), params.end());
+        EXPECT_EQ(params, fields) << u->name << ": parameters and schema fields differ";
+    }
+}
+
 TEST(Registry, EveryComponentParameterIsASchemaField) {
     const auto selectors = component_selectors();
-    for (const auto& [kind, components] : ComponentIndex::all())
+    for (const auto& [kind, components] : ComponentIndex::all()) {
+        if (kind == "unit_kind") continue;
         for (const auto& c : components)
             for (const std::string& p : c.params)
                 for (const std::string& sel : selectors.at(kind)) {
@@ -65,6 +88,7 @@ TEST(Registry, EveryComponentParameterIsASchemaField) {
                     EXPECT_TRUE(f && !f->contains("fields"))
                         << kind << " " << c.name << ": parameter " << path << " is not a field";
                 }
+    }
 }
 
 TEST(Registry, EveryComponentHasAOneLineDescription) {
@@ -76,6 +100,7 @@ TEST(Registry, EveryComponentHasAOneLineDescription) {
 }
 
 TEST(Registry, KindsThatLaterIssuesExtendAreRegistered) {
-    for (const char* kind : {"replacement", "treelet_scheduler", "dram_model", "traversal_mode"})
+    for (const char* kind :
+         {"replacement", "treelet_scheduler", "dram_model", "traversal_mode", "unit_kind"})
         EXPECT_TRUE(ComponentIndex::all().count(kind)) << kind;
 }

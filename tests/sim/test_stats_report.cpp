@@ -64,7 +64,7 @@ TEST(StatsReport, StallSharesLeaveTheRestToNoWork) {
     } none;
     CoreParams cp;
     cp.ray_slots = 3;
-    Core core("core[0]", cp, &mem, &box, &tri, &none);
+    Core core("core[0]", cp, {&mem, &mem}, {&box, &tri}, &none);
     const uint64_t charged[] = {100, 200, 300, 400, 500, 600, 0};
     for (int k = 0; k < Core::kStallKinds; ++k) core.stall_cycles[k] = charged[k];
     ReportContext ctx;

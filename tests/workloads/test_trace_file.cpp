@@ -129,6 +129,27 @@ TEST(TraceFile, RoundTripAcrossChunks) {
     expect_same(recs, read_all(path));
 }
 
+// Version 2 widened the step byte: counts of 15 and more take a varint after it, and a kind
+// this build does not know is refused with the ray and step.
+TEST(TraceFile, WideCountsRoundTripAndUnknownStepKindsAreRefused) {
+    auto recs = random_records(50, 11);
+    for (auto& r : recs)
+        for (auto& s : r.steps)
+            if (s.kind == StepKind::Node)
+                s.count = uint8_t(s.id % 3 == 0 ? 15 + s.id % 241 : s.count);
+    expect_same(recs, read_all(write_trace("wide.rtt", recs, 16)));
+
+    // The format has room for 16 kinds; this build knows kStepKinds of them.
+    TraceRecord one;
+    one.ray_id = 7;
+    Step st{};
+    st.kind = StepKind(9);
+    st.count = 1;
+    one.steps.push_back(st);
+    const std::string path = write_trace("kind.rtt", {one}, 4);
+    test::expect_input_error([&] { read_all(path); }, path, "ray 0 step 0 has unknown kind 9");
+}
+
 TEST(TraceFile, SeeksToAnyChunk) {
     const auto recs = random_records(300, 2);
     const std::string path = write_trace("seek.rtt", recs, 50);
