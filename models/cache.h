@@ -67,12 +67,12 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
           int level = kLevelL1);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override {
-        return (this->*access_fn_)(addr, size_bytes, now, breakdown);
+        return access_fn_(*this, addr, size_bytes, now, breakdown);
     }
     // Served locally when every line of the request is present (or already being filled).
     bool access_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                       AccessBreakdown* breakdown = nullptr) override {
-        return (this->*local_fn_)(addr, size_bytes, now, ready, breakdown);
+        return local_fn_(*this, addr, size_bytes, now, ready, breakdown);
     }
     void register_stats(StatsRegistry& reg);  // under this module's name (l1[3].hits)
     // stats.json "caches" entry: lookups, hits, misses, merged misses, hit rate.
@@ -239,10 +239,11 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     Cycle fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done, AccessBreakdown* bd);
     // access() and access_local() for the set layout G (see ways_of) and the policy P.
     template <int G, typename P>
-    Cycle access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd);
+    [[gnu::always_inline]] Cycle access_in(uint64_t addr, uint32_t size_bytes, Cycle now,
+                                           AccessBreakdown* bd);
     template <int G, typename P>
-    bool access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                         AccessBreakdown* bd);
+    [[gnu::always_inline]] bool access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now,
+                                                Cycle& ready, AccessBreakdown* bd);
 
     CacheParams params_;
     MemoryPort* next_;
@@ -272,8 +273,20 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint32_t line_shift_;
     ReplacementState repl_;  // the policy's state shared by the sets (stamp clock, random state)
     // The hot paths compiled for this cache's set layout and policy (use_policy).
-    Cycle (Cache::*access_fn_)(uint64_t, uint32_t, Cycle, AccessBreakdown*) = nullptr;
-    bool (Cache::*local_fn_)(uint64_t, uint32_t, Cycle, Cycle&, AccessBreakdown*) = nullptr;
+    // Plain function pointers to entry points with the whole path inlined (a member pointer adds
+    // a virtual-bit test and keeps the body a separate call).
+    Cycle (*access_fn_)(Cache&, uint64_t, uint32_t, Cycle, AccessBreakdown*) = nullptr;
+    bool (*local_fn_)(Cache&, uint64_t, uint32_t, Cycle, Cycle&, AccessBreakdown*) = nullptr;
+    template <int G, typename P>
+    static Cycle access_entry(Cache& c, uint64_t addr, uint32_t size_bytes, Cycle now,
+                              AccessBreakdown* bd) {
+        return c.access_in<G, P>(addr, size_bytes, now, bd);
+    }
+    template <int G, typename P>
+    static bool local_entry(Cache& c, uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                            AccessBreakdown* bd) {
+        return c.access_local_in<G, P>(addr, size_bytes, now, ready, bd);
+    }
     std::vector<Cycle> lookup_done_;  // scratch for requests of many lines
 };
 

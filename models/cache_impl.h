@@ -13,20 +13,20 @@ template <typename P>
 void Cache::use_policy(Cache& c) {
     switch (c.layout_) {
         case 1:
-            c.access_fn_ = &Cache::access_in<1, P>;
-            c.local_fn_ = &Cache::access_local_in<1, P>;
+            c.access_fn_ = &Cache::access_entry<1, P>;
+            c.local_fn_ = &Cache::local_entry<1, P>;
             break;
         case 2:
-            c.access_fn_ = &Cache::access_in<2, P>;
-            c.local_fn_ = &Cache::access_local_in<2, P>;
+            c.access_fn_ = &Cache::access_entry<2, P>;
+            c.local_fn_ = &Cache::local_entry<2, P>;
             break;
         case 4:
-            c.access_fn_ = &Cache::access_in<4, P>;
-            c.local_fn_ = &Cache::access_local_in<4, P>;
+            c.access_fn_ = &Cache::access_entry<4, P>;
+            c.local_fn_ = &Cache::local_entry<4, P>;
             break;
         default:
-            c.access_fn_ = &Cache::access_in<0, P>;
-            c.local_fn_ = &Cache::access_local_in<0, P>;
+            c.access_fn_ = &Cache::access_entry<0, P>;
+            c.local_fn_ = &Cache::local_entry<0, P>;
     }
 }
 
@@ -73,8 +73,8 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
 }
 
 template <int G, typename P>
-bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                            AccessBreakdown* bd) {
+inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                                   AccessBreakdown* bd) {
     const auto [first, last] = line_range(addr, size_bytes);
     const uint64_t lines = last - first + 1;
     // Find every line before touching any state: a request with one missing line is not local.
@@ -108,7 +108,7 @@ bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle
 }
 
 template <int G, typename P>
-Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
+inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
