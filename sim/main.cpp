@@ -16,12 +16,7 @@
 
 namespace {
 
-int main_impl(int argc, char** argv) {
-    CLI::App app{"RTSim: a cycle-approximate ray-tracing hardware simulator"};
-    app.require_subcommand(1);
-    app.set_version_flag("--version", std::string("rtsim ") + RTSIM_VERSION);
-
-    rtsim::RunOptions run;
+CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
     CLI::App* run_cmd = app.add_subcommand(
         "run", "Simulate a frame's rays on an architecture config; writes stats.json");
     run_cmd->add_option("--config", run.config_path,
@@ -38,6 +33,25 @@ int main_impl(int argc, char** argv) {
         "--bound", run.bound,
         "Also simulate the same rays with ideal memory and unlimited units, and report "
         "achieved / bound rays per second");
+    return run_cmd;
+}
+
+// `rtsim run` with --trace: the trace fixes the scene and rays.
+void refuse_workload_options_with_trace(CLI::App* run_cmd) {
+    for (const char* o : {"--scene", "--rays", "--res", "--spp", "--seed", "--light",
+                          "--ao-samples", "--ao-length", "--diffuse-depth"})
+        if (run_cmd->count(o))
+            throw rtsim::InputError(fmt::format(
+                "{}: cannot be combined with --trace (the trace fixes the scene and rays)", o));
+}
+
+int main_impl(int argc, char** argv) {
+    CLI::App app{"RTSim: a cycle-approximate ray-tracing hardware simulator"};
+    app.require_subcommand(1);
+    app.set_version_flag("--version", std::string("rtsim ") + RTSIM_VERSION);
+
+    rtsim::RunOptions run;
+    CLI::App* run_cmd = add_run_command(app, run);
     run.argv.assign(argv, argv + argc);
 
     rtsim::TraceOptions trace;
@@ -104,14 +118,7 @@ int main_impl(int argc, char** argv) {
 
     try {
         if (*run_cmd) {
-            if (!run.trace_path.empty())
-                for (const char* o : {"--scene", "--rays", "--res", "--spp", "--seed", "--light",
-                                      "--ao-samples", "--ao-length", "--diffuse-depth"})
-                    if (run_cmd->count(o))
-                        throw rtsim::InputError(
-                            fmt::format("{}: cannot be combined with --trace (the trace fixes the "
-                                        "scene and rays)",
-                                        o));
+            if (!run.trace_path.empty()) refuse_workload_options_with_trace(run_cmd);
             run.workload.resolve();
             return rtsim::run_command(run);
         }

@@ -184,26 +184,43 @@ bool finished_before(const fs::path& dir, const std::vector<std::string>& run_ar
 }
 }  // namespace
 
-int sweep_command(const SweepOptions& opt) {
-    if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
-    if (opt.resume && opt.out_dir.empty())
-        throw InputError("--resume: needs --out, the folder of the sweep to finish");
-    if (opt.resume && !fs::is_directory(opt.out_dir))
-        throw InputError(fmt::format("--resume: {}: no such folder", opt.out_dir));
-    const SweepPlan plan = plan_sweep(opt.path);
-    const std::string out_dir =
-        opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;
-    std::error_code ec;
-    fs::create_directories(out_dir, ec);
-    if (ec)
-        throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
+namespace {
 
+// Starts point `p`'s run (this binary's `run`, its stderr kept in the point's folder); returns
+// its pid, or -1 if it could not be started.
+pid_t spawn_point(const std::string& out_dir, const SweepPoint& p) {
+    const fs::path dir = fs::path(out_dir) / p.name;
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    // What this folder's run is, for --resume; a stale stats.json would pass for it.
+    fs::remove(dir / "stats.json", ec);
+    write_file_atomically((dir / "run.json").string(), json({{"args", p.run_args}}).dump(1) + "\n");
+    std::vector<std::string> args = {"/proc/self/exe", "run", "--quiet"};
+    args.insert(args.end(), p.run_args.begin(), p.run_args.end());
+    args.insert(args.end(), {"--out", dir.string()});
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    const std::string err_path = (dir / "stderr.txt").string();
+    posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+    posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
+    pid_t pid;
+    const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&files);
+    return rc == 0 ? pid : -1;
+}
+
+// Runs the points `jobs` at a time (points finished before, with --resume, are skipped) and
+// throws naming the first that failed. Returns how many were skipped.
+size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, bool resume) {
     const bool progress = isatty(STDERR_FILENO);
-    // Children: this binary's `run`, its stderr kept in the point's folder.
     std::map<pid_t, size_t> running;
     std::vector<int> status(plan.points.size(), -1);
     size_t skipped = 0;
-    if (opt.resume)
+    if (resume)
         for (size_t i = 0; i < plan.points.size(); ++i)
             if (finished_before(fs::path(out_dir) / plan.points[i].name, plan.points[i].run_args)) {
                 status[i] = 0;
@@ -213,35 +230,15 @@ int sweep_command(const SweepOptions& opt) {
     bool failed = false;
     std::string spawn_error;
     while (done < plan.points.size() && !(failed && running.empty())) {
-        while (!failed && next < plan.points.size() && running.size() < size_t(opt.jobs)) {
+        while (!failed && next < plan.points.size() && running.size() < size_t(jobs)) {
             if (status[next] == 0) {  // finished before (--resume)
                 ++next;
                 continue;
             }
-            const SweepPoint& p = plan.points[next];
-            const fs::path dir = fs::path(out_dir) / p.name;
-            fs::create_directories(dir, ec);
-            // What this folder's run is, for --resume; a stale stats.json would pass for it.
-            fs::remove(dir / "stats.json", ec);
-            write_file_atomically((dir / "run.json").string(),
-                                  json({{"args", p.run_args}}).dump(1) + "\n");
-            std::vector<std::string> args = {"/proc/self/exe", "run", "--quiet"};
-            args.insert(args.end(), p.run_args.begin(), p.run_args.end());
-            args.insert(args.end(), {"--out", dir.string()});
-            std::vector<char*> argv;
-            for (std::string& a : args) argv.push_back(a.data());
-            argv.push_back(nullptr);
-            posix_spawn_file_actions_t files;
-            posix_spawn_file_actions_init(&files);
-            const std::string err_path = (dir / "stderr.txt").string();
-            posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(),
-                                             O_WRONLY | O_CREAT | O_TRUNC, 0644);
-            posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
-            pid_t pid;
-            const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
-            posix_spawn_file_actions_destroy(&files);
-            if (rc != 0) {  // stop starting runs; the ones running finish first
-                spawn_error = fmt::format("sweep: cannot start the run of {}", dir.string());
+            const pid_t pid = spawn_point(out_dir, plan.points[next]);
+            if (pid < 0) {  // stop starting runs; the ones running finish first
+                spawn_error = fmt::format("sweep: cannot start the run of {}",
+                                          (fs::path(out_dir) / plan.points[next].name).string());
                 failed = true;
                 break;
             }
@@ -270,7 +267,13 @@ int sweep_command(const SweepOptions& opt) {
                                                  dir.string(), status[i],
                                                  first_line_of(dir / "stderr.txt")));
         }
+    return skipped;
+}
 
+// The table (printed), results.json and results.csv: one row per point, the figures of the
+// shared list.
+void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::string& out_dir,
+                   size_t skipped) {
     // The table: one row per point.
     json results = json::array();
     std::vector<std::vector<std::string>> table;
@@ -319,6 +322,25 @@ int sweep_command(const SweepOptions& opt) {
     fmt::print(
         "\n{} runs{}; stats under {}; table in results.json and results.csv\n", plan.points.size(),
         skipped ? fmt::format(" ({} finished before, not run again)", skipped) : "", out_dir);
+}
+
+}  // namespace
+
+int sweep_command(const SweepOptions& opt) {
+    if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
+    if (opt.resume && opt.out_dir.empty())
+        throw InputError("--resume: needs --out, the folder of the sweep to finish");
+    if (opt.resume && !fs::is_directory(opt.out_dir))
+        throw InputError(fmt::format("--resume: {}: no such folder", opt.out_dir));
+    const SweepPlan plan = plan_sweep(opt.path);
+    const std::string out_dir =
+        opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;
+    std::error_code ec;
+    fs::create_directories(out_dir, ec);
+    if (ec)
+        throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
+    const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume);
+    write_results(opt, plan, out_dir, skipped);
     return 0;
 }
 

@@ -51,22 +51,13 @@ void add_trace_options(CLI::App* cmd, TraceOptions& t) {
 
 namespace {
 
-struct Batch {
-    std::vector<Ray> rays;
-    std::vector<HitQuery> queries;
-    std::vector<uint32_t> ids;
-    std::vector<RayKind> kinds;
-    void clear() {
-        rays.clear();
-        queries.clear();
-        ids.clear();
-        kinds.clear();
-    }
-};
+using SteadyClock = std::chrono::steady_clock;
 
-}  // namespace
+double seconds_since(SteadyClock::time_point t) {
+    return std::chrono::duration<double>(SteadyClock::now() - t).count();
+}
 
-int trace_command(const TraceOptions& opt) {
+void check_trace_options(const TraceOptions& opt) {
     if (opt.threads < 0)
         throw InputError(fmt::format("--threads: expected 0 or more, got {}", opt.threads));
     if (opt.trace_chunk_rays < 1 || opt.trace_chunk_rays > (1u << 24))
@@ -78,211 +69,257 @@ int trace_command(const TraceOptions& opt) {
     if (!(opt.packet_switch >= 0.0f && opt.packet_switch <= 1.0f))
         throw InputError(fmt::format("--packet-switch: expected a fraction from 0 to 1, got {}",
                                      opt.packet_switch));
-    const Config cfg = load_config(opt.config_path, opt.sets);
-    std::unique_ptr<RayFileReader> reader;
-    if (!opt.rays_file.empty()) reader = std::make_unique<RayFileReader>(opt.rays_file);
-    const Scene scene = load_scene(opt.workload.scene);
-    const Bvh bvh = build_bvh_from_config(cfg, scene);
+    if (!opt.trace_out.empty() && opt.packet > 0)
+        throw InputError("--packet: a trace records single-ray traversal; drop --packet with -o");
+}
 
-    // Outputs are opened only once all inputs have been checked; they appear when complete.
-    std::unique_ptr<AtomicOutputFile> csv, bin, rays_out;
-    if (!opt.hits_csv.empty()) {
-        csv = std::make_unique<AtomicOutputFile>(opt.hits_csv);
-        csv->write(kHitCsvHeader);
+// One batch of rays to trace: from a ray file or the generator.
+struct Batch {
+    std::vector<Ray> rays;
+    std::vector<HitQuery> queries;
+    std::vector<uint32_t> ids;
+    std::vector<RayKind> kinds;
+    void clear() {
+        rays.clear();
+        queries.clear();
+        ids.clear();
+        kinds.clear();
     }
-    if (!opt.hits_bin.empty()) bin = std::make_unique<AtomicOutputFile>(opt.hits_bin);
-    if (!opt.write_rays.empty()) rays_out = std::make_unique<AtomicOutputFile>(opt.write_rays);
+    void add(const Ray& r, HitQuery q, uint32_t id, RayKind k) {
+        rays.push_back(r);
+        queries.push_back(q);
+        ids.push_back(id);
+        kinds.push_back(k);
+    }
+};
 
-    std::unique_ptr<RayGenerator> gen;
-    if (!reader) gen = std::make_unique<RayGenerator>(scene, bvh, opt.workload.gen);
-    std::unique_ptr<TraceWriter> trace_out;
-    if (!opt.trace_out.empty()) {
-        if (opt.packet > 0)
-            throw InputError(
-                "--packet: a trace records single-ray traversal; drop --packet with -o");
+// `rtsim trace` as a job: inputs checked and loaded, outputs opened (they appear only when
+// complete), then batch after batch traced on all threads and written out.
+class TraceJob {
+  public:
+    explicit TraceJob(const TraceOptions& opt)
+        : opt_(opt),
+          cfg_(load_config(opt.config_path, opt.sets)),
+          reader_(opt.rays_file.empty() ? nullptr : std::make_unique<RayFileReader>(opt.rays_file)),
+          scene_(load_scene(opt.workload.scene)),
+          bvh_(build_bvh_from_config(cfg_, scene_)),
+          threads_(resolve_threads(opt.threads)) {
+        if (!reader_) gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
+        open_outputs();
+    }
+
+    void run() {
+        const auto t0 = SteadyClock::now();
+        while (gather()) {
+            trace_batch();
+            write_batch();
+        }
+        for (auto* f : {csv_.get(), bin_.get(), rays_out_.get()})
+            if (f) f->commit();
+        if (trace_out_) {
+            const auto tw = SteadyClock::now();
+            trace_out_->finish();
+            write_seconds_ += seconds_since(tw);
+        }
+        if (!opt_.quiet) print_summary(seconds_since(t0));
+    }
+
+  private:
+    void open_outputs() {
+        if (!opt_.hits_csv.empty()) {
+            csv_ = std::make_unique<AtomicOutputFile>(opt_.hits_csv);
+            csv_->write(kHitCsvHeader);
+        }
+        if (!opt_.hits_bin.empty()) bin_ = std::make_unique<AtomicOutputFile>(opt_.hits_bin);
+        if (!opt_.write_rays.empty())
+            rays_out_ = std::make_unique<AtomicOutputFile>(opt_.write_rays);
+        if (opt_.trace_out.empty()) return;
         nlohmann::json meta = {{"rtsim_version", RTSIM_VERSION},
-                               {"scene", scene_summary(scene)},
-                               {"bvh", bvh_summary(bvh, true)}};
-        if (reader)
-            meta["workload"] = {{"rays_file", opt.rays_file},
-                                {"query", opt.any_hit ? "any" : "closest"}};
+                               {"scene", scene_summary(scene_)},
+                               {"bvh", bvh_summary(bvh_, true)}};
+        if (reader_)
+            meta["workload"] = {{"rays_file", opt_.rays_file},
+                                {"query", opt_.any_hit ? "any" : "closest"}};
         else
-            meta["workload"] = workload_summary(opt.workload.gen, gen->ao_length());
-        trace_out = std::make_unique<TraceWriter>(opt.trace_out, meta.dump(), opt.trace_chunk_rays);
+            meta["workload"] = workload_summary(opt_.workload.gen, gen_->ao_length());
+        trace_out_ =
+            std::make_unique<TraceWriter>(opt_.trace_out, meta.dump(), opt_.trace_chunk_rays);
     }
-    const int threads = resolve_threads(opt.threads);
-    const auto t0 = std::chrono::steady_clock::now();
-    double trace_seconds = 0, write_seconds = 0;
-    std::vector<TraceRecord> records;
-    uint64_t total = 0, hits = 0, nodes = 0, tris = 0;
-    std::array<uint64_t, kRayKindCount> by_kind{};
 
-    Batch batch;
-    std::vector<Ray> file_rays;
-    std::vector<GeneratedRay> generated;
-    std::vector<Hit> results;
-    std::vector<TraceCounters> counters;
-    std::vector<std::pair<size_t, size_t>> packets;
-    std::vector<PacketStats> packet_stats;
-    std::array<PacketStats, kRayKindCount> packet_by_kind;
-    std::string text;
-    constexpr size_t kBatchRays = 1 << 16;
-    for (;;) {
-        // Gather one batch of rays.
-        batch.clear();
-        if (reader) {
-            if (!reader->read(file_rays, kBatchRays)) break;
-            for (size_t i = 0; i < file_rays.size(); ++i) {
-                batch.rays.push_back(file_rays[i]);
-                batch.queries.push_back(opt.any_hit ? HitQuery::Any : HitQuery::Closest);
-                batch.ids.push_back(uint32_t(total + i));
-                batch.kinds.push_back(opt.any_hit ? RayKind::Shadow : RayKind::Primary);
-            }
-        } else {
-            generated.clear();
-            while (generated.size() < kBatchRays && gen->next_tile(generated)) {
-            }
-            if (generated.empty()) break;
-            for (const GeneratedRay& g : generated) {
-                batch.rays.push_back(g.ray);
-                batch.queries.push_back(g.query);
-                batch.ids.push_back(g.id);
-                batch.kinds.push_back(g.kind);
-            }
+    // The next batch of rays; false when there are none left.
+    bool gather() {
+        constexpr size_t kBatchRays = 1 << 16;
+        batch_.clear();
+        if (reader_) {
+            if (!reader_->read(file_rays_, kBatchRays)) return false;
+            const HitQuery q = opt_.any_hit ? HitQuery::Any : HitQuery::Closest;
+            const RayKind k = opt_.any_hit ? RayKind::Shadow : RayKind::Primary;
+            for (size_t i = 0; i < file_rays_.size(); ++i)
+                batch_.add(file_rays_[i], q, uint32_t(total_ + i), k);
+            return true;
         }
-        // Trace it in parallel; each ray's result has its own slot.
-        const size_t n = batch.rays.size();
-        results.assign(n, Hit());
-        counters.assign(n, TraceCounters());
-        const auto ts = std::chrono::steady_clock::now();
-        if (opt.packet > 0) {
-            packets = packet_runs(n, opt.packet, [&](size_t i) { return batch.kinds[i]; });
-            packet_stats.assign(packets.size(), PacketStats());
-            PacketOptions po;
-            po.size = opt.packet;
-            po.switch_threshold = opt.packet_switch;
-            parallel_blocks(packets.size(), 16, threads, [&](size_t b, size_t e) {
-                for (size_t p = b; p < e; ++p) {
-                    const auto [first, last] = packets[p];
-                    trace_packet(bvh, &batch.rays[first], int(last - first), batch.queries[first],
-                                 &results[first], po, packet_stats[p]);
-                }
-            });
-            for (size_t p = 0; p < packets.size(); ++p) {
-                packet_by_kind[int(batch.kinds[packets[p].first])].add(packet_stats[p]);
-                nodes += packet_stats[p].node_visits + packet_stats[p].single_ray_nodes;
-                tris += packet_stats[p].tri_tests;
-            }
-        } else if (trace_out) {
-            records.resize(n);
-            parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
+        generated_.clear();
+        while (generated_.size() < kBatchRays && gen_->next_tile(generated_)) {
+        }
+        for (const GeneratedRay& g : generated_) batch_.add(g.ray, g.query, g.id, g.kind);
+        return !generated_.empty();
+    }
+
+    // Traces the batch in parallel (each ray's result has its own slot) and counts its work.
+    void trace_batch() {
+        const size_t n = batch_.rays.size();
+        results_.assign(n, Hit());
+        counters_.assign(n, TraceCounters());
+        const auto ts = SteadyClock::now();
+        if (opt_.packet > 0) {
+            trace_packets();
+        } else {
+            if (trace_out_) records_.resize(n);
+            parallel_blocks(n, 256, threads_, [&](size_t b, size_t e) {
                 for (size_t i = b; i < e; ++i) {
-                    records[i].steps.clear();
-                    results[i] = trace_ray(bvh, batch.rays[i], batch.queries[i], &records[i].steps,
-                                           &counters[i]);
+                    std::vector<Step>* steps = trace_out_ ? &records_[i].steps : nullptr;
+                    if (steps) steps->clear();
+                    results_[i] =
+                        trace_ray(bvh_, batch_.rays[i], batch_.queries[i], steps, &counters_[i]);
                 }
             });
-        } else {
-            parallel_blocks(n, 256, threads, [&](size_t b, size_t e) {
-                for (size_t i = b; i < e; ++i)
-                    results[i] =
-                        trace_ray(bvh, batch.rays[i], batch.queries[i], nullptr, &counters[i]);
-            });
         }
-        trace_seconds +=
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
+        trace_seconds_ += seconds_since(ts);
         for (size_t i = 0; i < n; ++i) {
-            hits += results[i].valid();
-            nodes += counters[i].nodes;
-            tris += counters[i].tri_tests;
-            by_kind[int(batch.kinds[i])]++;
+            hits_ += results_[i].valid();
+            nodes_ += counters_[i].nodes;
+            tris_ += counters_[i].tri_tests;
+            by_kind_[int(batch_.kinds[i])]++;
         }
-        total += n;
-        if (trace_out) {
-            const auto tw = std::chrono::steady_clock::now();
-            for (size_t i = 0; i < n; ++i) {
-                TraceRecord& r = records[i];
-                r.ray_id = batch.ids[i];
-                r.kind = batch.kinds[i];
-                r.prim = results[i].prim;
-                r.t = results[i].t;
-                trace_out->add(r);
-            }
-            write_seconds +=
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
-        }
-        if (csv) {
-            text.clear();
-            for (size_t i = 0; i < n; ++i) append_hit_csv(batch.ids[i], results[i], text);
-            csv->write(text);
-        }
-        if (bin) {
-            text.clear();
-            for (size_t i = 0; i < n; ++i) append_hit_binary(batch.ids[i], results[i], text);
-            bin->write(text);
-        }
-        if (rays_out) {
-            text.clear();
-            append_ray_records(batch.rays, text);
-            rays_out->write(text);
-        }
-    }
-    for (auto* f : {csv.get(), bin.get(), rays_out.get()})
-        if (f) f->commit();
-    if (trace_out) {
-        const auto tw = std::chrono::steady_clock::now();
-        trace_out->finish();
-        write_seconds +=
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - tw).count();
+        total_ += n;
     }
 
-    if (!opt.quiet) {
-        const double wall =
-            std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    void trace_packets() {
+        const auto packets =
+            packet_runs(batch_.rays.size(), opt_.packet, [&](size_t i) { return batch_.kinds[i]; });
+        std::vector<PacketStats> stats(packets.size());
+        PacketOptions po;
+        po.size = opt_.packet;
+        po.switch_threshold = opt_.packet_switch;
+        parallel_blocks(packets.size(), 16, threads_, [&](size_t b, size_t e) {
+            for (size_t p = b; p < e; ++p) {
+                const auto [first, last] = packets[p];
+                trace_packet(bvh_, &batch_.rays[first], int(last - first), batch_.queries[first],
+                             &results_[first], po, stats[p]);
+            }
+        });
+        for (size_t p = 0; p < packets.size(); ++p) {
+            packet_by_kind_[int(batch_.kinds[packets[p].first])].add(stats[p]);
+            nodes_ += stats[p].node_visits + stats[p].single_ray_nodes;
+            tris_ += stats[p].tri_tests;
+        }
+    }
+
+    void write_batch() {
+        const size_t n = batch_.rays.size();
+        if (trace_out_) {
+            const auto tw = SteadyClock::now();
+            for (size_t i = 0; i < n; ++i) {
+                TraceRecord& r = records_[i];
+                r.ray_id = batch_.ids[i];
+                r.kind = batch_.kinds[i];
+                r.prim = results_[i].prim;
+                r.t = results_[i].t;
+                trace_out_->add(r);
+            }
+            write_seconds_ += seconds_since(tw);
+        }
+        if (csv_) {
+            text_.clear();
+            for (size_t i = 0; i < n; ++i) append_hit_csv(batch_.ids[i], results_[i], text_);
+            csv_->write(text_);
+        }
+        if (bin_) {
+            text_.clear();
+            for (size_t i = 0; i < n; ++i) append_hit_binary(batch_.ids[i], results_[i], text_);
+            bin_->write(text_);
+        }
+        if (rays_out_) {
+            text_.clear();
+            append_ray_records(batch_.rays, text_);
+            rays_out_->write(text_);
+        }
+    }
+
+    void print_summary(double wall) const {
         std::string kinds;
         for (int k = 0; k < kRayKindCount; ++k)
-            if (by_kind[k])
+            if (by_kind_[k])
                 kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ",
-                                     ray_kind_name(RayKind(k)), by_kind[k]);
+                                     ray_kind_name(RayKind(k)), by_kind_[k]);
         fmt::print(
             "rtsim trace  scene {} ({} triangles), {} BVH{}, SAH cost {:.2f}, built in {:.3f} s\n",
-            scene.name, scene.triangle_count(), bvh_builder_name(bvh.options.builder), bvh.width(),
-            bvh.quality.sah_cost, bvh.quality.build_seconds);
-        fmt::print("  rays     {} ({}) from {}\n", total, kinds.empty() ? "none" : kinds,
-                   reader ? opt.rays_file : "the generator");
-        fmt::print("  hits     {} ({:.1f}%)\n", hits, total ? 100.0 * hits / total : 0.0);
-        if (opt.packet > 0)
-            for (int k = 0; k < kRayKindCount; ++k) {
-                const PacketStats& p = packet_by_kind[k];
-                if (!p.packets) continue;
-                fmt::print(
-                    "  packets  {:10} {} packets of up to {}: lane utilisation {:.1f}%, {} packet "
-                    "node visits, "
-                    "{} switches to single rays ({} single-ray node visits)\n",
-                    ray_kind_name(RayKind(k)), p.packets, opt.packet, 100 * p.utilization(),
-                    p.node_visits, p.switches, p.single_ray_nodes);
-            }
-        fmt::print("  work     {:.2f} nodes, {:.2f} triangle tests per ray\n",
-                   total ? double(nodes) / total : 0.0, total ? double(tris) / total : 0.0);
-        fmt::print("  speed    {:.2f} Mrays/s tracing on {} thread{} ({:.3f} s; {:.3f} s in all)\n",
-                   trace_seconds > 0 ? total / trace_seconds / 1e6 : 0.0, threads,
-                   threads == 1 ? "" : "s", trace_seconds, wall);
-        for (auto* f : {csv.get(), bin.get(), rays_out.get()})
-            if (f) fmt::print("  wrote    {}\n", f->path());
-        if (trace_out) {
-            const double mb = trace_out->file_bytes() / 1e6;
+            scene_.name, scene_.triangle_count(), bvh_builder_name(bvh_.options.builder),
+            bvh_.width(), bvh_.quality.sah_cost, bvh_.quality.build_seconds);
+        fmt::print("  rays     {} ({}) from {}\n", total_, kinds.empty() ? "none" : kinds,
+                   reader_ ? opt_.rays_file : "the generator");
+        fmt::print("  hits     {} ({:.1f}%)\n", hits_, total_ ? 100.0 * hits_ / total_ : 0.0);
+        for (int k = 0; k < kRayKindCount && opt_.packet > 0; ++k) {
+            const PacketStats& p = packet_by_kind_[k];
+            if (!p.packets) continue;
             fmt::print(
-                "  trace    {}: {} rays, {} steps, {:.2f} MB ({:.2f} bytes/ray, {:.3f} bytes/step; "
-                "{:.1f}x smaller than raw), encoded at {:.1f} MB/s\n",
-                opt.trace_out, trace_out->rays(), trace_out->steps(), mb,
-                trace_out->rays() ? double(trace_out->file_bytes()) / trace_out->rays() : 0.0,
-                trace_out->steps() ? double(trace_out->file_bytes()) / trace_out->steps() : 0.0,
-                trace_out->file_bytes() ? double(trace_out->raw_bytes()) / trace_out->file_bytes()
-                                        : 0.0,
-                write_seconds > 0 ? mb / write_seconds : 0.0);
+                "  packets  {:10} {} packets of up to {}: lane utilisation {:.1f}%, {} packet "
+                "node visits, {} switches to single rays ({} single-ray node visits)\n",
+                ray_kind_name(RayKind(k)), p.packets, opt_.packet, 100 * p.utilization(),
+                p.node_visits, p.switches, p.single_ray_nodes);
         }
+        fmt::print("  work     {:.2f} nodes, {:.2f} triangle tests per ray\n",
+                   total_ ? double(nodes_) / total_ : 0.0, total_ ? double(tris_) / total_ : 0.0);
+        fmt::print("  speed    {:.2f} Mrays/s tracing on {} thread{} ({:.3f} s; {:.3f} s in all)\n",
+                   trace_seconds_ > 0 ? total_ / trace_seconds_ / 1e6 : 0.0, threads_,
+                   threads_ == 1 ? "" : "s", trace_seconds_, wall);
+        for (auto* f : {csv_.get(), bin_.get(), rays_out_.get()})
+            if (f) fmt::print("  wrote    {}\n", f->path());
+        if (trace_out_) print_trace_summary();
         fmt::print("  memory   peak RSS {:.0f} MiB\n", peak_rss_mib());
     }
+
+    void print_trace_summary() const {
+        const TraceWriter& t = *trace_out_;
+        const double mb = t.file_bytes() / 1e6;
+        fmt::print(
+            "  trace    {}: {} rays, {} steps, {:.2f} MB ({:.2f} bytes/ray, {:.3f} bytes/step; "
+            "{:.1f}x smaller than raw), encoded at {:.1f} MB/s\n",
+            opt_.trace_out, t.rays(), t.steps(), mb,
+            t.rays() ? double(t.file_bytes()) / t.rays() : 0.0,
+            t.steps() ? double(t.file_bytes()) / t.steps() : 0.0,
+            t.file_bytes() ? double(t.raw_bytes()) / t.file_bytes() : 0.0,
+            write_seconds_ > 0 ? mb / write_seconds_ : 0.0);
+    }
+
+    const TraceOptions& opt_;
+    const Config cfg_;
+    std::unique_ptr<RayFileReader> reader_;
+    const Scene scene_;
+    const Bvh bvh_;
+    const int threads_;
+    std::unique_ptr<RayGenerator> gen_;
+    std::unique_ptr<AtomicOutputFile> csv_, bin_, rays_out_;
+    std::unique_ptr<TraceWriter> trace_out_;
+
+    Batch batch_;
+    std::vector<Ray> file_rays_;
+    std::vector<GeneratedRay> generated_;
+    std::vector<Hit> results_;
+    std::vector<TraceCounters> counters_;
+    std::vector<TraceRecord> records_;
+    std::string text_;
+    double trace_seconds_ = 0, write_seconds_ = 0;
+    uint64_t total_ = 0, hits_ = 0, nodes_ = 0, tris_ = 0;
+    std::array<uint64_t, kRayKindCount> by_kind_{};
+    std::array<PacketStats, kRayKindCount> packet_by_kind_;
+};
+
+}  // namespace
+
+int trace_command(const TraceOptions& opt) {
+    check_trace_options(opt);
+    TraceJob(opt).run();
     return 0;
 }
 
