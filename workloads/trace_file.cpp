@@ -369,10 +369,14 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
             } else {
                 sk = b & 15;
                 items = b >> 4;
-                if (items == 15) items += varint();
-                if (sk >= kStepKinds || items > 255)
-                    chunk_fail(fmt::format("ray {} step {} has unknown kind {} or count {}", r, i,
-                                           sk, items));
+                if (sk >= kStepKinds)
+                    chunk_fail(fmt::format("ray {} step {} has unknown kind {}", r, i, sk));
+                if (items == 15) {  // 15 or more: the rest follows
+                    items += varint();
+                    if (items > 255)
+                        chunk_fail(fmt::format("ray {} step {} has count {}, above 255", r, i,
+                                               items));
+                }
             }
             prev[sk] += unzigzag(end - p >= 2 ? short_varint() : varint());
             const BvhLayout::Records& K = kinds[sk];
