@@ -129,6 +129,19 @@ template <int G>
     return victim;
 }
 
+// Ways ordered by stamps from the cache's clock, the least stamp leaving: the base of LRU (which
+// stamps every use) and FIFO (which stamps fills only).
+struct StampOrder {
+    template <int G>
+    static void filled(uint32_t* words, int way, ReplacementState& s) {
+        words[way] = s.next_stamp();
+    }
+    template <int G>
+    static int victim(const uint32_t*, uint32_t* words, ReplacementState& s) {
+        return least_stamp_way<G>(words, s);
+    }
+};
+
 // A replacement policy's registration: `bind` compiles the cache's hot paths for it; `check`
 // (optional) says why a cache's geometry does not suit it (empty: it does).
 struct ReplacementEntry {

@@ -47,9 +47,53 @@ FieldBinding custom(const char* path, std::function<void(Params&, const json&)> 
         return p.expr;        \
     }
 
+// A unit kind's section (box_unit, triangle_unit): the same fields into its StepKind's
+// UnitParams; `width` only where the unit tests several items per operation.
+void add_unit_rows(std::vector<FieldBinding>& t, StepKind kind, bool mirrors, bool width) {
+    const auto k = size_t(kind);
+    const std::string s = step_kind_info(kind).unit;
+    auto row = [&](const char* f, auto at) { t.push_back(field((s + f).c_str(), at, 1, mirrors)); };
+    row(
+        ".count", [k](Params & p) -> auto& { return p.unit[k].count; });
+    t.push_back(
+        field((s + ".shared_by").c_str(), [k](Params & p) -> auto& { return p.unit_shared_by[k]; },
+              1, false));
+    if (width)
+        row(
+            ".width", [k](Params & p) -> auto& { return p.unit[k].width; });
+    row(
+        ".latency_cycles", [k](Params & p) -> auto& { return p.unit[k].latency_cycles; });
+    row(
+        ".interval_cycles", [k](Params & p) -> auto& { return p.unit[k].interval_cycles; });
+}
+
+// A cache section (l1, l2): the same fields into its CacheParams.
+void add_cache_rows(std::vector<FieldBinding>& t, const std::string& s, CacheParams Params::*c,
+                    bool mirrors) {
+    auto row = [&](const char* f, auto at, int64_t scale = 1) {
+        t.push_back(field((s + f).c_str(), at, scale, mirrors));
+    };
+    row(
+        ".size_kib", [c](Params & p) -> auto& { return (p.*c).size_bytes; }, 1024);
+    row(
+        ".ways", [c](Params & p) -> auto& { return (p.*c).ways; });
+    row(
+        ".line_bytes", [c](Params & p) -> auto& { return (p.*c).line_bytes; });
+    row(
+        ".hit_latency_cycles", [c](Params & p) -> auto& { return (p.*c).hit_latency_cycles; });
+    row(
+        ".mshrs", [c](Params & p) -> auto& { return (p.*c).mshrs; });
+    row(
+        ".replacement", [c](Params & p) -> auto& { return (p.*c).replacement; });
+    row(
+        ".rrpv_bits", [c](Params & p) -> auto& { return (p.*c).rrpv_bits; });
+    row(
+        ".banks", [c](Params & p) -> auto& { return (p.*c).banks; });
+}
+
 std::vector<FieldBinding> make_bindings() {
     constexpr bool kNotMirrored = false;
-    return {
+    std::vector<FieldBinding> t = {
         field("name", M(name), 1, kNotMirrored),
         field("clock_ghz", M(clock_ghz), 1, kNotMirrored),
         field("core.count", M(core_count), 1, kNotMirrored),
@@ -59,32 +103,14 @@ std::vector<FieldBinding> make_bindings() {
         field("core.node_step_instructions", M(core.step_instructions[0])),
         field("core.triangle_step_instructions", M(core.step_instructions[1])),
         field("core.ray_setup_instructions", M(core.ray_setup_instructions)),
-        field("box_unit.count", M(unit[0].count)),
-        field("box_unit.shared_by", M(unit_shared_by[0]), 1, kNotMirrored),
-        field("box_unit.width", M(unit[0].width)),
-        field("box_unit.latency_cycles", M(unit[0].latency_cycles)),
-        field("box_unit.interval_cycles", M(unit[0].interval_cycles)),
-        field("triangle_unit.count", M(unit[1].count), 1, kNotMirrored),
-        field("triangle_unit.shared_by", M(unit_shared_by[1]), 1, kNotMirrored),
-        field("triangle_unit.latency_cycles", M(unit[1].latency_cycles), 1, kNotMirrored),
-        field("triangle_unit.interval_cycles", M(unit[1].interval_cycles), 1, kNotMirrored),
-        field("l1.size_kib", M(l1.size_bytes), 1024),
-        field("l1.ways", M(l1.ways)),
-        field("l1.line_bytes", M(l1.line_bytes)),
-        field("l1.hit_latency_cycles", M(l1.hit_latency_cycles)),
-        field("l1.mshrs", M(l1.mshrs)),
-        field("l1.replacement", M(l1.replacement)),
-        field("l1.rrpv_bits", M(l1.rrpv_bits)),
-        field("l1.banks", M(l1.banks)),
-        field("l1.split", M(l1_split), 1, kNotMirrored),
-        field("l2.size_kib", M(l2.size_bytes), 1024, kNotMirrored),
-        field("l2.ways", M(l2.ways), 1, kNotMirrored),
-        field("l2.line_bytes", M(l2.line_bytes), 1, kNotMirrored),
-        field("l2.hit_latency_cycles", M(l2.hit_latency_cycles), 1, kNotMirrored),
-        field("l2.mshrs", M(l2.mshrs), 1, kNotMirrored),
-        field("l2.replacement", M(l2.replacement), 1, kNotMirrored),
-        field("l2.rrpv_bits", M(l2.rrpv_bits), 1, kNotMirrored),
-        field("l2.banks", M(l2.banks), 1, kNotMirrored),
+    };
+    // CacheParams and UnitParams default to the first section's values (l1, box_unit).
+    add_unit_rows(t, StepKind::Node, true, /*width=*/true);
+    add_unit_rows(t, StepKind::Triangle, kNotMirrored, /*width=*/false);
+    add_cache_rows(t, "l1", &Params::l1, true);
+    t.push_back(field("l1.split", M(l1_split), 1, kNotMirrored));
+    add_cache_rows(t, "l2", &Params::l2, kNotMirrored);
+    const std::vector<FieldBinding> rest = {
         field("crossbar.bytes_per_cycle", M(crossbar_bytes_per_cycle), 1, kNotMirrored),
         field("dram.model", M(dram_model), 1, kNotMirrored),
         field("dram.latency_cycles", M(dram.latency_cycles)),
@@ -134,6 +160,8 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),
         field("sim.quantum_cycles", M(sim.quantum_cycles), 1, kNotMirrored),
     };
+    t.insert(t.end(), rest.begin(), rest.end());
+    return t;
 }
 
 #undef M

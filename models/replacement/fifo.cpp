@@ -4,17 +4,9 @@
 namespace rtsim {
 namespace {
 
-struct Fifo {
+struct Fifo : StampOrder {
     template <int G>
     static void hit(uint32_t*, int, ReplacementState&) {}
-    template <int G>
-    static void filled(uint32_t* words, int way, ReplacementState& s) {
-        words[way] = s.next_stamp();
-    }
-    template <int G>
-    static int victim(const uint32_t*, uint32_t* words, ReplacementState& s) {
-        return least_stamp_way<G>(words, s);
-    }
 };
 
 }  // namespace

@@ -4,18 +4,10 @@
 namespace rtsim {
 namespace {
 
-struct Lru {
+struct Lru : StampOrder {
     template <int G>
     static void hit(uint32_t* words, int way, ReplacementState& s) {
         words[way] = s.next_stamp();
-    }
-    template <int G>
-    static void filled(uint32_t* words, int way, ReplacementState& s) {
-        words[way] = s.next_stamp();
-    }
-    template <int G>
-    static int victim(const uint32_t*, uint32_t* words, ReplacementState& s) {
-        return least_stamp_way<G>(words, s);
     }
 };
 
