@@ -144,6 +144,10 @@ void Cache::register_stats(StatsRegistry& reg) {
     reg.add(block, "mshr_wait_cycles", &mshr_wait_cycles, "cycles misses waited for a free MSHR");
     reg.add(block, "bank_conflict_cycles", &bank_conflict_cycles,
             "cycles lookups waited for their bank");
+    reg.add(block, "lookup_out_of_order", &lookup_out_of_order,
+            "lookups that touched tag state after a lookup later in simulated time");
+    reg.add(block, "mshr_out_of_order", &mshr_out_of_order,
+            "misses that took an MSHR after a miss later in simulated time");
 }
 
 namespace {

@@ -105,6 +105,11 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint64_t fill_bytes = 0;            // bytes read from the level below
     uint64_t mshr_wait_cycles = 0;      // cycles misses waited for a free MSHR
     uint64_t bank_conflict_cycles = 0;  // cycles lookups waited for their bank
+    // Served out of simulated-time order (the cache meets requests in the order the simulator
+    // does): lookups that touched tag and replacement state after a later lookup, and misses
+    // that took an MSHR after a later miss.
+    uint64_t lookup_out_of_order = 0;
+    uint64_t mshr_out_of_order = 0;
 
   private:
     // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
@@ -272,6 +277,11 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint64_t set_mask_;
     uint32_t line_shift_;
     ReplacementState repl_;  // the policy's state shared by the sets (stamp clock, random state)
+    Cycle latest_lookup_ = 0, latest_mshr_request_ = 0;  // for the out-of-order counts
+    void note_lookup(Cycle now) {
+        lookup_out_of_order += now < latest_lookup_;
+        latest_lookup_ = std::max(latest_lookup_, now);
+    }
     // The hot paths compiled for this cache's set layout and policy (use_policy).
     // Plain function pointers to entry points with the whole path inlined (a member pointer adds
     // a virtual-bit test and keeps the body a separate call).

@@ -60,6 +60,8 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     Cycle issue_at = lookup_done;
     const bool limited = few_mshrs_ || !mshr_free_.empty();
     if (limited) {
+        mshr_out_of_order += lookup_done < latest_mshr_request_;
+        latest_mshr_request_ = std::max(latest_mshr_request_, lookup_done);
         issue_at = std::max(lookup_done, earliest_mshr());
         mshr_wait_cycles += issue_at - lookup_done;
     }
@@ -86,6 +88,7 @@ inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now
         if (ways[k] < 0) return false;
     }
     bytes_requested += size_bytes;
+    note_lookup(now);
     Cycle done[kMaxLines];
     Cycle first_done = 0;
     const bool one_bank = one_bank_reads(lines);
@@ -110,6 +113,7 @@ inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now
 template <int G, typename P>
 inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     bytes_requested += size_bytes;
+    note_lookup(now);
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
         const Cycle lookup_done = look_up_in_one_bank(first, 1, now);

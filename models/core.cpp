@@ -241,6 +241,8 @@ void Core::register_stats(StatsRegistry& reg) {
     reg.add(block, "issue_stall_cycles", &issue_stall_cycles,
             "cycles steps waited for an issue slot");
     reg.add(block, "last_cycle", &last_cycle, "cycle the core's last ray finished");
+    reg.add(block, "issue_port_out_of_order", &issue_port_.out_of_order,
+            "issues ready before an earlier issue's ready cycle (served out of time order)");
     if (ray_buffer_) {
         reg.add(block, "treelet_loads", &treelet_loads, "treelets loaded for a batch");
         reg.add(block, "treelet_load_bytes", &treelet_load_bytes, "bytes of treelets loaded");

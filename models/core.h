@@ -99,6 +99,7 @@ class Core : public sc_core::sc_module {
          const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source);
     void register_stats(StatsRegistry& reg);  // under this module's name (core[0].rays)
     const CoreParams& params() const { return params_; }
+    uint64_t issue_port_out_of_order() const { return issue_port_.out_of_order; }
     // stats.json "stalls" entry: ray-slot cycles per cause, the cycles without a ray (no_work:
     // what the causes leave of slots x cycles), and their shares.
     nlohmann::json stall_report(const ReportContext& ctx) const;

@@ -18,6 +18,8 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
     const uint64_t row = block / (channels * uint64_t(params_.banks));
     Bank& bank = banks_[channel * uint64_t(params_.banks) + bank_index];
 
+    bank_out_of_order += now < bank.latest_request;
+    bank.latest_request = std::max(bank.latest_request, now);
     const Cycle start = std::max(now, bank.ready);
     Cycle column = start;  // when the column (read) command issues
     if (!bank.open) {
@@ -58,6 +60,8 @@ void Dram::register_stats(StatsRegistry& reg) {
     reg.add(block, "row_conflicts", &row_conflicts, "reads that closed another row first");
     reg.add(block, "busy_cycles", &busy_cycles, "cycles the buses were transferring");
     reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for a bank or a bus");
+    reg.add(block, "bank_out_of_order", &bank_out_of_order,
+            "requests a bank served after one that arrived later in simulated time");
 }
 
 nlohmann::json Dram::report(const ReportContext& ctx) const {

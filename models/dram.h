@@ -41,6 +41,9 @@ class DramModel : public MemoryPort {
     virtual void register_stats(StatsRegistry& reg) = 0;  // under its module's name
     // stats.json "bandwidth.dram": bytes and GB/s, row-buffer figures, utilisation.
     virtual nlohmann::json report(const ReportContext& ctx) const = 0;
+    // Requests served after one that arrived later in simulated time (0 for a model that serves
+    // in time order by construction).
+    virtual uint64_t out_of_order_requests() const = 0;
     virtual void set_series(TimeSeries* bytes) = 0;  // bytes moved per window
     virtual void follow(const TimeFloor* floor) = 0;
 };
@@ -60,6 +63,7 @@ class Dram final : public sc_core::sc_module, public DramModel {
                  AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg) override;
     nlohmann::json report(const ReportContext& ctx) const override;
+    uint64_t out_of_order_requests() const override { return bank_out_of_order; }
     void set_series(TimeSeries* bytes) override { bytes_series_ = bytes; }
     void follow(const TimeFloor* floor) override {
         for (auto& bus : buses_) bus.follow(floor);
@@ -71,12 +75,16 @@ class Dram final : public sc_core::sc_module, public DramModel {
     uint64_t row_hits = 0, row_empty = 0, row_conflicts = 0;
     uint64_t busy_cycles = 0;   // cycles the buses spent transferring (rounded up per access)
     uint64_t queue_cycles = 0;  // cycles requests waited for a bank or a bus
+    // Requests a bank served after a request that arrived later in simulated time (a bank
+    // keeps one next-free cycle and its open row, so it serves in arrival order to the model).
+    uint64_t bank_out_of_order = 0;
 
   private:
     struct Bank {
         uint64_t open_row = 0;
         bool open = false;
-        Cycle ready = 0;  // next cycle it accepts a command
+        Cycle ready = 0;           // next cycle it accepts a command
+        Cycle latest_request = 0;  // the latest arrival it has served
     };
     DramParams params_;
     std::vector<Bank> banks_;               // channels * banks

@@ -133,6 +133,8 @@ void RayBuffer::register_stats(StatsRegistry& reg) {
     reg.add(block, "batches", &batches, "treelet batches handed to cores");
     reg.add(block, "batch_rays", &batch_rays, "rays handed out in batches");
     reg.add(block, "crossings", &crossings, "rays queued again for another treelet");
+    reg.add(block, "port_out_of_order", &ports_.out_of_order,
+            "record accesses ready before an earlier access's ready cycle (served out of order)");
 }
 
 nlohmann::json RayBuffer::report(const ReportContext& ctx, uint64_t treelet_loads,

@@ -52,6 +52,7 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     nlohmann::json report(const ReportContext& ctx, uint64_t treelet_loads,
                           uint64_t treelet_load_bytes) const;
     const RayBufferParams& params() const { return params_; }
+    uint64_t port_out_of_order() const { return ports_.out_of_order; }
     const TreeletSpan& span(uint32_t treelet) const { return treelets_[treelet]; }
 
     // A batch: up to batch_rays ray handles of one treelet, which leave its queue. First admits

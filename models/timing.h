@@ -44,8 +44,14 @@ struct PortCalendar {
     int per_cycle = 1;
     Cycle cycle = 0;  // the latest cycle with an operation started
     int used = 0;     // operations started in it
+    // Requests that came with a ready cycle before an earlier request's: served out of time
+    // order (the port keeps no calendar), counted so that stats show where it happens.
+    Cycle latest_ready = 0;
+    uint64_t out_of_order = 0;
     // Starts one operation ready at `ready`; returns the cycle it starts.
     Cycle take(Cycle ready) {
+        out_of_order += ready < latest_ready;
+        latest_ready = std::max(latest_ready, ready);
         if (ready > cycle) {
             cycle = ready;
             used = 0;

@@ -168,6 +168,27 @@ std::vector<const T*> views(const std::vector<std::unique_ptr<T>>& blocks) {
 }
 }  // namespace
 
+nlohmann::json Chip::out_of_order_report() const {
+    auto sum = [](const auto& blocks, auto field) {
+        uint64_t n = 0;
+        for (const auto& b : blocks) n += (*b).*field;
+        return n;
+    };
+    std::vector<const Cache*> all_l1 = views(l1);
+    for (const auto& c : l1_tri) all_l1.push_back(c.get());
+    uint64_t issue = 0;
+    for (const auto& c : cores) issue += c->issue_port_out_of_order();
+    nlohmann::json out = {{"l1_lookups", sum(all_l1, &Cache::lookup_out_of_order)},
+                          {"l1_mshr_requests", sum(all_l1, &Cache::mshr_out_of_order)},
+                          {"l2_lookups", l2->lookup_out_of_order},
+                          {"l2_mshr_requests", l2->mshr_out_of_order},
+                          {"dram_requests", dram->out_of_order_requests()},
+                          {"issue_port_requests", issue},
+                          {"calendar_late_requests", g_calendar_late_requests}};
+    if (ray_buffer) out["ray_buffer_port_requests"] = ray_buffer->port_out_of_order();
+    return out;
+}
+
 nlohmann::json Chip::report(const ReportContext& ctx) const {
     using nlohmann::json;
     json out;
@@ -214,6 +235,7 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
         out["ray_buffer"] = ray_buffer->report(ctx, loads, load_bytes);
     }
     if (cores[0]->params().packet_lanes > 0) out["packets"] = Core::packet_report(views(cores));
+    out["out_of_order"] = out_of_order_report();
     return out;
 }
 

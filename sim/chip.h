@@ -28,6 +28,11 @@ class Chip {
     // stats.json's sections "units", "caches", "bandwidth", "stalls", and "ray_buffer" and
     // "packets" when those blocks ran, each block's part from the block itself.
     nlohmann::json report(const ReportContext& ctx) const;
+    // stats.json's "out_of_order": per kind of shared state, the requests it served after a
+    // request that arrived later in simulated time. The fast model serves in the order the
+    // simulator meets requests; where it claims exactness (a private L1 behind its in-order
+    // issue port) these are 0.
+    nlohmann::json out_of_order_report() const;
 
     StatsRegistry stats;
     std::unique_ptr<DramModel> dram;

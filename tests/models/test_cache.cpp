@@ -345,3 +345,24 @@ TEST(Crossbar, LinesCrossWhenTheL2ReturnsThem) {
     EXPECT_EQ(slow_bd.cycles[kLevelDram] + slow_bd.cycles[kLevelL2], 304u);
     EXPECT_EQ(fast_bd.cycles[kLevelL2], 4u);
 }
+
+// The fast model serves a cache's tag state and MSHRs in the order requests reach it; where that
+// is not simulated-time order it counts it (issue 15's probe: with one MSHR, a miss at cycle
+// 1000 handled before a miss at cycle 0).
+TEST(Cache, RequestsOutOfTimeOrderAreCounted) {
+    CacheParams p;
+    p.mshrs = 1;
+    test::FixedLatencyMemory mem(100);
+    Cache c("ooo", p, &mem);
+    c.access(0 * 64, 64, 1000);
+    EXPECT_EQ(c.lookup_out_of_order + c.mshr_out_of_order, 0u);
+    c.access(1 * 64, 64, 0);  // earlier than the one before: both its lookup and its MSHR
+    EXPECT_EQ(c.lookup_out_of_order, 1u);
+    EXPECT_EQ(c.mshr_out_of_order, 1u);
+    c.access(0 * 64, 64, 500);  // a hit, earlier than 1000: tag state only
+    EXPECT_EQ(c.lookup_out_of_order, 2u);
+    EXPECT_EQ(c.mshr_out_of_order, 1u);
+    c.access(2 * 64, 64, 2000);  // in order again
+    EXPECT_EQ(c.lookup_out_of_order, 2u);
+    EXPECT_EQ(c.mshr_out_of_order, 1u);
+}

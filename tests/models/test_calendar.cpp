@@ -156,3 +156,17 @@ TEST(BandwidthCalendar, MatchesASimpleModelOnRandomRequests) {
             }
         }
 }
+
+// A port keeps its latest cycle only: a request ready before an earlier one's is counted.
+TEST(PortCalendar, RequestsOutOfTimeOrderAreCounted) {
+    PortCalendar port;
+    port.per_cycle = 2;
+    EXPECT_EQ(port.take(10), 10u);
+    EXPECT_EQ(port.take(10), 10u);
+    EXPECT_EQ(port.take(10), 11u);  // two per cycle
+    EXPECT_EQ(port.out_of_order, 0u);
+    port.take(5);
+    EXPECT_EQ(port.out_of_order, 1u);
+    port.take(12);
+    EXPECT_EQ(port.out_of_order, 1u);
+}

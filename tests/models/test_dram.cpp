@@ -97,3 +97,15 @@ TEST(Dram, RowLocalityStreamsAtPeakAcrossChannels) {
     EXPECT_NEAR(double(last), double(n * 64) / 32.0, 0.02 * double(n * 64) / 32.0 + 60);
     EXPECT_GT(d.row_hits, n * 9 / 10);  // 16 bursts per 1 KiB row: one activate per row
 }
+
+// A bank keeps one next-free cycle and its open row: a request reaching it after a later one is
+// served out of time order, and counted (issue 15's probe with one bank).
+TEST(Dram, BankRequestsOutOfTimeOrderAreCounted) {
+    Dram d("dram_ooo", rows(1, 1));
+    d.access(0, 64, 1000);
+    d.access(64, 64, 2000);
+    EXPECT_EQ(d.bank_out_of_order, 0u);
+    d.access(128, 64, 0);
+    EXPECT_EQ(d.bank_out_of_order, 1u);
+    EXPECT_EQ(d.out_of_order_requests(), 1u);
+}
