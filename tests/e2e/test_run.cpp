@@ -282,24 +282,32 @@ void diff_json(const json& a, const json& b, const std::string& path,
 
 }  // namespace
 
-// Simulated statistics of a small fixed run. A change here must be deliberate: regenerate with
-// scripts/update_golden.sh and explain in the commit why the numbers moved.
-TEST(Golden, CornellSmall) {
-    const fs::path out = work_dir() / "golden";
-    const Result r =
-        run_rtsim("run -q --rays primary,shadow,ao --res 32x32 --set core.count=2 --out '" +
-                  out.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    json s = stats_of(out);
-    s.erase("host");
-    s.erase("rtsim_version");
-    const json golden =
-        json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / "tests/golden/cornell_small.json"));
-    std::vector<std::string> diffs;
-    diff_json(s, golden, "", diffs);
-    std::string report;
-    for (size_t i = 0; i < diffs.size() && i < 20; ++i) report += "\n  " + diffs[i];
-    EXPECT_TRUE(diffs.empty()) << diffs.size() << " differences from the golden stats:" << report;
+// Simulated statistics of small fixed runs (tests/golden/cases.json: independent, treelet with
+// the age-ordered scheduler, packet, shared units with tree-PLRU and SRRIP). A change here must
+// be deliberate: regenerate with scripts/update_golden.sh, which prints each file's diff, and
+// explain in the commit why the numbers moved.
+TEST(Golden, EveryCaseMatchesItsFile) {
+    const json cases = json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / "tests/golden/cases.json"));
+    ASSERT_GE(cases.size(), 4u);
+    for (const auto& [name, args] : cases.items()) {
+        SCOPED_TRACE(name);
+        const fs::path out = work_dir() / ("golden_" + name);
+        std::string cmd = "run -q";
+        for (const auto& a : args) cmd += " '" + a.get<std::string>() + "'";
+        const Result r = run_rtsim(cmd + " --out '" + out.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        json s = stats_of(out);
+        s.erase("host");
+        s.erase("rtsim_version");
+        const json golden =
+            json::parse(slurp(fs::path(RTSIM_SOURCE_DIR) / ("tests/golden/" + name + ".json")));
+        std::vector<std::string> diffs;
+        diff_json(s, golden, "", diffs);
+        std::string report;
+        for (size_t i = 0; i < diffs.size() && i < 20; ++i) report += "\n  " + diffs[i];
+        EXPECT_TRUE(diffs.empty()) << name << ": " << diffs.size()
+                                   << " differences from the golden stats:" << report;
+    }
 }
 
 namespace {
