@@ -75,7 +75,18 @@ void Core::finish_ray(Slot& s, Cycle done) {
 void Core::wake(Cycle at) {
     at = std::max(at, floor_.cycle);  // never behind the core's own floor
     for (size_t i = 0; i < ready_.size(); ++i)
-        if (keys_.cycle(ready_[i]) == kParkedCycle) set_ready(i, at);
+        if (keys_.cycle(ready_[i]) == kParkedCycle) {
+            no_work_cycles += at - std::min(at, slots_[i].idle_since);
+            set_ready(i, at);
+        }
+}
+
+uint64_t Core::retired_idle_cycles(Cycle end) const {
+    uint64_t idle = 0;
+    for (size_t i = 0; i < slots_.size(); ++i)
+        if (keys_.cycle(ready_[i]) == kNeverCycle && slots_[i].idle_since < end)
+            idle += end - slots_[i].idle_since;
+    return idle;
 }
 
 // Loads a treelet's nodes and triangles with one request per run: the cache looks its lines up
@@ -115,14 +126,14 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             Cycle got = t;
             if (!ray_buffer_) {
                 if (!source_->next(s.work)) {
-                    set_ready(i, kNeverCycle);
+                    go_idle(i, t, kNeverCycle);
                     continue;
                 }
                 s.pos = 0;
             } else {
                 if (batch_.empty()) {
                     if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
-                        set_ready(i, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
+                        go_idle(i, t, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
                         continue;
                     }
                     if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
@@ -241,6 +252,8 @@ void Core::register_stats(StatsRegistry& reg) {
     reg.add(block, "issue_stall_cycles", &issue_stall_cycles,
             "cycles steps waited for an issue slot");
     reg.add(block, "last_cycle", &last_cycle, "cycle the core's last ray finished");
+    reg.add(block, "no_work_cycles", &no_work_cycles,
+            "slot cycles parked without a ray (retired slots' tails are added in the report)");
     reg.add(block, "issue_port_out_of_order", &issue_port_.out_of_order,
             "issues ready before an earlier issue's ready cycle (served out of time order)");
     if (ray_buffer_) {
@@ -319,37 +332,41 @@ void CoreScheduler::run() {
 }
 
 namespace {
-// Stall causes charged over `cores`, and the slot cycles they had.
-nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles) {
+// Stall causes charged over `cores`, the cycles they had no ray, and what neither accounts for
+// of their slot cycles (0 when every slot cycle is charged exactly once; a test checks it).
+nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles,
+                           Cycle end) {
     nlohmann::json e = nlohmann::json::object();
-    uint64_t charged = 0;
+    uint64_t charged = 0, no_work = 0;
     for (int k = 0; k < Core::kStallKinds; ++k) {
         uint64_t v = 0;
         for (const Core* c : cores) v += c->stall_cycles[k];
         e[Core::stall_name(k)] = v;
         charged += v;
     }
-    e["no_work"] = slot_cycles >= charged ? slot_cycles - charged : 0;
+    for (const Core* c : cores) no_work += c->no_work_cycles + c->retired_idle_cycles(end);
+    e["no_work"] = no_work;
     e["slot_cycles"] = slot_cycles;
+    e["unaccounted_cycles"] = int64_t(slot_cycles) - int64_t(charged + no_work);
     nlohmann::json share = nlohmann::json::object();
     for (int k = 0; k < Core::kStallKinds; ++k)
         share[Core::stall_name(k)] =
             ReportContext::ratio(e[Core::stall_name(k)].get<double>(), double(slot_cycles));
-    share["no_work"] = ReportContext::ratio(e["no_work"].get<double>(), double(slot_cycles));
+    share["no_work"] = ReportContext::ratio(double(no_work), double(slot_cycles));
     e["share"] = share;
     return e;
 }
 }  // namespace
 
 nlohmann::json Core::stall_report(const ReportContext& ctx) const {
-    return stall_entry({this}, uint64_t(params_.ray_slots) * ctx.total_cycles);
+    return stall_entry({this}, uint64_t(params_.ray_slots) * ctx.total_cycles, ctx.total_cycles);
 }
 
 nlohmann::json Core::stall_report_total(const std::vector<const Core*>& cores,
                                         const ReportContext& ctx) {
     uint64_t slots = 0;
     for (const Core* c : cores) slots += uint64_t(c->params_.ray_slots);
-    return stall_entry(cores, slots * ctx.total_cycles);
+    return stall_entry(cores, slots * ctx.total_cycles, ctx.total_cycles);
 }
 
 nlohmann::json Core::packet_report(const std::vector<const Core*>& cores) {

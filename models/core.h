@@ -100,6 +100,8 @@ class Core : public sc_core::sc_module {
     void register_stats(StatsRegistry& reg);  // under this module's name (core[0].rays)
     const CoreParams& params() const { return params_; }
     uint64_t issue_port_out_of_order() const { return issue_port_.out_of_order; }
+    // No-work cycles of the retired slots, from their retirement to `end`.
+    uint64_t retired_idle_cycles(Cycle end) const;
     // stats.json "stalls" entry: ray-slot cycles per cause, the cycles without a ray (no_work:
     // what the causes leave of slots x cycles), and their shares.
     nlohmann::json stall_report(const ReportContext& ctx) const;
@@ -146,6 +148,9 @@ class Core : public sc_core::sc_module {
     uint64_t steps = 0;
     uint64_t ray_latency_cycles = 0;  // summed over rays, cycles each held a slot
     uint64_t issue_stall_cycles = 0;  // cycles steps waited for an issue slot
+    // Slot cycles without a ray, counted as they pass (parked slots when woken; retired slots
+    // from retirement to the end are added at report time).
+    uint64_t no_work_cycles = 0;
     uint64_t last_cycle = 0;          // cycle the core's last ray finished
     // Treelet mode
     uint64_t treelet_loads = 0, treelet_load_bytes = 0;
@@ -161,7 +166,14 @@ class Core : public sc_core::sc_module {
         bool fetch_is_shared = false;  // the next step's fetch was found to leave the L1
         uint32_t handle = 0;           // treelet mode: the ray's ray-buffer entry
         uint32_t treelet = 0;          // treelet mode: the treelet this slot's ray runs in
+        Cycle idle_since = 0;          // parked or retired: the cycle it found no work
     };
+    // The slot has no work from `t` on: parked (more may come) or retired.
+    void go_idle(size_t slot, Cycle t, Cycle key_cycle) {
+        slots_[slot].idle_since = t;
+        set_ready(slot, key_cycle);
+    }
+
     void load_treelet(uint32_t treelet, Cycle now);
     Cycle issue(Cycle t, int instructions);
     void finish_ray(Slot& s, Cycle done);

@@ -46,6 +46,10 @@ json stats_of(const fs::path& dir) {
     if (s.contains("counters")) {
         EXPECT_EQ(s["counters"].value("sim.late_requests", uint64_t(1)), 0u) << dir;
     }
+    // Every ray-slot cycle is charged to exactly one cause or counted as no work.
+    if (s.contains("stalls")) {
+        EXPECT_EQ(s["stalls"]["total"].value("unaccounted_cycles", int64_t(1)), 0) << dir;
+    }
     // Where the fast model claims exact order it has it: a private L1 serves its core's
     // lookups and misses in time order (they follow the core's in-order issue port), except in
     // treelet mode, whose treelet loads at a batch's start may precede a lookup just issued.

@@ -52,6 +52,36 @@ TEST(Core, FullPipelineThroughCoreFinishesInNPlusLMinusOne) {
     EXPECT_EQ(tri.ops, 0u);
 }
 
+// No-work cycles are counted, not inferred: 4 slots, 2 rays of one triangle step (issue I,
+// memory M, unit T): two slots retire at cycle 0, two run a ray to I + I + M + T and then retire
+// (their last look for work is at their ray's end). Worked by hand: no_work = 2 * D (the idle
+// slots) and every slot cycle is charged once, nothing left unaccounted.
+TEST(Core, NoWorkCyclesAreChargedAndNothingIsLeftOver) {
+    const Cycle M = 30, T = 18, I = 2;
+    test::FixedLatencyMemory mem(M);
+    // Two triangle pipelines: the two rays' tests do not wait for each other.
+    PipelinedUnit box("box", UnitParams{1, 8, 1}), tri("tri", UnitParams{2, T, 1});
+    SyntheticSource src(2, 1, StepKind::Triangle);
+    CoreParams cp;
+    cp.ray_slots = 4;
+    cp.issue_width = 4;
+    cp.issue_latency_cycles = I;
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
+    CoreScheduler sched("sched", {&core}, 0);
+    sc_core::sc_start();
+    const Cycle D = I + I + M + T;
+    ASSERT_EQ(core.last_cycle, D);
+    ReportContext ctx;
+    ctx.total_cycles = D;
+    const auto e = core.stall_report(ctx);
+    EXPECT_EQ(e["slot_cycles"].get<uint64_t>(), 4 * D);
+    EXPECT_EQ(e["no_work"].get<uint64_t>(), 2 * D);
+    EXPECT_EQ(e["unaccounted_cycles"].get<int64_t>(), 0);
+    EXPECT_EQ(e["issue"].get<uint64_t>(), 2 * 2 * I);
+    EXPECT_EQ(e["dram"].get<uint64_t>(), 2 * M);
+    EXPECT_EQ(e["triangle_unit"].get<uint64_t>(), 2 * T);
+}
+
 // One slot: every step waits for the previous one, so latencies add up exactly.
 TEST(Core, SingleSlotLatenciesAdd) {
     const Cycle M = 30, B = 8, T = 18, I = 2;
