@@ -108,7 +108,7 @@ void Cache::Slowest::charge(AccessBreakdown* bd, int level, Cycle now) const {
 void Cache::charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done, Cycle done) {
     // Waiting for a fill already in flight is time spent below this level.
     bd->cycles[level] += lookup_done - now;
-    bd->cycles[std::min(level + 1, kMemLevels - 1)] += done - lookup_done;
+    bd->cycles[level == kLevelL1 ? kLevelL2 : kLevelDram] += done - lookup_done;
 }
 
 // The earliest-free MSHR (the ring's front) now frees at `ready`, which is never earlier: it

@@ -225,6 +225,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
+        stall_cycles[kCrossbar] += bd.cycles[kLevelCrossbar];
         stall_cycles[kUnitStall + kind] += done - fetched;
         // (No host prefetch of the L1 sets the slot's next step will look up: it comes dozens
         // of steps later, by when the prefetched lines were mostly gone again; dropping it made
@@ -234,7 +235,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
 }
 
 const char* Core::stall_name(int s) {
-    static const char* const names[kUnitStall] = {"issue", "l1", "l2", "dram"};
+    static const char* const names[kUnitStall] = {"issue", "l1", "l2", "dram", "crossbar"};
     if (s < kUnitStall) return names[s];
     if (s < kRayBuffer) return step_kind_info(s - kUnitStall).unit;
     return "ray_buffer";
@@ -334,8 +335,7 @@ void CoreScheduler::run() {
 namespace {
 // Stall causes charged over `cores`, the cycles they had no ray, and what neither accounts for
 // of their slot cycles (0 when every slot cycle is charged exactly once; a test checks it).
-nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles,
-                           Cycle end) {
+nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles, Cycle end) {
     nlohmann::json e = nlohmann::json::object();
     uint64_t charged = 0, no_work = 0;
     for (int k = 0; k < Core::kStallKinds; ++k) {

@@ -129,14 +129,15 @@ class Core : public sc_core::sc_module {
     // its private blocks (L1s, own units) follow.
     const TimeFloor* floor() const { return &floor_; }
 
-    // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause.
-    // (Cycles with no ray to run are the rest: slots x total cycles minus these.)
+    // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause;
+    // cycles without a ray are counted as no work (no_work_cycles, retired_idle_cycles).
     // The units' causes follow kUnitStall in StepKind order (box_unit, triangle_unit).
     enum Stall {
         kIssue,
         kL1,
         kL2,
         kDram,
+        kCrossbar,
         kUnitStall,
         kRayBuffer = kUnitStall + kStepKinds,
         kStallKinds
@@ -151,7 +152,7 @@ class Core : public sc_core::sc_module {
     // Slot cycles without a ray, counted as they pass (parked slots when woken; retired slots
     // from retirement to the end are added at report time).
     uint64_t no_work_cycles = 0;
-    uint64_t last_cycle = 0;          // cycle the core's last ray finished
+    uint64_t last_cycle = 0;  // cycle the core's last ray finished
     // Treelet mode
     uint64_t treelet_loads = 0, treelet_load_bytes = 0;
     // Packet mode: lanes whose ray took part, and lanes occupied, summed over steps.

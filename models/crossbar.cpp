@@ -16,7 +16,7 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
     bytes += size_bytes;
     busy_cycles += link_.idle_cycles(size_bytes);
     queue_cycles += first - returned;
-    if (bd) bd->cycles[kLevelL2] += end - returned;  // waiting for the link, then crossing
+    if (bd) bd->cycles[kLevelCrossbar] += end - returned;  // waiting for the link, crossing
     return end;
 }
 

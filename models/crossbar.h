@@ -2,7 +2,7 @@
 // bandwidth, carrying lines from the L2 to the L1s. A request (a few bytes) crosses at once; its
 // line takes the link when the L2 returns it, as a fluid share of each cycle's bytes (so the cap
 // holds however returns interleave, and a line returned early slips into gaps left by later
-// ones). Waiting for the link and crossing it are charged to the L2 level in stall attribution.
+// ones). Waiting for the link and crossing it are charged to the crossbar in stall attribution.
 #pragma once
 
 #include <string>

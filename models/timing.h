@@ -65,10 +65,17 @@ struct PortCalendar {
     }
 };
 
-// Where an access spent its cycles, by the memory level that spent them (stall attribution).
-enum MemLevel : int { kLevelL1 = 0, kLevelL2 = 1, kLevelDram = 2, kMemLevels = 3 };
+// Where an access spent its cycles, by the memory level that spent them (stall attribution);
+// the crossbar between the L1s and the L2 is a level of its own (its queueing and crossing).
+enum MemLevel : int {
+    kLevelL1 = 0,
+    kLevelL2 = 1,
+    kLevelDram = 2,
+    kLevelCrossbar = 3,
+    kMemLevels = 4
+};
 struct AccessBreakdown {
-    Cycle cycles[kMemLevels] = {0, 0, 0};
+    Cycle cycles[kMemLevels] = {0, 0, 0, 0};
 };
 
 // A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)

@@ -147,16 +147,13 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                100 * un["box_unit_total"]["utilization"].get<double>(),
                100 * un["triangle_unit_total"]["utilization"].get<double>());
     const json& share = out["stalls"]["total"]["share"];
-    fmt::print(
-        "  slots    issue {:.1f}%, L1 {:.1f}%, L2 {:.1f}%, DRAM {:.1f}%, box unit {:.1f}%, "
-        "triangle unit {:.1f}%{}, no work {:.1f}%\n",
-        100 * share["issue"].get<double>(), 100 * share["l1"].get<double>(),
-        100 * share["l2"].get<double>(), 100 * share["dram"].get<double>(),
-        100 * share["box_unit"].get<double>(), 100 * share["triangle_unit"].get<double>(),
-        out.contains("ray_buffer")
-            ? fmt::format(", ray buffer {:.1f}%", 100 * share["ray_buffer"].get<double>())
-            : std::string(),
-        100 * share["no_work"].get<double>());
+    std::string slots;
+    for (const std::string& cause : stall_causes()) {
+        if (cause == "ray_buffer" && !out.contains("ray_buffer")) continue;
+        slots += fmt::format("{}{} {:.1f}%", slots.empty() ? "" : ", ", stall_cause_label(cause),
+                             100 * share.value(cause, 0.0));
+    }
+    fmt::print("  slots    {}\n", slots);
     if (out.contains("ray_buffer")) {
         const json& rb = out["ray_buffer"];
         fmt::print(

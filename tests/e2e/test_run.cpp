@@ -309,8 +309,8 @@ TEST(Golden, EveryCaseMatchesItsFile) {
         diff_json(s, golden, "", diffs);
         std::string report;
         for (size_t i = 0; i < diffs.size() && i < 20; ++i) report += "\n  " + diffs[i];
-        EXPECT_TRUE(diffs.empty()) << name << ": " << diffs.size()
-                                   << " differences from the golden stats:" << report;
+        EXPECT_TRUE(diffs.empty())
+            << name << ": " << diffs.size() << " differences from the golden stats:" << report;
     }
 }
 
@@ -556,7 +556,7 @@ TEST(Run, StallAttributionAccountsForEverySlotCycle) {
         out.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);
-    const char* causes[] = {"issue", "l1", "l2", "dram", "box_unit", "triangle_unit"};
+    const char* causes[] = {"issue", "l1", "l2", "dram", "crossbar", "box_unit", "triangle_unit"};
     uint64_t latency = 0, charged = 0;
     for (int c = 0; c < 3; ++c) {
         const json& e = s["stalls"][fmt::format("core[{}]", c)];
@@ -576,6 +576,7 @@ TEST(Run, StallAttributionAccountsForEverySlotCycle) {
     EXPECT_NEAR(shares, 1.0, 1e-9);
     EXPECT_GT(s["stalls"]["total"]["box_unit"].get<uint64_t>(), 0u);
     EXPECT_GT(s["stalls"]["total"]["dram"].get<uint64_t>(), 0u);
+    EXPECT_GT(s["stalls"]["total"]["crossbar"].get<uint64_t>(), 0u);
     // 8-wide nodes on a 2-wide box unit: several operations per node visit.
     EXPECT_GT(s["units"]["box_unit_total"]["ops"].get<uint64_t>(),
               s["counters"]["core[0].steps"].get<uint64_t>() / 2);

@@ -310,7 +310,8 @@ TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {
     EXPECT_EQ(x.queue_cycles, n * (n - 1));  // request k waited 2k cycles
     AccessBreakdown bd;
     EXPECT_EQ(x.access(0, 64, 1000, &bd), 1000u + 30 + 2);  // idle: latency plus crossing only
-    EXPECT_EQ(bd.cycles[kLevelL2], 2u);
+    EXPECT_EQ(bd.cycles[kLevelCrossbar], 2u);  // the crossing is the crossbar's, not the L2's
+    EXPECT_EQ(bd.cycles[kLevelL2], 0u);
 }
 
 namespace {
@@ -341,9 +342,12 @@ TEST(Crossbar, LinesCrossWhenTheL2ReturnsThem) {
     EXPECT_EQ(x.access(0x0, 64, 1, &fast_bd), 35u);       // not queued behind the DRAM miss
     EXPECT_EQ(x.access(0x40, 64, 2, nullptr), 36u + 3);   // back at 32: waits for the link
     EXPECT_EQ(x.queue_cycles, 3u);
-    // The breakdown adds up to the latency: the level below's cycles, then the crossing.
-    EXPECT_EQ(slow_bd.cycles[kLevelDram] + slow_bd.cycles[kLevelL2], 304u);
-    EXPECT_EQ(fast_bd.cycles[kLevelL2], 4u);
+    // The breakdown adds up to the latency: the level below's cycles, then the crossing, which
+    // is the crossbar's.
+    EXPECT_EQ(slow_bd.cycles[kLevelDram], 300u);
+    EXPECT_EQ(slow_bd.cycles[kLevelCrossbar], 4u);
+    EXPECT_EQ(fast_bd.cycles[kLevelCrossbar], 4u);
+    EXPECT_EQ(fast_bd.cycles[kLevelL2], 0u);
 }
 
 // The fast model serves a cache's tag state and MSHRs in the order requests reach it; where that

@@ -66,7 +66,8 @@ TEST(StatsReport, StallSharesAndUnaccountedCycles) {
     CoreParams cp;
     cp.ray_slots = 3;
     Core core("core[0]", cp, {&mem, &mem}, {&box, &tri}, &none);
-    const uint64_t charged[] = {100, 200, 300, 400, 500, 600, 0};
+    // issue, l1, l2, dram, crossbar, box_unit, triangle_unit, ray_buffer: 2100 charged.
+    const uint64_t charged[Core::kStallKinds] = {100, 200, 300, 400, 0, 500, 600, 0};
     for (int k = 0; k < Core::kStallKinds; ++k) core.stall_cycles[k] = charged[k];
     ReportContext ctx;
     ctx.total_cycles = 1000;
