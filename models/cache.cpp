@@ -77,12 +77,13 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
     }
 }
 
-void Cache::Slowest::hit(Cycle lookup_done, Cycle ready) {
+void Cache::Slowest::hit(Cycle lookup_done, Cycle ready, uint64_t line) {
     const Cycle d = std::max(lookup_done, ready);
     if (d > done || !any) {
         done = d;
         any = true;
         hit_lookup_done = lookup_done;
+        hit_line = line;
         is_hit = true;
     }
 }
@@ -96,19 +97,44 @@ void Cache::Slowest::miss(Cycle d, const AccessBreakdown& line_bd) {
     }
 }
 
-void Cache::Slowest::charge(AccessBreakdown* bd, int level, Cycle now) const {
+void Cache::Slowest::charge(const Cache& cache, AccessBreakdown* bd, Cycle now) const {
     if (!bd) return;
     if (is_hit) {
-        charge_hit(bd, level, now, hit_lookup_done, done);
+        cache.charge_hit(bd, now, hit_lookup_done, done, hit_line);
     } else {
         for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += miss_bd.cycles[l];
     }
 }
 
-void Cache::charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done, Cycle done) {
-    // Waiting for a fill already in flight is time spent below this level.
-    bd->cycles[level] += lookup_done - now;
-    bd->cycles[level == kLevelL1 ? kLevelL2 : kLevelDram] += done - lookup_done;
+void Cache::remember_fill(uint64_t line, Cycle issue_at, const AccessBreakdown& before,
+                          const AccessBreakdown& after, Cycle ready) {
+    if (in_flight_.empty()) in_flight_.resize(kInFlightFills);
+    InFlightFill& f = in_flight_[line % kInFlightFills];
+    f.line = line;
+    f.issue_at = issue_at;
+    f.l1_end = issue_at + (after.cycles[kLevelL1] - before.cycles[kLevelL1]);
+    f.l2_end = f.l1_end + (after.cycles[kLevelL2] - before.cycles[kLevelL2]);
+    f.dram_end = f.l2_end + (after.cycles[kLevelDram] - before.cycles[kLevelDram]);
+    f.ready = ready;  // the crossbar's part ends it
+}
+
+void Cache::charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const {
+    const int below = level_ == kLevelL1 ? kLevelL2 : kLevelDram;
+    const InFlightFill* fill = in_flight_.empty() ? nullptr : &in_flight_[line % kInFlightFills];
+    if (!fill || fill->line != line || fill->ready != until) {
+        bd->cycles[below] += until - from;
+        return;
+    }
+    // The part of [from, until) inside [lo, hi).
+    auto overlap = [&](Cycle lo, Cycle hi) {
+        const Cycle a = std::max(from, lo), b = std::min(until, hi);
+        return b > a ? b - a : 0;
+    };
+    bd->cycles[level_] += overlap(0, fill->issue_at);  // the fill still waited for an MSHR
+    bd->cycles[kLevelL1] += overlap(fill->issue_at, fill->l1_end);  // an L1 below this cache
+    bd->cycles[kLevelL2] += overlap(fill->l1_end, fill->l2_end);
+    bd->cycles[kLevelDram] += overlap(fill->l2_end, fill->dram_end);
+    bd->cycles[kLevelCrossbar] += overlap(fill->dram_end, fill->ready);
 }
 
 // The earliest-free MSHR (the ring's front) now frees at `ready`, which is never earlier: it

@@ -220,20 +220,42 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random
         return ready;
     }
-    // A hit's cycles in `bd`: looking it up at `level` until `lookup_done`, then waiting below
-    // for its fill until `done`.
-    static void charge_hit(AccessBreakdown* bd, int level, Cycle now, Cycle lookup_done,
-                           Cycle done);
+    // A hit's cycles in `bd`: looking it up at this level until `lookup_done`, then waiting
+    // for the fill of `line` until `done` (charge_wait).
+    void charge_hit(AccessBreakdown* bd, Cycle now, Cycle lookup_done, Cycle done,
+                    uint64_t line) const {
+        bd->cycles[level_] += lookup_done - now;
+        if (done > lookup_done) charge_wait(bd, line, lookup_done, done);
+    }
+    // A hit waiting from `from` to `until` on the fill of `line` still in flight: an L1 charges
+    // each cycle to the level the fill was at then (its MSHR wait, the L2, DRAM, the crossbar,
+    // in that order; an L1 below a treelet cache first), from the fill's recorded breakdown);
+    // otherwise, or when the fill is no
+    // longer remembered, the wait is the next level's.
+    void charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const;
+    // An L1's recent fills: when each left for the next level and how long it spent at each
+    // level below (the difference of the requester's breakdown across the fill).
+    struct InFlightFill {
+        uint64_t line = ~uint64_t(0);
+        Cycle issue_at = 0, l1_end = 0, l2_end = 0, dram_end = 0, ready = 0;
+    };
+    // Direct-mapped by line: a fill overwritten by a newer one of the same slot falls back to
+    // charging the next level.
+    static constexpr size_t kInFlightFills = 512;
+    std::vector<InFlightFill> in_flight_;
+    void remember_fill(uint64_t line, Cycle issue_at, const AccessBreakdown& before,
+                       const AccessBreakdown& after, Cycle ready);
     // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
     // breakdown copied per line (copying small structs per line stalled store forwarding).
     struct Slowest {
         Cycle done = 0;
         bool any = false, is_hit = true;
         Cycle hit_lookup_done = 0;
+        uint64_t hit_line = 0;
         AccessBreakdown miss_bd;
-        void hit(Cycle lookup_done, Cycle ready);
+        void hit(Cycle lookup_done, Cycle ready, uint64_t line);
         void miss(Cycle done, const AccessBreakdown& line_bd);
-        void charge(AccessBreakdown* bd, int level, Cycle now) const;
+        void charge(const Cache& cache, AccessBreakdown* bd, Cycle now) const;
     };
     template <int G, typename P>
     Cycle access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,

@@ -37,7 +37,7 @@ Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowe
     const int found = find_way<G>(set, line_addr);
     if (found >= 0) {
         const Cycle ready = hit<G, P>(set, found, lookup_done);
-        slowest.hit(lookup_done, ready);
+        slowest.hit(lookup_done, ready, line_addr);
         return std::max(lookup_done, ready);
     }
     AccessBreakdown line_bd;
@@ -66,7 +66,13 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;
+    // An L1 keeps the timeline of its fills in flight, so that a later hit waiting on one is
+    // charged to the levels it actually waits on.
+    const bool keep = bd && level_ == kLevelL1;
+    AccessBreakdown before;
+    if (keep) before = *bd;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
+    if (keep) remember_fill(line_addr, issue_at, before, *bd, ready);
     if (limited) replace_earliest_mshr(ready);
     tags<G>(set)[victim] = tag_of(line_addr);
     fill_ready<G>(set)[victim] = ready;
@@ -98,14 +104,16 @@ inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now
         look_up(first, last, now, done);
     // The slowest line decides (the first of equals); a hit waits for a fill still in flight.
     Cycle slowest = 0, slowest_lookup = 0;
+    uint64_t slowest_line = first;
     for (uint64_t k = 0; k < lines; ++k) {
         const Cycle lookup_done = one_bank ? first_done + k : done[k];
         const Cycle d = std::max(lookup_done, hit<G, P>(set_of(first + k), ways[k], lookup_done));
         const bool slower = k == 0 || d > slowest;
         slowest = slower ? d : slowest;
         slowest_lookup = slower ? lookup_done : slowest_lookup;
+        slowest_line = slower ? first + k : slowest_line;
     }
-    if (bd) charge_hit(bd, level_, now, slowest_lookup, slowest);
+    if (bd) charge_hit(bd, now, slowest_lookup, slowest, slowest_line);
     ready = slowest;
     return true;
 }
@@ -121,7 +129,7 @@ inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, Acc
         const int found = find_way<G>(set, first);
         if (found < 0) return fill<G, P>(set, first, now, lookup_done, bd);
         const Cycle ready = std::max(lookup_done, hit<G, P>(set, found, lookup_done));
-        if (bd) charge_hit(bd, level_, now, lookup_done, ready);
+        if (bd) charge_hit(bd, now, lookup_done, ready, first);
         return ready;
     }
     // Lines are looked up in parallel; the access waits for the slowest, whose breakdown it adds
@@ -139,7 +147,7 @@ inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, Acc
     for (uint64_t k = 0; k < lines; ++k)
         access_line<G, P>(first + k, now, one_bank ? first_done + k : lookup_done_[k], slowest,
                           bd != nullptr);
-    slowest.charge(bd, level_, now);
+    slowest.charge(*this, bd, now);
     return std::max(now, slowest.done);
 }
 

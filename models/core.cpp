@@ -95,8 +95,11 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
     const TreeletSpan& span = ray_buffer_->span(treelet);
     MemoryPort* node_l1 = mem_by_kind_[size_t(StepKind::Node)];
     MemoryPort* tri_l1 = mem_by_kind_[size_t(StepKind::Triangle)];
-    if (span.node_bytes) node_l1->access(span.node_addr, uint32_t(span.node_bytes), now);
-    if (span.tri_bytes) tri_l1->access(span.tri_addr, uint32_t(span.tri_bytes), now);
+    // The breakdown is not charged (no ray waits for the load itself), but asking for one lets
+    // the L1 remember its fills' timelines for the rays that then wait on them.
+    AccessBreakdown unused;
+    if (span.node_bytes) node_l1->access(span.node_addr, uint32_t(span.node_bytes), now, &unused);
+    if (span.tri_bytes) tri_l1->access(span.tri_addr, uint32_t(span.tri_bytes), now, &unused);
     ++treelet_loads;
     treelet_load_bytes += span.node_bytes + span.tri_bytes;
     loaded_treelet_ = treelet;

@@ -188,8 +188,12 @@ TEST(Cache, BreakdownChargesEachLevelItsCycles) {
     EXPECT_EQ(a.cycles[kLevelDram], 200u);
     AccessBreakdown b;
     EXPECT_EQ(l1.access(0x4000, 64, 110, &b), 334u);  // hit on a line still filling: waits below L1
+    // The fill left the L1 at 104, was at the L2 until 134 and at DRAM until 334: the hit,
+    // looked up by 114, waits 20 cycles on the L2 and 200 on DRAM (charged where it waits, not
+    // all to the level below the L1).
     EXPECT_EQ(b.cycles[kLevelL1], 4u);
-    EXPECT_EQ(b.cycles[kLevelL2], 334u - 114u);
+    EXPECT_EQ(b.cycles[kLevelL2], 134u - 114u);
+    EXPECT_EQ(b.cycles[kLevelDram], 334u - 134u);
     AccessBreakdown c;
     EXPECT_EQ(l1.access(0x4000, 32, 1000, &c), 1004u);  // plain hit
     EXPECT_EQ(c.cycles[kLevelL1] + c.cycles[kLevelL2] + c.cycles[kLevelDram], 4u);
