@@ -42,6 +42,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
         throw std::invalid_argument(
             std::string(name) + ": addresses up to " + std::to_string(params_.address_limit_bytes) +
             " bytes need tags wider than 32 bits with this cache's sets and lines");
+    if (level_ == kLevelL1) in_flight_.resize(kInFlightFills);
     repl_.ways = params_.ways;
     repl_.rrpv_bits = params_.rrpv_bits;
     repl_.words_base = params_.sets() ? stamps(0) : nullptr;
@@ -104,18 +105,6 @@ void Cache::Slowest::charge(const Cache& cache, AccessBreakdown* bd, Cycle now) 
     } else {
         for (int l = 0; l < kMemLevels; ++l) bd->cycles[l] += miss_bd.cycles[l];
     }
-}
-
-void Cache::remember_fill(uint64_t line, Cycle issue_at, const AccessBreakdown& before,
-                          const AccessBreakdown& after, Cycle ready) {
-    if (in_flight_.empty()) in_flight_.resize(kInFlightFills);
-    InFlightFill& f = in_flight_[line % kInFlightFills];
-    f.line = line;
-    f.issue_at = issue_at;
-    f.l1_end = issue_at + (after.cycles[kLevelL1] - before.cycles[kLevelL1]);
-    f.l2_end = f.l1_end + (after.cycles[kLevelL2] - before.cycles[kLevelL2]);
-    f.dram_end = f.l2_end + (after.cycles[kLevelDram] - before.cycles[kLevelDram]);
-    f.ready = ready;  // the crossbar's part ends it
 }
 
 void Cache::charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const {

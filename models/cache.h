@@ -240,11 +240,20 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         Cycle issue_at = 0, l1_end = 0, l2_end = 0, dram_end = 0, ready = 0;
     };
     // Direct-mapped by line: a fill overwritten by a newer one of the same slot falls back to
-    // charging the next level.
-    static constexpr size_t kInFlightFills = 512;
-    std::vector<InFlightFill> in_flight_;
+    // charging the next level. (An L1's MSHRs bound its fills in flight, 16 by default; a
+    // treelet load has a few hundred.)
+    static constexpr size_t kInFlightFills = 128;
+    std::vector<InFlightFill> in_flight_;  // L1s only
     void remember_fill(uint64_t line, Cycle issue_at, const AccessBreakdown& before,
-                       const AccessBreakdown& after, Cycle ready);
+                       const AccessBreakdown& after, Cycle ready) {
+        InFlightFill& f = in_flight_[line % kInFlightFills];
+        f.line = line;
+        f.issue_at = issue_at;
+        f.l1_end = issue_at + (after.cycles[kLevelL1] - before.cycles[kLevelL1]);
+        f.l2_end = f.l1_end + (after.cycles[kLevelL2] - before.cycles[kLevelL2]);
+        f.dram_end = f.l2_end + (after.cycles[kLevelDram] - before.cycles[kLevelDram]);
+        f.ready = ready;  // the crossbar's part ends it
+    }
     // The slowest line of a request and where its cycles went. Hits keep two scalars, not a
     // breakdown copied per line (copying small structs per line stalled store forwarding).
     struct Slowest {
