@@ -1,6 +1,8 @@
 // Output files that appear whole or not at all: data goes to PATH.tmp, and commit() renames it
 // into place. A file never committed (an error part-way) is removed, so bad input never leaves
 // partial or corrupted output behind, and an existing file at PATH survives a failed run.
+// A symlink stays a symlink (the file behind it is replaced); a pipe or a device (/dev/stdout)
+// is written in place, never replaced.
 #pragma once
 
 #include <cstdio>
@@ -22,6 +24,7 @@ class AtomicOutputFile {
   private:
     std::string path_, tmp_;
     std::FILE* f_ = nullptr;
+    bool direct_ = false;  // a pipe or device: written in place
 };
 
 // Writes text to path atomically.
