@@ -42,6 +42,15 @@ constexpr float kSlabFarScale =
 // then drop a triangle that is nearer than the one found: traversals keep boxes within this margin.
 constexpr float kCullScale = 1.0f + 1.0f / 65536.0f;
 
+// A ray traversal can follow: finite origin and direction. A non-finite one (from a scene so
+// large its camera overflowed) would make every slab distance NaN, which the box tests ignore
+// rather than treat as a miss; traversals reject such a ray at the root instead (one check per
+// ray, not per box).
+inline bool finite_ray(const Ray& r) {
+    return std::isfinite(r.org.x) && std::isfinite(r.org.y) && std::isfinite(r.org.z) &&
+           std::isfinite(r.dir.x) && std::isfinite(r.dir.y) && std::isfinite(r.dir.z);
+}
+
 // Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
 // Boxes are closed: a ray grazing a face or running inside a face's plane overlaps it.
 inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax,

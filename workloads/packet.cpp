@@ -130,7 +130,8 @@ void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* h
         hits[i] = Hit();
         hits[i].t = rays[i].tmax;
         float tn;
-        if (intersect_box(rp[i], bvh.bounds(), rays[i].tmin, rays[i].tmax, tn))
+        if (finite_ray(rays[i]) &&
+            intersect_box(rp[i], bvh.bounds(), rays[i].tmin, rays[i].tmax, tn))
             mask |= uint64_t(1) << i;
     }
     st.packets++;

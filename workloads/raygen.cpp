@@ -168,6 +168,16 @@ RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptio
     opt_.validate();
     const AABB b = bvh.bounds();
     camera_ = Camera::frame(b, opt_.width, opt_.height);
+    // Scenes so large that the bounds' extent or the camera overflow single precision would
+    // give every ray a non-finite origin: refuse them instead of reporting no hits.
+    const Vec3 e0 = b.extent();
+    const float reach = length(e0);
+    if (!std::isfinite(reach) || !std::isfinite(camera_.eye.x) || !std::isfinite(camera_.eye.y) ||
+        !std::isfinite(camera_.eye.z))
+        throw InputError(fmt::format(
+            "{}: scene bounds ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}) are too large for "
+            "single-precision rays (their extent overflows a float); scale the scene down",
+            scene.name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
     // Lights just under the top of the scene's bounds (inside a closed room): a point at the
     // centre, or a horizontal quad a quarter of the bounds' width and depth around it.
     const Vec3 c = b.center(), e = b.extent();

@@ -275,7 +275,8 @@ Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>*
     Hit hit;
     hit.t = ray.tmax;
     float root_t;
-    if (!intersect_box(RayPrecomp(ray), bvh.bounds(), ray.tmin, ray.tmax, root_t)) {
+    if (!finite_ray(ray) ||
+        !intersect_box(RayPrecomp(ray), bvh.bounds(), ray.tmin, ray.tmax, root_t)) {
         hit.t = std::numeric_limits<float>::infinity();
         return hit;
     }

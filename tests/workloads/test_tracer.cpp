@@ -1,9 +1,13 @@
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cmath>
+#include <future>
 #include <random>
 
 #include "workloads/bvh.h"
 #include "workloads/intersect.h"
+#include "workloads/packet.h"
 #include "workloads/scene.h"
 #include "workloads/tracer.h"
 
@@ -125,6 +129,51 @@ TEST(Tracer, RayMissingRootBoxCostsNoStep) {
     const Hit h = trace_ray(bvh, r, HitQuery::Closest, &steps);
     EXPECT_FALSE(h.valid());
     EXPECT_TRUE(steps.empty());
+}
+
+// Issue 18, item 1: a ray with a NaN origin (from a scene so large its camera overflowed) made
+// the scalar box test count every box as hit, and BVH2 traversal never ended. Such a ray is now
+// a miss at the root, with no step, for every width, format and builder, single or in packets.
+TEST(Tracer, NonFiniteRaysMissAndEnd) {
+    Scene s = load_scene("builtin:cornell");
+    for (int width : {2, 4, 8})
+        for (NodeFormat f : {NodeFormat::Full, NodeFormat::Compressed})
+            for (BvhBuilder builder : {BvhBuilder::Sah, BvhBuilder::Lbvh}) {
+                BvhBuildOptions o;
+                o.width = width;
+                o.node_format = f;
+                o.builder = builder;
+                const Bvh bvh = build_bvh(s, o);
+                for (float bad : {std::nanf(""), INFINITY}) {
+                    Ray r;
+                    r.org = Vec3(bad, bad, bad);
+                    r.dir = normalize(Vec3(0.3f, -0.2f, -1.0f));
+                    // Runs in a thread with a deadline: a regression hangs, it must not hang CI.
+                    auto done = std::async(std::launch::async, [&] {
+                        std::vector<Step> steps;
+                        return std::make_pair(trace_ray(bvh, r, HitQuery::Closest, &steps),
+                                              steps.size());
+                    });
+                    if (done.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
+                        ADD_FAILURE() << "traversal of a non-finite ray does not end (BVH" << width;
+                        std::_Exit(1);
+                    }
+                    const auto [hit, steps] = done.get();
+                    EXPECT_FALSE(hit.valid()) << width;
+                    EXPECT_EQ(steps, 0u) << width;
+                    // In a packet with a finite ray: the bad lanes miss, the good one is traced.
+                    Ray rays[3] = {r, r, r};
+                    rays[1].org = Vec3(0.0f, 0.0f, 5.0f);
+                    rays[1].dir = Vec3(0.0f, 0.0f, -1.0f);
+                    Hit hits[3];
+                    PacketOptions po;
+                    po.size = 3;
+                    PacketStats ps;
+                    trace_packet(bvh, rays, 3, HitQuery::Closest, hits, po, ps);
+                    EXPECT_FALSE(hits[0].valid() || hits[2].valid()) << width;
+                    EXPECT_EQ(hits[1].valid(), trace_ray(bvh, rays[1], HitQuery::Closest).valid());
+                }
+            }
 }
 
 TEST(Intersect, WatertightOnSharedEdgesAndVertices) {
