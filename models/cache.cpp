@@ -180,26 +180,8 @@ nlohmann::json Cache::report(const ReportContext&) const {
 }
 
 nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, const ReportContext&) {
-    uint64_t a = 0, h = 0, m = 0, mm = 0;
-    for (const Cache* c : caches) {
-        a += c->accesses;
-        h += c->hits;
-        m += c->misses;
-        mm += c->merged_misses;
-    }
-    return cache_entry(a, h, m, mm);
-}
-
-uint64_t Cache::bytes_requested_of(const std::vector<const Cache*>& caches) {
-    uint64_t b = 0;
-    for (const Cache* c : caches) b += c->bytes_requested;
-    return b;
-}
-
-uint64_t Cache::fill_bytes_of(const std::vector<const Cache*>& caches) {
-    uint64_t b = 0;
-    for (const Cache* c : caches) b += c->fill_bytes;
-    return b;
+    return cache_entry(sum_of(caches, &Cache::accesses), sum_of(caches, &Cache::hits),
+                       sum_of(caches, &Cache::misses), sum_of(caches, &Cache::merged_misses));
 }
 
 }  // namespace rtsim

@@ -80,10 +80,6 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // The same over several caches (all L1s: "l1_total").
     static nlohmann::json report_total(const std::vector<const Cache*>& caches,
                                        const ReportContext& ctx);
-    // Bytes the caches delivered to the level above, and read from the level below (the
-    // bandwidth at the boundaries above and below them).
-    static uint64_t bytes_requested_of(const std::vector<const Cache*>& caches);
-    static uint64_t fill_bytes_of(const std::vector<const Cache*>& caches);
     void set_series(TimeSeries* fill_bytes) { fill_series_ = fill_bytes; }
     const CacheParams& params() const { return params_; }
     // Tests: start the replacement stamps' counter here (to see it wrap).
@@ -229,9 +225,8 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     }
     // A hit waiting from `from` to `until` on the fill of `line` still in flight: an L1 charges
     // each cycle to the level the fill was at then (its MSHR wait, the L2, DRAM, the crossbar,
-    // in that order; an L1 below a treelet cache first), from the fill's recorded breakdown);
-    // otherwise, or when the fill is no
-    // longer remembered, the wait is the next level's.
+    // in that order; an L1 below a treelet cache first), from the fill's recorded breakdown;
+    // otherwise, or when the fill is no longer remembered, the wait is the next level's.
     void charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const;
     // An L1's recent fills: when each left for the next level and how long it spent at each
     // level below (the difference of the requester's breakdown across the fill).

@@ -1,6 +1,6 @@
 // The cache's hot paths as templates of the set layout G and the replacement policy P. Included
 // by each policy's file (models/replacement/*.cpp), which instantiates them for its policy through
-// Cache::use_policy; the cache calls the instance through two member pointers set once.
+// Cache::use_policy; the cache calls the instance through two function pointers set once.
 #pragma once
 
 #include <algorithm>

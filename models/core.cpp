@@ -373,11 +373,8 @@ nlohmann::json Core::stall_report_total(const std::vector<const Core*>& cores,
 }
 
 nlohmann::json Core::packet_report(const std::vector<const Core*>& cores) {
-    uint64_t active = 0, slots = 0;
-    for (const Core* c : cores) {
-        active += c->active_lanes;
-        slots += c->lane_slots;
-    }
+    const uint64_t active = sum_of(cores, &Core::active_lanes);
+    const uint64_t slots = sum_of(cores, &Core::lane_slots);
     return {{"active_lanes", active},
             {"lane_slots", slots},
             {"lane_utilization", ReportContext::ratio(double(active), double(slots))}};

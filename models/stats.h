@@ -41,6 +41,14 @@ struct ReportContext {
     static double ratio(double a, double b) { return b > 0 ? a / b : 0.0; }
 };
 
+// A counter summed over several blocks of one kind (all L1s' fill bytes, all cores' lanes).
+template <typename Block>
+uint64_t sum_of(const std::vector<const Block*>& blocks, uint64_t Block::*counter) {
+    uint64_t n = 0;
+    for (const Block* b : blocks) n += b->*counter;
+    return n;
+}
+
 class StatsRegistry {
   public:
     struct Entry {

@@ -168,18 +168,18 @@ std::vector<const T*> views(const std::vector<std::unique_ptr<T>>& blocks) {
 }
 }  // namespace
 
+std::vector<const Cache*> Chip::all_l1() const {
+    std::vector<const Cache*> out = views(l1);  // unified, or node and triangle caches
+    for (const auto& c : l1_tri) out.push_back(c.get());
+    return out;
+}
+
 nlohmann::json Chip::out_of_order_report() const {
-    auto sum = [](const auto& blocks, auto field) {
-        uint64_t n = 0;
-        for (const auto& b : blocks) n += (*b).*field;
-        return n;
-    };
-    std::vector<const Cache*> all_l1 = views(l1);
-    for (const auto& c : l1_tri) all_l1.push_back(c.get());
+    const std::vector<const Cache*> l1s = all_l1();
     uint64_t issue = 0;
     for (const auto& c : cores) issue += c->issue_port_out_of_order();
-    nlohmann::json out = {{"l1_lookups", sum(all_l1, &Cache::lookup_out_of_order)},
-                          {"l1_mshr_requests", sum(all_l1, &Cache::mshr_out_of_order)},
+    nlohmann::json out = {{"l1_lookups", sum_of(l1s, &Cache::lookup_out_of_order)},
+                          {"l1_mshr_requests", sum_of(l1s, &Cache::mshr_out_of_order)},
                           {"l2_lookups", l2->lookup_out_of_order},
                           {"l2_mshr_requests", l2->mshr_out_of_order},
                           {"dram_requests", dram->out_of_order_requests()},
@@ -201,10 +201,9 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
     out["units"] = unit_sections;
 
     json caches = json::object();
-    std::vector<const Cache*> all_l1 = views(l1);  // unified, or node and triangle caches
-    for (const auto& c : l1_tri) all_l1.push_back(c.get());
-    for (const Cache* c : all_l1) caches[c->name()] = c->report(ctx);
-    caches["l1_total"] = Cache::report_total(all_l1, ctx);
+    const std::vector<const Cache*> l1s = all_l1();
+    for (const Cache* c : l1s) caches[c->name()] = c->report(ctx);
+    caches["l1_total"] = Cache::report_total(l1s, ctx);
     if (!treelet_caches.empty()) {
         for (const auto& c : treelet_caches) caches[c->name()] = c->report(ctx);
         caches["treelet_cache_total"] = Cache::report_total(views(treelet_caches), ctx);
@@ -213,8 +212,8 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
     out["caches"] = caches;
 
     // Bytes crossing each boundary: core<-L1 (requested), L1<-L2 (L1 fills), L2<-DRAM.
-    const uint64_t l1_bytes = Cache::bytes_requested_of(all_l1);
-    const uint64_t l2_bytes = Cache::fill_bytes_of(all_l1);
+    const uint64_t l1_bytes = sum_of(l1s, &Cache::bytes_requested);
+    const uint64_t l2_bytes = sum_of(l1s, &Cache::fill_bytes);
     out["bandwidth"] = {{"l1", {{"bytes", l1_bytes}, {"gbps", ctx.gbps(l1_bytes)}}},
                         {"l2", {{"bytes", l2_bytes}, {"gbps", ctx.gbps(l2_bytes)}}},
                         {"dram", dram->report(ctx)}};
@@ -226,14 +225,9 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
     stalls["total"] = Core::stall_report_total(views(cores), ctx);
     out["stalls"] = stalls;
 
-    if (ray_buffer) {
-        uint64_t loads = 0, load_bytes = 0;
-        for (const auto& c : cores) {
-            loads += c->treelet_loads;
-            load_bytes += c->treelet_load_bytes;
-        }
-        out["ray_buffer"] = ray_buffer->report(ctx, loads, load_bytes);
-    }
+    if (ray_buffer)
+        out["ray_buffer"] = ray_buffer->report(ctx, sum_of(views(cores), &Core::treelet_loads),
+                                               sum_of(views(cores), &Core::treelet_load_bytes));
     if (cores[0]->params().packet_lanes > 0) out["packets"] = Core::packet_report(views(cores));
     out["out_of_order"] = out_of_order_report();
     return out;

@@ -33,6 +33,8 @@ class Chip {
     // simulator meets requests; where it claims exactness (a private L1 behind its in-order
     // issue port) these are 0.
     nlohmann::json out_of_order_report() const;
+    // Every L1: the unified ones, or a split L1's node and triangle caches.
+    std::vector<const Cache*> all_l1() const;
 
     StatsRegistry stats;
     std::unique_ptr<DramModel> dram;

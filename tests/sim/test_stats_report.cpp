@@ -38,7 +38,7 @@ TEST(StatsReport, BlocksDeriveTheirFiguresFromTheirCounters) {
     l1b.accesses = 1000, l1b.hits = 500, l1b.misses = 500, l1b.fill_bytes = 32000;
     EXPECT_DOUBLE_EQ(l1.report(ctx)["hit_rate"].get<double>(), 0.9);
     EXPECT_DOUBLE_EQ(Cache::report_total({&l1, &l1b}, ctx)["hit_rate"].get<double>(), 0.7);
-    EXPECT_EQ(Cache::fill_bytes_of({&l1, &l1b}), 38400u);
+    EXPECT_EQ(sum_of<Cache>({&l1, &l1b}, &Cache::fill_bytes), 38400u);
 
     DramParams dp;
     dp.channels = 2;
