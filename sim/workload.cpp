@@ -90,7 +90,7 @@ json workload_summary(const RayGenOptions& rg, float ao_length) {
 }
 
 json open_trace_metadata(TraceReader& reader, const std::string& path) {
-    json meta = json::parse(reader.metadata_json(), nullptr, false);
+    const json& meta = reader.metadata();
     if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh") ||
         !meta.contains("scene"))
         throw InputError(

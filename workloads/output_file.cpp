@@ -35,7 +35,10 @@ AtomicOutputFile::AtomicOutputFile(std::string path) : path_(std::move(path)) {
     // A pipe, a device (/dev/stdout) or a socket is written in place: it cannot be replaced,
     // and must not be (a rename would put a regular file where the device or its link was).
     direct_ = !ec && fs::exists(st) && !fs::is_regular_file(st);
-    if (!direct_) tmp_ = file_behind(path_).string() + ".tmp";
+    if (!direct_) {
+        target_ = file_behind(path_).string();
+        tmp_ = target_ + ".tmp";
+    }
     f_ = std::fopen(direct_ ? path_.c_str() : tmp_.c_str(), "wb");
     if (!f_)
         throw InputError(
@@ -64,8 +67,8 @@ void AtomicOutputFile::commit() {
         return;
     }
     std::error_code ec;
-    // The temporary file sits beside the file behind any link: renaming it there keeps the link.
-    if (ok) std::filesystem::rename(tmp_, tmp_.substr(0, tmp_.size() - 4), ec);
+    // Renaming over the file behind any link keeps the link.
+    if (ok) std::filesystem::rename(tmp_, target_, ec);
     if (!ok || ec) {
         std::remove(tmp_.c_str());
         throw std::runtime_error(fmt::format("{}: cannot write output file", path_));

@@ -22,7 +22,8 @@ class AtomicOutputFile {
     const std::string& path() const { return path_; }
 
   private:
-    std::string path_, tmp_;
+    std::string path_;
+    std::string target_, tmp_;  // the file behind any link, and the temporary file beside it
     std::FILE* f_ = nullptr;
     bool direct_ = false;  // a pipe or device: written in place
 };

@@ -1,7 +1,5 @@
 #include "workloads/trace_file.h"
 
-#include <nlohmann/json.hpp>
-
 #include "workloads/bvh_summary.h"
 
 #include <zlib.h>
@@ -98,10 +96,10 @@ void TraceWriter::add(const TraceRecord& r) {
     last_ray_id_ = r.ray_id;
     raw_.push_back(char(r.kind));
     put_varint(raw_, r.steps.size());
-    // Per step kind the format can hold (16), reset per ray: a ray starts at the root.
-    int64_t prev[16] = {};
+    // Per step kind the format can hold, reset per ray: a ray starts at the root.
+    int64_t prev[kTraceStepKinds] = {};
     for (const Step& s : r.steps) {
-        if (int(s.kind) >= 16)
+        if (int(s.kind) >= kTraceStepKinds)
             throw std::logic_error("trace: a step kind above 15 does not fit the format");
         // Version 2's step byte: the kind in the low 4 bits, the count in the high 4 (15: 15 or
         // more, the rest in a varint that follows).
@@ -212,9 +210,9 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     header_end_ = 24 + uint64_t(meta_len);
     // An RTSim trace's header describes the BVH layout its steps' ids map through: the reader
     // sets it up itself (other writers' metadata, as in tests, leave it to set_layout).
-    const auto meta = nlohmann::json::parse(metadata_, nullptr, false);
-    if (meta.is_object() && meta.contains("bvh") && meta["bvh"].is_object())
-        layout_ = layout_from_summary(meta["bvh"], path);
+    meta_ = nlohmann::json::parse(metadata_, nullptr, false);
+    if (meta_.is_object() && meta_.contains("bvh") && meta_["bvh"].is_object())
+        layout_ = layout_from_summary(meta_["bvh"], path);
 
     if (file_size_ < header_end_ + kFooterBytes)
         fail(header_end_, "file ends before the footer (truncated)");
@@ -374,8 +372,8 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
                 if (items == 15) {  // 15 or more: the rest follows
                     items += varint();
                     if (items > 255)
-                        chunk_fail(fmt::format("ray {} step {} has count {}, above 255", r, i,
-                                               items));
+                        chunk_fail(
+                            fmt::format("ray {} step {} has count {}, above 255", r, i, items));
                 }
             }
             prev[sk] += unzigzag(end - p >= 2 ? short_varint() : varint());

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,8 @@ namespace rtsim {
 // Version written. Version 1 (a step byte of 1 kind bit and 7 count bits) is still read.
 constexpr uint32_t kTraceVersion = 2;
 constexpr uint32_t kOldestTraceVersion = 1;
+// Step kinds version 2's 4-bit kind field can hold (this build knows kStepKinds of them).
+constexpr int kTraceStepKinds = 16;
 
 // One ray as recorded: what it did and what it hit.
 struct TraceRecord {
@@ -75,6 +78,8 @@ class TraceReader {
     TraceReader& operator=(const TraceReader&) = delete;
 
     const std::string& metadata_json() const { return metadata_; }
+    // The metadata parsed once (a discarded value when it is not JSON).
+    const nlohmann::json& metadata() const { return meta_; }
     uint32_t version() const { return version_; }
     size_t chunk_count() const { return index_.size(); }
     uint64_t rays() const { return total_rays_; }
@@ -106,6 +111,7 @@ class TraceReader {
     uint64_t file_size_ = 0, header_end_ = 0, index_offset_ = 0;
     uint32_t version_ = 0;
     std::string metadata_;
+    nlohmann::json meta_;
     struct IndexEntry {
         uint64_t offset;
         uint32_t rays;
