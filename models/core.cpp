@@ -339,22 +339,19 @@ namespace {
 // Stall causes charged over `cores`, the cycles they had no ray, and what neither accounts for
 // of their slot cycles (0 when every slot cycle is charged exactly once; a test checks it).
 nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_cycles, Cycle end) {
-    nlohmann::json e = nlohmann::json::object();
+    nlohmann::json e = nlohmann::json::object(), share = nlohmann::json::object();
     uint64_t charged = 0, no_work = 0;
     for (int k = 0; k < Core::kStallKinds; ++k) {
         uint64_t v = 0;
         for (const Core* c : cores) v += c->stall_cycles[k];
         e[Core::stall_name(k)] = v;
+        share[Core::stall_name(k)] = ReportContext::ratio(double(v), double(slot_cycles));
         charged += v;
     }
     for (const Core* c : cores) no_work += c->no_work_cycles + c->retired_idle_cycles(end);
     e["no_work"] = no_work;
     e["slot_cycles"] = slot_cycles;
     e["unaccounted_cycles"] = int64_t(slot_cycles) - int64_t(charged + no_work);
-    nlohmann::json share = nlohmann::json::object();
-    for (int k = 0; k < Core::kStallKinds; ++k)
-        share[Core::stall_name(k)] =
-            ReportContext::ratio(e[Core::stall_name(k)].get<double>(), double(slot_cycles));
     share["no_work"] = ReportContext::ratio(double(no_work), double(slot_cycles));
     e["share"] = share;
     return e;
@@ -362,7 +359,7 @@ nlohmann::json stall_entry(const std::vector<const Core*>& cores, uint64_t slot_
 }  // namespace
 
 nlohmann::json Core::stall_report(const ReportContext& ctx) const {
-    return stall_entry({this}, uint64_t(params_.ray_slots) * ctx.total_cycles, ctx.total_cycles);
+    return stall_report_total({this}, ctx);
 }
 
 nlohmann::json Core::stall_report_total(const std::vector<const Core*>& cores,

@@ -102,8 +102,9 @@ class Core : public sc_core::sc_module {
     uint64_t issue_port_out_of_order() const { return issue_port_.out_of_order; }
     // No-work cycles of the retired slots, from their retirement to `end`.
     uint64_t retired_idle_cycles(Cycle end) const;
-    // stats.json "stalls" entry: ray-slot cycles per cause, the cycles without a ray (no_work:
-    // what the causes leave of slots x cycles), and their shares.
+    // stats.json "stalls" entry: ray-slot cycles per cause, the cycles slots had no ray
+    // (no_work, counted as they sat idle), their shares, and what neither accounts for of
+    // slots x cycles (unaccounted_cycles, 0 when every cycle is charged once).
     nlohmann::json stall_report(const ReportContext& ctx) const;
     // The same over several cores (the "total" entry).
     static nlohmann::json stall_report_total(const std::vector<const Core*>& cores,
