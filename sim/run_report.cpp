@@ -78,10 +78,9 @@ ReportContext report_context(const Params& P, const Chip& chip, uint64_t rays) {
 json run_report(const Config& cfg, const Chip& chip, const json& meta, const CountingSource& source,
                 const HostTimes& host) {
     const json rays = rays_section(meta["workload"], source);
+    // Every kind with rays is listed, so this is every ray simulated.
     const uint64_t total_rays = rays["total"].get<uint64_t>();
-    uint64_t rays_simulated = 0;
-    for (uint64_t r : source.rays_by_kind) rays_simulated += r;
-    const ReportContext ctx = report_context(cfg.typed, chip, rays_simulated);
+    const ReportContext ctx = report_context(cfg.typed, chip, total_rays);
     // The blocks' sections, total_cycles and simulated_seconds; the rest is added around them.
     json out = timing_report(chip, ctx);
     const double sim_s = ctx.seconds();
