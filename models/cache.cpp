@@ -43,6 +43,8 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
             std::string(name) + ": addresses up to " + std::to_string(params_.address_limit_bytes) +
             " bytes need tags wider than 32 bits with this cache's sets and lines");
     if (level_ == kLevelL1) in_flight_.resize(kInFlightFills);
+    if (auto* next = dynamic_cast<Cache*>(next_level); next && next->level_ == level_)
+        same_level_next_ = next;
     repl_.ways = params_.ways;
     repl_.rrpv_bits = params_.rrpv_bits;
     repl_.words_base = params_.sets() ? stamps(0) : nullptr;
@@ -76,6 +78,16 @@ void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
         bank_conflict_cycles += span * (start - now) + span * (span - 1) / 2;
         for (Cycle j = 0; j < span; ++j) done[k + j * nb] = start + j + params_.hit_latency_cycles;
     }
+}
+
+uint64_t Cache::arrive(uint64_t addr, uint32_t size_bytes, Cycle now,
+                       std::vector<Cycle>& lookup_done) {
+    bytes_requested += size_bytes;
+    note_lookup(now);
+    const auto [first, last] = line_range(addr, size_bytes);
+    lookup_done.resize(last - first + 1);
+    look_up(first, last, now, lookup_done.data());
+    return first;
 }
 
 void Cache::Slowest::hit(Cycle lookup_done, Cycle ready, uint64_t line) {

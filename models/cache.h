@@ -93,6 +93,34 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         for (auto& bank : banks_) bank.follow(floor);
     }
 
+    // Split-phase use by the time-ordered reference (sim.fidelity = accurate), which calls each
+    // stage at its own simulated cycle and keeps fills, MSHRs and waiting requests itself.
+    // A request arriving at `now`: counts it and reserves its banks; returns its first line and
+    // sets `lookup_done[k]` to the cycle line first + k is looked up.
+    uint64_t arrive(uint64_t addr, uint32_t size_bytes, Cycle now, std::vector<Cycle>& lookup_done);
+    // Line `line`'s tag check at `at`: a hit updates the replacement state; a miss takes the
+    // policy's victim and installs the line (counted as the fast path counts them). True on a hit.
+    bool check_tag(uint64_t line, Cycle at) { return tag_fn_(*this, line, at); }
+    MemoryPort* next_level() const { return next_; }
+    int level() const { return level_; }
+    // Whether the line holding `addr` is present (or being filled); changes nothing.
+    bool contains(uint64_t addr) const {
+        const uint64_t line = addr >> line_shift_;
+        const uint32_t* t = tags(set_of(line));
+        for (int w = 0; w < params_.ways; ++w)
+            if (t[w] == tag_of(line)) return true;
+        return false;
+    }
+    // A miss looked up from `now` on: the cycle it can first leave for the next level, when all
+    // MSHRs are busy until later (otherwise `now`). A cache with unlimited MSHRs in front of
+    // another of the same level (a treelet cache before its L1) leaves through that one's.
+    // The fast model's cores hold such a miss back until then: the shared levels below see it
+    // in time order.
+    Cycle miss_leaves_at(Cycle now) {
+        if (few_mshrs_ || !mshr_free_.empty()) return std::max(now, earliest_mshr());
+        return same_level_next_ ? same_level_next_->miss_leaves_at(now) : now;
+    }
+
     uint64_t accesses = 0;  // line lookups (a request spanning two lines counts two)
     uint64_t hits = 0;
     uint64_t misses = 0;
@@ -279,6 +307,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     CacheParams params_;
     MemoryPort* next_;
     int level_;
+    Cache* same_level_next_ = nullptr;  // the next level when it is a cache of this level
     // MSHRs as the cycles they free. Up to kFewMshrs (an L1's): keys (cycle << kMshrBits | MSHR) in
     // any order, padded to kFewMshrs with ~0, the earliest found by branch-free minimums (a
     // miss served by the L2 often frees before misses still waiting for DRAM, so keeping them
@@ -318,6 +347,9 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
                               AccessBreakdown* bd) {
         return c.access_in<G, P>(addr, size_bytes, now, bd);
     }
+    bool (*tag_fn_)(Cache&, uint64_t, Cycle) = nullptr;
+    template <int G, typename P>
+    static bool tag_entry(Cache& c, uint64_t line, Cycle at);
     template <int G, typename P>
     static bool local_entry(Cache& c, uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
                             AccessBreakdown* bd) {

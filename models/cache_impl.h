@@ -15,19 +15,43 @@ void Cache::use_policy(Cache& c) {
         case 1:
             c.access_fn_ = &Cache::access_entry<1, P>;
             c.local_fn_ = &Cache::local_entry<1, P>;
+            c.tag_fn_ = &Cache::tag_entry<1, P>;
             break;
         case 2:
             c.access_fn_ = &Cache::access_entry<2, P>;
             c.local_fn_ = &Cache::local_entry<2, P>;
+            c.tag_fn_ = &Cache::tag_entry<2, P>;
             break;
         case 4:
             c.access_fn_ = &Cache::access_entry<4, P>;
             c.local_fn_ = &Cache::local_entry<4, P>;
+            c.tag_fn_ = &Cache::tag_entry<4, P>;
             break;
         default:
             c.access_fn_ = &Cache::access_entry<0, P>;
             c.local_fn_ = &Cache::local_entry<0, P>;
+            c.tag_fn_ = &Cache::tag_entry<0, P>;
     }
+}
+
+template <int G, typename P>
+bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
+    const uint64_t set = c.set_of(line);
+    const int found = c.find_way<G>(set, line);
+    if (found >= 0) {
+        ++c.hits;
+        P::template hit<G>(c.stamps<G>(set), found, c.repl_);
+        return true;
+    }
+    // The same steps as fill(), in the same order (the random policy draws in victim()).
+    const int victim = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
+    ++c.misses;
+    c.fill_bytes += c.params_.line_bytes;
+    if (c.fill_series_) c.fill_series_->add(at, c.params_.line_bytes);
+    c.tags<G>(set)[victim] = c.tag_of(line);
+    c.fill_ready<G>(set)[victim] = 0;  // the reference keeps fills in flight itself
+    P::template filled<G>(c.stamps<G>(set), victim, c.repl_);
+    return false;
 }
 
 template <int G, typename P>

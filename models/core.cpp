@@ -64,21 +64,51 @@ Cycle Core::issue(Cycle t, int instructions) {
     return last + params_.issue_latency_cycles;
 }
 
-void Core::finish_ray(Slot& s, Cycle done) {
-    rays += s.work.rays;
-    ray_latency_cycles += done - s.start;
-    if (rays_series_) rays_series_->add(done, s.work.rays);
+void Core::count_finished(uint32_t work_rays, Cycle start, Cycle done) {
+    rays += work_rays;
+    ray_latency_cycles += done - start;
+    if (rays_series_) rays_series_->add(done, work_rays);
     last_cycle = std::max(last_cycle, done);
-    s.busy = false;
 }
 
-void Core::wake(Cycle at) {
+void Core::set_ray_buffer(RayBuffer* buffer) {
+    ray_buffer_ = buffer;
+    if (!buffer || !params_.treelet_prefetch) return;
+    // One more ready key, for the treelet loader (idle until a batch needs a treelet).
+    loader_ = slots_.size();
+    ready_.assign(padded_to_8(slots_.size() + 1), 0);
+    keys_ = CycleKeys(ready_.size());
+    for (size_t i = 0; i < ready_.size(); ++i) set_ready(i, i < slots_.size() ? 0 : kNeverCycle);
+}
+
+void Core::go_idle(size_t slot, Cycle t, Cycle key_cycle) {
+    slots_[slot].idle_since = t;
+    set_ready(slot, key_cycle);
+    if (key_cycle == kParkedCycle) {
+        ++parked_slots_;
+        ray_buffer_->note_parked(1);
+    }
+}
+
+bool Core::wake(Cycle at) {
+    if (parked_slots_ == 0) return false;
     at = std::max(at, floor_.cycle);  // never behind the core's own floor
-    for (size_t i = 0; i < ready_.size(); ++i)
+    for (size_t i = 0; i < slots_.size(); ++i)
         if (keys_.cycle(ready_[i]) == kParkedCycle) {
-            no_work_cycles += at - std::min(at, slots_[i].idle_since);
-            set_ready(i, at);
+            // Never before it parked (this core may have run ahead of `at` on private work).
+            // Every ray done: the slot retires where it parked (its idle tail is counted up to
+            // the run's end, which may come before this core's floor).
+            if (ray_buffer_->finished()) {
+                set_ready(i, kNeverCycle);
+                continue;
+            }
+            const Cycle from = std::max(at, slots_[i].idle_since);
+            no_work_cycles += from - slots_[i].idle_since;
+            set_ready(i, from);
         }
+    ray_buffer_->note_parked(-int(parked_slots_));
+    parked_slots_ = 0;
+    return true;
 }
 
 uint64_t Core::retired_idle_cycles(Cycle end) const {
@@ -93,16 +123,41 @@ uint64_t Core::retired_idle_cycles(Cycle end) const {
 // in parallel and fills them; rays that need a line still filling wait for it (miss merging).
 void Core::load_treelet(uint32_t treelet, Cycle now) {
     const TreeletSpan& span = ray_buffer_->span(treelet);
-    MemoryPort* node_l1 = mem_by_kind_[size_t(StepKind::Node)];
-    MemoryPort* tri_l1 = mem_by_kind_[size_t(StepKind::Triangle)];
-    // The breakdown is not charged (no ray waits for the load itself), but asking for one lets
-    // the L1 remember its fills' timelines for the rays that then wait on them.
-    AccessBreakdown unused;
-    if (span.node_bytes) node_l1->access(span.node_addr, uint32_t(span.node_bytes), now, &unused);
-    if (span.tri_bytes) tri_l1->access(span.tri_addr, uint32_t(span.tri_bytes), now, &unused);
+    const size_t node = size_t(StepKind::Node), tri = size_t(StepKind::Triangle);
+    load_.next[node] = span.node_addr;
+    load_.end[node] = span.node_addr + span.node_bytes;
+    load_.next[tri] = span.tri_addr;
+    load_.end[tri] = span.tri_addr + span.tri_bytes;
+    set_ready(loader_, now);
     ++treelet_loads;
     treelet_load_bytes += span.node_bytes + span.tri_bytes;
     loaded_treelet_ = treelet;
+}
+
+void Core::run_loader(Cycle t) {
+    size_t kind = 0;
+    while (kind < size_t(kStepKinds) && load_.next[kind] >= load_.end[kind]) ++kind;
+    Cache* cache = kind < size_t(kStepKinds) ? cache_by_kind_[kind] : nullptr;
+    if (!cache) {  // loaded (ideal memory has nothing to load into)
+        set_ready(loader_, kNeverCycle);
+        return;
+    }
+    const uint32_t line_bytes = cache->params().line_bytes;
+    const uint64_t addr = load_.next[kind] & ~uint64_t(line_bytes - 1);
+    // The breakdown is not charged (no ray waits for the load itself), but asking for one lets
+    // the L1 remember its fills' timelines for the rays that then wait on them.
+    AccessBreakdown unused;
+    Cycle ready;
+    if (!cache->access_local(addr, line_bytes, t, ready, &unused)) {
+        const Cycle leaves = cache->miss_leaves_at(t);
+        if (leaves > t) {  // every MSHR busy: wait for one
+            set_ready(loader_, leaves);
+            return;
+        }
+        cache->access(addr, line_bytes, t, &unused);
+    }
+    load_.next[kind] = addr + line_bytes;
+    set_ready(loader_, t + 1);
 }
 
 Cycle Core::advance(Cycle horizon, Cycle others_floor) {
@@ -112,6 +167,9 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         const size_t i = keys_.index(least);
         const Cycle t = keys_.cycle(least);
         if (t >= kParkedCycle) return t;  // every slot parked or retired
+        // Work arrived for parked slots (here or in other cores): they wake before anything
+        // later runs.
+        if (ray_buffer_ && ray_buffer_->wake_needed()) return t;
         {
             // The next earliest slot usually runs next: start loading its step, which it last
             // touched dozens of steps ago and the host's L1 has likely dropped since.
@@ -121,6 +179,11 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         // Every later request of this core comes at t or after.
         floor_.cycle = t;
         if (shared_floor_) shared_floor_->cycle = std::min(t, others_floor);
+        if (i == loader_) {
+            if (t > horizon) return t;  // its misses reach the shared levels
+            run_loader(t);
+            continue;
+        }
         Slot& s = slots_[i];
         // Private work may run ahead of the other cores: this core's own calendars still see
         // its requests in time order, because it always runs its earliest slot.
@@ -133,34 +196,59 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
                     continue;
                 }
                 s.pos = 0;
-            } else {
-                if (batch_.empty()) {
-                    if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
-                        go_idle(i, t, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
+                s.start = t;
+            } else if (s.phase != kSetUp) {
+                if (s.phase == kTakeRay) {
+                    if (batch_.empty()) {
+                        if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
+                            go_idle(i, t, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
+                            continue;
+                        }
+                        if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
+                            load_treelet(batch_treelet_, t);
+                    }
+                    s.handle = batch_.front();
+                    batch_.pop_front();
+                    s.treelet = batch_treelet_;
+                    s.start = t;
+                    s.phase = kReadRecord;
+                    // A record still being written is read once it is there: the buffer's
+                    // ports serve in time order.
+                    const Cycle written = ray_buffer_->record_written(s.handle);
+                    if (written > t) {
+                        set_ready(i, written);
                         continue;
                     }
-                    if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
-                        load_treelet(batch_treelet_, t);
                 }
-                s.handle = batch_.front();
-                batch_.pop_front();
-                s.treelet = batch_treelet_;
                 got = ray_buffer_->read(s.handle, t, s.work, s.pos);
-                stall_cycles[kRayBuffer] += got - t;
+                stall_cycles[kRayBuffer] += got - s.start;
                 // The ray waited in the buffer, its steps long out of the host's caches: start
                 // loading them now, before the slot runs them. (Rays straight from the source
                 // had theirs prefetched by the source a few rays ahead.)
                 const char* p = reinterpret_cast<const char*>(s.work.steps.data() + s.pos);
                 for (size_t b = 0; b < (s.work.steps.size() - s.pos) * sizeof(Step); b += 64)
                     __builtin_prefetch(p + b);
+                s.phase = kSetUp;
+                if (got > t) {  // its setup issues when the record is there
+                    set_ready(i, got);
+                    continue;
+                }
             }
             s.busy = true;
-            s.start = t;
+            s.phase = kTakeRay;
             // A ray missing the root box has no steps and ends after its setup.
             const Cycle done = issue(got, params_.ray_setup_instructions);
             set_ready(i, done);
             stall_cycles[kIssue] += done - got;
             if (!ray_buffer_ && s.work.steps.empty()) finish_ray(s, done);
+            continue;
+        }
+        const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
+        if (s.unit_pending) {
+            if (params_.units_shared && t > horizon) return t;
+            s.unit_pending = false;
+            step_done(s, i, s.unit_kind, t,
+                      unit_by_kind_[s.unit_kind]->issue(t, s.unit_items, lanes));
             continue;
         }
         if (ray_buffer_) {
@@ -186,9 +274,6 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         // Nodes and triangles interleave unpredictably: what differs is looked up by kind.
         const auto kind = size_t(st.kind);
         MemoryPort* mem = mem_by_kind_[kind];
-        // Shared units order by the step's start: a unit request follows its fetch, so
-        // requests from different cores reach a shared unit out of order by up to a fetch.
-        if (params_.units_shared && t > horizon) return t;
         // Issue, then try the fetch as a private hit; a fetch that needs a shared level waits
         // for its turn with the issue port as it was.
         const PortCalendar saved_port = issue_port_;
@@ -205,11 +290,16 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
             // The request leaves the core at `issued`: that is its place in the global order.
             // (Resumed, the slot is still this core's earliest and the port the same, so it
             // issues at the same cycle.)
-            if (issued > horizon) {
+            // A miss waiting for an MSHR reaches the next level only once one frees: that is
+            // its place in the global order (sent now, it would reach the L2 and DRAM ahead of
+            // other cores' earlier requests, which then queue behind it: +15% cycles with
+            // 2 MSHRs per L1 against the time-ordered reference).
+            const Cycle leaves = cache ? cache->miss_leaves_at(issued) : issued;
+            if (leaves > horizon) {
                 issue_port_ = saved_port;
                 issue_stall_cycles = saved_issue_stall;
                 s.fetch_is_shared = true;
-                return issued;
+                return leaves;
             }
             fetched = mem->access(st.addr, st.size_bytes, issued, &bd);
             s.fetch_is_shared = false;
@@ -217,23 +307,34 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor) {
         ++s.pos;
         ++steps;
         // A packet's operations occupy every lane, active or not (lockstep SIMD).
-        const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
         if (params_.packet_lanes > 0) {
             active_lanes += st.lanes;
             lane_slots += uint64_t(params_.packet_lanes);
         }
-        const Cycle done = unit_by_kind_[kind]->issue(fetched, st.count, lanes);
-        set_ready(i, done);
         stall_cycles[kIssue] += issued - t;
         stall_cycles[kL1] += bd.cycles[kLevelL1];
         stall_cycles[kL2] += bd.cycles[kLevelL2];
         stall_cycles[kDram] += bd.cycles[kLevelDram];
         stall_cycles[kCrossbar] += bd.cycles[kLevelCrossbar];
-        stall_cycles[kUnitStall + kind] += done - fetched;
+        PipelinedUnit* unit = unit_by_kind_[kind];
+        // The unit serves operations in the order their data arrives. A step's fetch may arrive
+        // before that of a step run earlier (a hit after a miss): an operation booked when its
+        // step runs would hold the pipeline ahead of one whose data came first. One cycle slips
+        // into a gap; a longer run (a packet's lanes, several triangles) waits until its data is
+        // there and books then, when it is this core's earliest work (and, on a unit shared by
+        // several cores, the chip's): against the time-ordered reference, booking at once cost
+        // packets +2.3% cycles.
+        if (params_.units_shared || unit->span_cycles(st.count, lanes) > 1) {
+            s.unit_pending = true;
+            s.unit_kind = uint8_t(kind);
+            s.unit_items = st.count;
+            set_ready(i, fetched);
+            continue;
+        }
+        step_done(s, i, int(kind), fetched, unit->issue(fetched, st.count, lanes));
         // (No host prefetch of the L1 sets the slot's next step will look up: it comes dozens
         // of steps later, by when the prefetched lines were mostly gone again; dropping it made
         // replays 1-5% faster on an AMD Zen 5 host.)
-        if (s.pos == s.work.steps.size() && !ray_buffer_) finish_ray(s, done);
     }
 }
 
@@ -272,7 +373,7 @@ void Core::register_stats(StatsRegistry& reg) {
 
 CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores,
                              Cycle quantum_cycles, WakeSource* wake)
-    : sc_core::sc_module(name),
+    : ChipDriver(name),
       cores_(std::move(cores)),
       quantum_cycles_(quantum_cycles),
       wake_(wake),
@@ -323,11 +424,12 @@ void CoreScheduler::run() {
         Cycle at;
         if (wake_ && wake_->take_wake(at)) {
             at = std::max(at, first);  // never behind the order already served
+            // Every parked slot wakes, in running cores too.
             for (size_t i = 0; i < n; ++i)
-                if (keys_.cycle(next[i]) == kParkedCycle) {
-                    cores_[i]->wake(at);
-                    next[i] = keys_.key(at, i);
-                    floors_[i] = cores_[i]->floor()->cycle;
+                if (cores_[i]->wake(at)) {
+                    const bool was_parked = keys_.cycle(next[i]) == kParkedCycle;
+                    next[i] = std::min(next[i], keys_.key(at, i));
+                    if (was_parked) floors_[i] = cores_[i]->floor()->cycle;
                 }
         }
     }

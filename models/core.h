@@ -18,6 +18,7 @@
 
 #include "models/cache.h"
 #include "models/calendar.h"
+#include "models/fidelity.h"
 #include "models/stats.h"
 #include "models/timing.h"
 #include "models/unit.h"
@@ -114,7 +115,7 @@ class Core : public sc_core::sc_module {
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
     // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
     // from the source) instead of one by one from the source.
-    void set_ray_buffer(RayBuffer* buffer) { ray_buffer_ = buffer; }
+    void set_ray_buffer(RayBuffer* buffer);
 
     // Runs the slots in ready order: private work freely, shared work only at cycles up to
     // `horizon`. Returns the cycle of the next shared work; kParkedCycle when every slot waits
@@ -124,11 +125,29 @@ class Core : public sc_core::sc_module {
     // core's own, it keeps the shared blocks' floor (set_shared_floor) current as the core runs.
     Cycle advance(Cycle horizon, Cycle others_floor = kNeverCycle);
     void set_shared_floor(TimeFloor* shared) { shared_floor_ = shared; }
-    // Parked slots look for work again from cycle `at`.
-    void wake(Cycle at);
+    // Parked slots look for work again from cycle `at`; false if none was parked.
+    bool wake(Cycle at);
     // The earliest cycle this core may still send a request at (its earliest slot's): the floor
     // its private blocks (L1s, own units) follow.
     const TimeFloor* floor() const { return &floor_; }
+
+    // What the time-ordered reference (sim.fidelity = accurate) runs the core with: it keeps the
+    // ray slots itself, at each step's own cycle, and uses the core's issue port, blocks and
+    // counters, so that both fidelities report through the same code.
+    // Issues `instructions` (at least 1) ready at t; returns when the step's fetch can start.
+    Cycle issue(Cycle t, int instructions);
+    // A work item of `rays` rays that took a slot at `start` finished at `done`.
+    void count_finished(uint32_t rays, Cycle start, Cycle done);
+    // Slot `slot` has had no work since `since`: retired for good, or parked (then the caller
+    // counts its no-work cycles when it wakes).
+    void set_slot_idle(size_t slot, Cycle since, bool retired) {
+        slots_[slot].idle_since = since;
+        set_ready(slot, retired ? kNeverCycle : kParkedCycle);
+    }
+    MemoryPort* memory(int kind) const { return mem_by_kind_[kind]; }
+    PipelinedUnit* unit(int kind) const { return unit_by_kind_[kind]; }
+    RayWorkSource* source() const { return source_; }
+    RayBuffer* ray_buffer() const { return ray_buffer_; }
 
     // Stall attribution: every cycle a ray slot holds a ray is charged to exactly one cause;
     // cycles without a ray are counted as no work (no_work_cycles, retired_idle_cycles).
@@ -160,25 +179,50 @@ class Core : public sc_core::sc_module {
     uint64_t active_lanes = 0, lane_slots = 0;
 
   private:
+    // Treelet mode: what a slot without a running ray does next (take a ray from the batch, read
+    // its record once written, issue its setup once read).
+    enum Phase : uint8_t { kTakeRay, kReadRecord, kSetUp };
     struct Slot {
+        Phase phase = kTakeRay;
         RayWork work;
         size_t pos = 0;
         Cycle start = 0;
         bool busy = false;
         bool fetch_is_shared = false;  // the next step's fetch was found to leave the L1
-        uint32_t handle = 0;           // treelet mode: the ray's ray-buffer entry
-        uint32_t treelet = 0;          // treelet mode: the treelet this slot's ray runs in
-        Cycle idle_since = 0;          // parked or retired: the cycle it found no work
+        // The step's data is there (at the slot's ready cycle): its unit operations wait for
+        // their turn (see advance).
+        bool unit_pending = false;
+        uint8_t unit_kind = 0;
+        uint16_t unit_items = 0;
+        uint32_t handle = 0;   // treelet mode: the ray's ray-buffer entry
+        uint32_t treelet = 0;  // treelet mode: the treelet this slot's ray runs in
+        Cycle idle_since = 0;  // parked or retired: the cycle it found no work
     };
     // The slot has no work from `t` on: parked (more may come) or retired.
-    void go_idle(size_t slot, Cycle t, Cycle key_cycle) {
-        slots_[slot].idle_since = t;
-        set_ready(slot, key_cycle);
-    }
+    void go_idle(size_t slot, Cycle t, Cycle key_cycle);
 
+    // Treelet mode with prefetch: a batch's treelet is loaded into the L1 (or treelet cache)
+    // line by line, one line per cycle in address order (node records, then triangles), by a
+    // loader that runs as one more entry of the slots' ready keys. A line that would miss while
+    // every MSHR is busy holds the load until one frees: the loader never queues behind its
+    // MSHRs, and its requests reach the shared levels in time order. A new batch's load replaces
+    // one still running.
     void load_treelet(uint32_t treelet, Cycle now);
-    Cycle issue(Cycle t, int instructions);
-    void finish_ray(Slot& s, Cycle done);
+    void run_loader(Cycle t);
+    struct TreeletLoad {
+        uint64_t next[kStepKinds] = {}, end[kStepKinds] = {};  // per StepKind: lines left
+    } load_;
+    size_t loader_ = ~size_t(0);  // the loader's index among the ready keys (none: ~0)
+    // A step's unit operations ran from `fetched` (data there) to `done`.
+    void step_done(Slot& s, size_t slot, int kind, Cycle fetched, Cycle done) {
+        set_ready(slot, done);
+        stall_cycles[kUnitStall + kind] += done - fetched;
+        if (s.pos == s.work.steps.size() && !ray_buffer_) finish_ray(s, done);
+    }
+    void finish_ray(Slot& s, Cycle done) {
+        count_finished(s.work.rays, s.start, done);
+        s.busy = false;
+    }
 
     CoreParams params_;
     RayWorkSource* source_;
@@ -205,6 +249,7 @@ class Core : public sc_core::sc_module {
     PortCalendar issue_port_;
     TimeFloor floor_;
     TimeFloor* shared_floor_ = nullptr;
+    uint32_t parked_slots_ = 0;  // slots waiting for work that may still come
 };
 
 // Runs a set of cores in global time order: the cores' one SystemC process. It picks the core
@@ -214,7 +259,7 @@ class Core : public sc_core::sc_module {
 // earliest cycle any running core may still send a request at). SystemC time follows the
 // earliest core, synchronised every `kKernelSyncCycles` (nothing else in the chip is an active
 // process; the kernel's time serves progress reports and sc_stop).
-class CoreScheduler : public sc_core::sc_module {
+class CoreScheduler : public ChipDriver {
   public:
     SC_HAS_PROCESS(CoreScheduler);
     static constexpr Cycle kKernelSyncCycles = 4096;
@@ -222,9 +267,11 @@ class CoreScheduler : public sc_core::sc_module {
     CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores, Cycle quantum_cycles,
                   WakeSource* wake = nullptr);
     // Host seconds the process ran (not simulated statistics: for the host section).
-    double host_busy_seconds() const { return host_busy_seconds_; }
+    double host_busy_seconds() const override { return host_busy_seconds_; }
     // The earliest cycle any core may still send a request at: the floor shared blocks follow.
-    const TimeFloor* floor() const { return &floor_; }
+    const TimeFloor* shared_floor() const override { return &floor_; }
+    // A core's own earliest slot: its private blocks run ahead of the other cores.
+    const TimeFloor* private_floor(size_t core) const override { return cores_[core]->floor(); }
 
   private:
     void run();

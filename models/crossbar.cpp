@@ -11,12 +11,17 @@ Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBrea
     // Requests are small and cross at once; the line crosses when the L2 returns it (a line the
     // L2 fetches from DRAM holds no bandwidth while it waits).
     const Cycle returned = next_->access(addr, size_bytes, now, bd);
+    const Cycle end = carry(returned, size_bytes);
+    if (bd) bd->cycles[kLevelCrossbar] += end - returned;  // waiting for the link, crossing
+    return end;
+}
+
+Cycle Crossbar::carry(Cycle returned, uint32_t size_bytes) {
     const auto [first, end] = link_.transfer(returned, size_bytes);
     ++transfers;
     bytes += size_bytes;
     busy_cycles += link_.idle_cycles(size_bytes);
     queue_cycles += first - returned;
-    if (bd) bd->cycles[kLevelCrossbar] += end - returned;  // waiting for the link, crossing
     return end;
 }
 

@@ -23,6 +23,11 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     // stats.json "bandwidth.crossbar": bytes, GB/s, queueing and utilisation.
     nlohmann::json report(const ReportContext& ctx) const;
     void follow(const TimeFloor* floor) { link_.follow(floor); }
+    // A line of `size_bytes` the L2 returned at `returned` takes the link; returns the cycle it
+    // has crossed. (access() is the L2 access and this; the time-ordered reference calls it
+    // alone, at the cycle the L2 returns the line.)
+    Cycle carry(Cycle returned, uint32_t size_bytes);
+    MemoryPort* next_level() const { return next_; }
 
     uint64_t transfers = 0;
     uint64_t bytes = 0;

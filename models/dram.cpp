@@ -11,32 +11,50 @@ Dram::Dram(sc_core::sc_module_name name, const DramParams& params)
       buses_(size_t(std::max(1, params.channels)), BandwidthCalendar(params.bytes_per_cycle)) {}
 
 Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
-    const uint64_t block = addr / params_.row_bytes;
+    // Both stages at once: the bus is a calendar, so the transfer finds its place however
+    // requests interleave; the bank serves in the order it is called (counted out of order).
+    DramRequest r;
+    r.addr = addr;
+    r.size_bytes = size_bytes;
+    bool done = false;
+    Cycle t = now;
+    while (!done) t = advance(r, t, done);
+    if (bd) bd->cycles[kLevelDram] += t - now;
+    return t;
+}
+
+Cycle Dram::advance(DramRequest& r, Cycle now, bool& done) {
+    const uint64_t block = r.addr / params_.row_bytes;
     const auto channels = uint64_t(buses_.size());
     const uint64_t channel = block % channels;
-    const uint64_t bank_index = (block / channels) % uint64_t(params_.banks);
-    const uint64_t row = block / (channels * uint64_t(params_.banks));
-    Bank& bank = banks_[channel * uint64_t(params_.banks) + bank_index];
-
-    bank_out_of_order += now < bank.latest_request;
-    bank.latest_request = std::max(bank.latest_request, now);
-    const Cycle start = std::max(now, bank.ready);
-    Cycle column = start;  // when the column (read) command issues
-    if (!bank.open) {
-        column += params_.t_rcd_cycles;
-        ++row_empty;
-    } else if (bank.open_row != row) {
-        column += params_.t_rp_cycles + params_.t_rcd_cycles;
-        ++row_conflicts;
-    } else {
-        ++row_hits;
+    if (r.stage == 0) {
+        r.arrived = now;
+        const uint64_t bank_index = (block / channels) % uint64_t(params_.banks);
+        const uint64_t row = block / (channels * uint64_t(params_.banks));
+        Bank& bank = banks_[channel * uint64_t(params_.banks) + bank_index];
+        bank_out_of_order += now < bank.latest_request;
+        bank.latest_request = std::max(bank.latest_request, now);
+        const Cycle start = std::max(now, bank.ready);
+        Cycle column = start;  // when the column (read) command issues
+        if (!bank.open) {
+            column += params_.t_rcd_cycles;
+            ++row_empty;
+        } else if (bank.open_row != row) {
+            column += params_.t_rp_cycles + params_.t_rcd_cycles;
+            ++row_conflicts;
+        } else {
+            ++row_hits;
+        }
+        bank.open = true;
+        bank.open_row = row;
+        bank.ready = column + params_.t_ccd_cycles;
+        queue_cycles += start - now;
+        r.stage = 1;
+        done = false;
+        return column + params_.t_cas_cycles;  // the data is ready for the bus
     }
-    bank.open = true;
-    bank.open_row = row;
-    bank.ready = column + params_.t_ccd_cycles;
-    const Cycle data_ready = column + params_.t_cas_cycles;
-
-    const uint32_t bursts = (size_bytes + params_.burst_bytes - 1) / params_.burst_bytes;
+    const Cycle data_ready = now;
+    const uint32_t bursts = (r.size_bytes + params_.burst_bytes - 1) / params_.burst_bytes;
     const uint32_t moved = std::max(1u, bursts) * params_.burst_bytes;
     // Reads from different banks reach the bus out of order: the bus is a calendar.
     const auto [bus_start, bus_end] = buses_[channel].transfer(data_ready, moved);
@@ -44,11 +62,11 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
     bytes += moved;
     if (bytes_series_) bytes_series_->add(bus_start, moved);
     busy_cycles += buses_[channel].idle_cycles(moved);
-    queue_cycles += (start - now) + (bus_start - data_ready);
+    queue_cycles += bus_start - data_ready;
+    r.stage = 2;
+    done = true;
     // Data is usable once its last byte has crossed the bus and the controller latency passed.
-    const Cycle done = bus_end + params_.latency_cycles;
-    if (bd) bd->cycles[kLevelDram] += done - now;
-    return done;
+    return bus_end + params_.latency_cycles;
 }
 
 void Dram::register_stats(StatsRegistry& reg) {

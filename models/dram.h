@@ -34,10 +34,25 @@ struct DramParams {
     Cycle t_ccd_cycles = 4;  // column command to column command in one bank (reads pipeline)
 };
 
+// A request moving through a DRAM model stage by stage (DramModel::advance): what the model
+// keeps between stages is its own (`state`).
+struct DramRequest {
+    uint64_t addr = 0;
+    uint32_t size_bytes = 0;
+    Cycle arrived = 0;
+    int stage = 0;  // 0: not yet arrived
+    uint64_t state[4] = {0, 0, 0, 0};
+};
+
 // A DRAM model: a memory level that owns its counters and its report section, and may run
 // requests out of time order but never behind the time floor it follows.
 class DramModel : public MemoryPort {
   public:
+    // Split-phase use (the time-ordered reference, sim.fidelity = accurate): runs the request's
+    // next stage at `now` (its arrival, then each cycle this returned) and returns the cycle of
+    // its next stage; once the last stage has run, sets `done` and returns the cycle the data is
+    // usable. A model whose stages all run in time order serves every bank and bus in order.
+    virtual Cycle advance(DramRequest& request, Cycle now, bool& done) = 0;
     virtual void register_stats(StatsRegistry& reg) = 0;  // under its module's name
     // stats.json "bandwidth.dram": bytes and GB/s, row-buffer figures, utilisation.
     virtual nlohmann::json report(const ReportContext& ctx) const = 0;
@@ -61,6 +76,8 @@ class Dram final : public sc_core::sc_module, public DramModel {
     Dram(sc_core::sc_module_name name, const DramParams& params);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
+    // Two stages: the bank (at arrival), then the channel's bus (when the data is ready).
+    Cycle advance(DramRequest& request, Cycle now, bool& done) override;
     void register_stats(StatsRegistry& reg) override;
     nlohmann::json report(const ReportContext& ctx) const override;
     uint64_t out_of_order_requests() const override { return bank_out_of_order; }

@@ -64,10 +64,16 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     // Reads ray `handle` into a core's slot (the slot owns the work until it gives it back);
     // returns the cycle the record is there.
     Cycle read(uint32_t handle, Cycle now, RayWork& work, size_t& pos);
+    // The cycle ray `handle`'s record is written: it cannot be read before.
+    Cycle record_written(uint32_t handle) const { return entries_[handle].written; }
     // A ray crossing into `treelet`: its state is written back and queued there.
     Cycle requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now);
     // A finished ray leaves the buffer.
     void release(uint32_t handle);
+    // Slots parked waiting for work (the cores say when they park and wake them).
+    void note_parked(int delta) { parked_slots_ = uint32_t(int64_t(parked_slots_) + delta); }
+    // Work arrived while slots are parked: the core running stops so that they wake first.
+    bool wake_needed() const { return wake_ && parked_slots_ > 0; }
     // Work arrived for idle cores since the last call: the cycle it arrived (cores wake then).
     bool take_wake(Cycle& at) override {
         if (!wake_) return false;
@@ -110,6 +116,7 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     PortCalendar ports_;
     bool wake_ = false;
     Cycle wake_cycle_ = 0;
+    uint32_t parked_slots_ = 0;
 };
 
 }  // namespace rtsim

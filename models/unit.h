@@ -35,6 +35,12 @@ class PipelinedUnit : public sc_core::sc_module {
     // earliest cycles from `ready` on where a pipeline is free (first come, first served by
     // the time operands arrive, to within operations already booked).
     Cycle issue(Cycle ready, int items = 1, int rays = 1);
+    // The operations issue() books for `items` items, `rays` times over.
+    Cycle operations(int items, int rays) const;
+    // The cycles those hold a pipeline.
+    Cycle span_cycles(int items, int rays) const {
+        return operations(items, rays) * params_.interval_cycles;
+    }
     // No operation will come ready before `floor` (its users' earliest cycle).
     void follow(const TimeFloor* floor) { calendar_.follow(floor); }
     // Registers the counters under this module's name (box_unit[0].ops).
@@ -60,12 +66,16 @@ class PipelinedUnit : public sc_core::sc_module {
 };
 
 // Inline: a core issues to a unit on every step.
-inline Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
+inline Cycle PipelinedUnit::operations(int items, int rays) const {
     // Operations per item count from a table: a division per operation costs more than the rest.
     const int per_ray = items >= 0 && size_t(items) < ops_for_items_.size()
                             ? ops_for_items_[size_t(items)]
                             : std::max(1, (items + params_.width - 1) / params_.width);
-    const Cycle n = Cycle(per_ray) * Cycle(rays > 1 ? rays : 1);
+    return Cycle(per_ray) * Cycle(rays > 1 ? rays : 1);
+}
+
+inline Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
+    const Cycle n = operations(items, rays);
     // The n operations run back to back on one pipeline.
     const Cycle start =
         params_.unlimited ? ready : calendar_.reserve(ready, n * params_.interval_cycles);

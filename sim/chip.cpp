@@ -128,20 +128,25 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
         cores.back()->set_ray_buffer(ray_buffer.get());
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
-        // A core's private blocks forget what lies behind its own earliest slot.
-        const TimeFloor* own = cores.back()->floor();
-        l1.back()->follow(own);
-        if (!l1_tri.empty()) l1_tri.back()->follow(own);
-        if (!treelet_caches.empty()) treelet_caches.back()->follow(own);
-        for (int k = 0; k < kStepKinds; ++k)
-            if (P.unit_shared_by[size_t(k)] == 1) units[size_t(k)][size_t(i)]->follow(own);
     }
     std::vector<Core*> core_ptrs;
     for (auto& c : cores) core_ptrs.push_back(c.get());
-    scheduler = std::make_unique<CoreScheduler>("core_scheduler", std::move(core_ptrs),
-                                                P.sim.quantum_cycles, ray_buffer.get());
-    // Shared blocks forget what lies behind the earliest core.
-    const TimeFloor* shared = scheduler->floor();
+    DriverSetup setup;
+    setup.cores = std::move(core_ptrs);
+    setup.quantum_cycles = P.sim.quantum_cycles;
+    setup.wake = ray_buffer.get();
+    driver = FidelityRegistry::at(P.sim.fidelity).make("core_driver", setup);
+    for (int i = 0; i < n; ++i) {
+        // A core's private blocks forget what lies behind the floor of its own requests.
+        const TimeFloor* own = driver->private_floor(size_t(i));
+        l1[size_t(i)]->follow(own);
+        if (!l1_tri.empty()) l1_tri[size_t(i)]->follow(own);
+        if (!treelet_caches.empty()) treelet_caches[size_t(i)]->follow(own);
+        for (int k = 0; k < kStepKinds; ++k)
+            if (P.unit_shared_by[size_t(k)] == 1) units[size_t(k)][size_t(i)]->follow(own);
+    }
+    // Shared blocks forget what lies behind the earliest request any core may still send.
+    const TimeFloor* shared = driver->shared_floor();
     l2->follow(shared);
     dram->follow(shared);
     if (crossbar) crossbar->follow(shared);

@@ -48,7 +48,7 @@ class Chip {
     std::array<std::vector<std::unique_ptr<PipelinedUnit>>, kStepKinds> units;
     std::unique_ptr<RayBuffer> ray_buffer;  // traversal.mode = treelet
     std::vector<std::unique_ptr<Core>> cores;
-    std::unique_ptr<CoreScheduler> scheduler;
+    std::unique_ptr<ChipDriver> driver;  // runs the cores: the fidelity level's process
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
     struct Series {
         std::unique_ptr<TimeSeries> dram_bytes, l1_fill_bytes, l2_fill_bytes, rays;

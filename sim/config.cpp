@@ -213,6 +213,11 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
             "l1.split to false or the treelet cache to 0",
             where));
+    if (c["sim"]["fidelity"] != "fast" && c["sim"]["quantum_cycles"].get<int64_t>() != 0)
+        throw InputError(fmt::format(
+            "{}: sim.quantum_cycles: the quantum relaxes the fast model's order; sim.fidelity={} "
+            "serves every request in time order (set the quantum to 0)",
+            where, c["sim"]["fidelity"].get<std::string>()));
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(
             "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,

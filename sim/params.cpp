@@ -159,6 +159,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.ideal_units", M(sim.ideal_units), 1, kNotMirrored),
         field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),
         field("sim.quantum_cycles", M(sim.quantum_cycles), 1, kNotMirrored),
+        field("sim.fidelity", M(sim.fidelity), 1, kNotMirrored),
     };
     t.insert(t.end(), rest.begin(), rest.end());
     return t;

@@ -86,7 +86,7 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
     const double sim_s = ctx.seconds();
     // Host time split: the cores' scheduler running (models, and waiting for rays:
     // functional_s), the rest is the SystemC kernel.
-    const double cores_busy = chip.scheduler->host_busy_seconds();
+    const double cores_busy = chip.driver->host_busy_seconds();
 
     out["rtsim_version"] = RTSIM_VERSION;
     out["config"] = cfg.values;

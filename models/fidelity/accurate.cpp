@@ -1,0 +1,647 @@
+// sim.fidelity = accurate: the time-ordered reference timing model.
+//
+// One event queue holds every stage of every request, ordered by cycle: a ray slot's next
+// action, a request arriving at a cache (its banks), each line's tag check at its lookup cycle,
+// a miss taking an MSHR (or queueing for one, first come first served), each DRAM stage, a line
+// crossing the crossbar when the L2 returns it, a fill completing (which frees its MSHR and
+// wakes every request merged on it), a fetched step's unit operation. Each stage calls its block
+// at the cycle it happens, so every bank, MSHR pool, bus, link, unit and port sees its requests
+// in simulated-time order by construction: the out-of-order counts of stats.json are 0 here
+// (tests check it). Within one cycle, fills complete before new requests are served (a line
+// arriving at cycle t is there for a lookup at t, as the fast model has it), then events run
+// in the order they were scheduled.
+//
+// It drives the same blocks as the fast model (their counters, calendars used in order, tag
+// stores and replacement policies, report sections); it keeps what only a time-ordered model
+// needs itself: fills in flight with their waiting requests, MSHR queues, and each request's
+// timeline (which level held it over which cycles), from which stalls are charged exactly.
+// Waiting on another request's fill is charged to where that fill was at each cycle.
+#include <chrono>
+#include <deque>
+#include <queue>
+#include <stdexcept>
+#include <unordered_map>
+#include <vector>
+
+#include "models/cache.h"
+#include "models/core.h"
+#include "models/crossbar.h"
+#include "models/dram.h"
+#include "models/fidelity.h"
+#include "models/ray_buffer.h"
+#include "models/unit.h"
+
+namespace rtsim {
+namespace {
+
+// A request's life from `start`, as consecutive parts each charged to one memory level.
+struct Timeline {
+    static constexpr int kMaxParts = 12;
+    struct Part {
+        Cycle end;
+        int level;
+    };
+    Cycle start = 0;
+    int parts = 0;
+    Part part[kMaxParts];
+
+    Timeline() = default;
+    explicit Timeline(Cycle from) : start(from) {}
+    Cycle end() const { return parts ? part[parts - 1].end : start; }
+    // Extends the timeline to `until`, the new cycles charged to `level`.
+    void add(Cycle until, int level) {
+        if (until <= end()) return;
+        if (parts > 0 && part[parts - 1].level == level) {
+            part[parts - 1].end = until;
+            return;
+        }
+        // A request passes each level at most a few times (a wait on a fill adds that fill's
+        // levels): running out means the model went around in a circle.
+        if (parts == kMaxParts)
+            throw std::logic_error("accurate fidelity: a request's timeline overflowed");
+        part[parts++] = {until, level};
+    }
+    // Appends `other`'s parts from `from` to `until` (the cycles this request waited on it).
+    void add_overlap(const Timeline& other, Cycle from, Cycle until) {
+        Cycle lo = other.start;
+        for (int p = 0; p < other.parts; ++p) {
+            const Cycle hi = other.part[p].end;
+            if (hi > from && lo < until) add(std::min(hi, until), other.part[p].level);
+            lo = hi;
+        }
+        // Past the fill's recorded end (never, as fills end when their waiters do).
+        add(until, other.parts ? other.part[other.parts - 1].level : kLevelL1);
+    }
+    void charge(uint64_t* cycles_by_level) const {
+        Cycle lo = start;
+        for (int p = 0; p < parts; ++p) {
+            cycles_by_level[part[p].level] += part[p].end - lo;
+            lo = part[p].end;
+        }
+    }
+};
+
+constexpr uint32_t kNone = ~0u;
+
+class ReferenceScheduler final : public ChipDriver {
+  public:
+    SC_HAS_PROCESS(ReferenceScheduler);
+    ReferenceScheduler(sc_core::sc_module_name name, const DriverSetup& setup)
+        : ChipDriver(name), cores_(setup.cores), wake_(setup.wake) {
+        for (Core* core : cores_) {
+            CoreState cs;
+            cs.slots.resize(size_t(core->params().ray_slots));
+            states_.push_back(std::move(cs));
+        }
+        SC_THREAD(run);
+    }
+    double host_busy_seconds() const override { return host_busy_seconds_; }
+    const TimeFloor* shared_floor() const override { return &now_; }
+    const TimeFloor* private_floor(size_t) const override { return &now_; }
+
+  private:
+    enum EventType : uint8_t { kSlot, kArrive, kTag, kFillDone, kDram, kIdealDone, kLoad };
+    struct Event {
+        Cycle t;
+        uint64_t order;  // fills first within a cycle, then first scheduled first
+        EventType type;
+        uint32_t id, k;
+        bool operator>(const Event& o) const { return t != o.t ? t > o.t : order > o.order; }
+    };
+    void schedule(Cycle t, EventType type, uint32_t id, uint32_t k = 0) {
+        const uint64_t cls = type == kFillDone ? 0 : uint64_t(1) << 62;
+        events_.push(Event{t, cls | seq_++, type, id, k});
+    }
+
+    // What a memory request's completion goes to.
+    enum WaiterKind : uint8_t { kForStep, kForFill, kForNothing };
+    struct Access {
+        MemoryPort* node = nullptr;
+        uint64_t addr = 0;
+        uint32_t size_bytes = 0;
+        WaiterKind for_kind = kForNothing;
+        uint32_t a = 0, b = 0;    // kForStep: core, slot; kForFill: the fill
+        Crossbar* via = nullptr;  // a fill's request through the crossbar
+        Cycle start = 0;
+        uint64_t first_line = 0;
+        uint32_t lines_left = 0;
+        // The slowest line so far (the first of equals), and its timeline.
+        bool any = false;
+        Cycle done = 0;
+        uint64_t slowest_k = 0;
+        Timeline timeline;
+    };
+    struct Waiter {
+        uint32_t access;
+        uint32_t k;  // its line
+        Cycle from;  // when its tag check found the line still filling
+    };
+    struct Fill {
+        Cache* cache = nullptr;
+        uint32_t cache_state = 0;
+        uint64_t line = 0;
+        Cycle requested = 0;  // the miss's tag check: it asks for an MSHR then
+        Timeline timeline;    // from `requested` to the data's arrival
+        std::vector<Waiter> waiters;
+        DramRequest dram;
+    };
+    struct CacheState {
+        std::unordered_map<uint64_t, uint32_t> in_flight;  // line -> its newest fill
+        uint32_t mshrs = 0;                                // 0: unlimited
+        uint32_t busy = 0;
+        std::deque<uint32_t> waiting;  // fills waiting for an MSHR, first come first served
+        // Treelet loaders (core, load generation) waiting for a free MSHR.
+        std::vector<std::pair<uint32_t, uint32_t>> loaders;
+    };
+    // What a slot without a running ray does next.
+    enum SlotPhase : uint8_t { kTakeWork, kReadRecord, kSetUp };
+    struct SlotState {
+        SlotPhase phase = kTakeWork;
+        RayWork work;
+        size_t pos = 0;
+        Cycle start = 0;
+        bool busy = false;
+        uint32_t handle = 0, treelet = 0;
+        int kind = 0;  // the step being fetched
+        int count = 1, lanes = 1;
+        Cycle idle_since = 0;
+    };
+    struct CoreState {
+        std::vector<SlotState> slots;
+        std::deque<uint32_t> batch;
+        uint32_t batch_treelet = 0, loaded_treelet = ~0u;
+        // The treelet load in progress, as the fast model's (Core::load_treelet): per StepKind
+        // the lines left, one requested per cycle, held while every MSHR is busy. A new load
+        // replaces it (a new generation; events of older ones are dropped).
+        uint64_t load_next[kStepKinds] = {}, load_end[kStepKinds] = {};
+        uint32_t load_generation = 0;
+    };
+
+    void run();
+    void slot_ready(uint32_t c, uint32_t i, Cycle t);
+    void step_fetched(uint32_t c, uint32_t i, Cycle t, const Timeline& timeline);
+    void load_treelet(uint32_t c, uint32_t treelet, Cycle t);
+    void load_line(uint32_t c, uint32_t generation, Cycle t);
+    void take_wakes(Cycle t);
+    uint32_t new_access(MemoryPort* node, uint64_t addr, uint32_t size, Cycle start);
+    void arrive(uint32_t a, Cycle t);
+    void tag(uint32_t a, uint32_t k, Cycle t);
+    void issue_fill(uint32_t f, Cycle t);
+    void dram_stage(uint32_t f, Cycle t);
+    void fill_done(uint32_t f, Cycle t);
+    void line_done(uint32_t a, uint64_t k, Cycle t, const Timeline& timeline);
+    void access_done(uint32_t a, Cycle t);
+    uint32_t cache_state(Cache* cache);
+
+    std::vector<Core*> cores_;
+    WakeSource* wake_;
+    std::vector<CoreState> states_;
+    std::vector<std::pair<uint32_t, uint32_t>> parked_;  // core, slot
+    std::priority_queue<Event, std::vector<Event>, std::greater<Event>> events_;
+    uint64_t seq_ = 0;
+    TimeFloor now_;  // every block's floor: nothing is ever requested before the current event
+    std::vector<Access> accesses_;
+    std::vector<uint32_t> free_accesses_;
+    std::vector<Fill> fills_;
+    std::vector<uint32_t> free_fills_;
+    std::vector<CacheState> caches_;
+    std::unordered_map<const Cache*, uint32_t> cache_index_;
+    std::vector<Cycle> lookup_scratch_;
+    double host_busy_seconds_ = 0;
+};
+
+uint32_t ReferenceScheduler::cache_state(Cache* cache) {
+    auto it = cache_index_.find(cache);
+    if (it != cache_index_.end()) return it->second;
+    CacheState st;
+    st.mshrs = uint32_t(std::max(0, cache->params().mshrs));
+    caches_.push_back(std::move(st));
+    return cache_index_[cache] = uint32_t(caches_.size() - 1);
+}
+
+uint32_t ReferenceScheduler::new_access(MemoryPort* node, uint64_t addr, uint32_t size,
+                                        Cycle start) {
+    uint32_t a;
+    if (free_accesses_.empty()) {
+        a = uint32_t(accesses_.size());
+        accesses_.emplace_back();
+    } else {
+        a = free_accesses_.back();
+        free_accesses_.pop_back();
+        accesses_[a] = Access{};
+    }
+    Access& A = accesses_[a];
+    A.node = node;
+    A.addr = addr;
+    A.size_bytes = size;
+    A.start = start;
+    A.timeline = Timeline(start);
+    return a;
+}
+
+void ReferenceScheduler::run() {
+    for (uint32_t c = 0; c < cores_.size(); ++c)
+        for (uint32_t i = 0; i < states_[c].slots.size(); ++i) schedule(0, kSlot, c, i);
+    auto resumed = std::chrono::steady_clock::now();
+    Cycle kernel_cycle = 0;
+    while (!events_.empty()) {
+        const Event e = events_.top();
+        events_.pop();
+        now_.cycle = e.t;
+        if (e.t >= kernel_cycle + CoreScheduler::kKernelSyncCycles) {
+            host_busy_seconds_ +=
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
+            wait(cycles_to_time(e.t - kernel_cycle));
+            resumed = std::chrono::steady_clock::now();
+            kernel_cycle = e.t;
+        }
+        switch (e.type) {
+            case kSlot:
+                slot_ready(e.id, e.k, e.t);
+                break;
+            case kArrive:
+                arrive(e.id, e.t);
+                break;
+            case kTag:
+                tag(e.id, e.k, e.t);
+                break;
+            case kFillDone:
+                fill_done(e.id, e.t);
+                break;
+            case kDram:
+                dram_stage(e.id, e.t);
+                break;
+            case kLoad:
+                load_line(e.id, e.k, e.t);
+                break;
+            case kIdealDone: {
+                Timeline tl(accesses_[e.id].start);
+                tl.add(e.t, kLevelL1);
+                line_done(e.id, 0, e.t, tl);
+                break;
+            }
+        }
+    }
+    host_busy_seconds_ +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
+}
+
+// Work arrived in the ray buffer for parked slots: they look again from then.
+void ReferenceScheduler::take_wakes(Cycle t) {
+    Cycle at;
+    if (!wake_ || !wake_->take_wake(at)) return;
+    at = std::max(at, t);
+    for (const auto& [c, i] : parked_) {
+        SlotState& s = states_[c].slots[i];
+        cores_[c]->no_work_cycles += at - std::min(at, s.idle_since);
+        schedule(at, kSlot, c, i);
+    }
+    parked_.clear();
+}
+
+void ReferenceScheduler::load_treelet(uint32_t c, uint32_t treelet, Cycle t) {
+    Core& core = *cores_[c];
+    CoreState& cs = states_[c];
+    const TreeletSpan& span = core.ray_buffer()->span(treelet);
+    const size_t node = size_t(StepKind::Node), tri = size_t(StepKind::Triangle);
+    cs.load_next[node] = span.node_addr;
+    cs.load_end[node] = span.node_addr + span.node_bytes;
+    cs.load_next[tri] = span.tri_addr;
+    cs.load_end[tri] = span.tri_addr + span.tri_bytes;
+    schedule(t, kLoad, c, ++cs.load_generation);
+    ++core.treelet_loads;
+    core.treelet_load_bytes += span.node_bytes + span.tri_bytes;
+    cs.loaded_treelet = treelet;
+}
+
+// The cache whose MSHRs a miss of `cache` takes: its own, or, for a cache with unlimited MSHRs in
+// front of another of its level (a treelet cache before its L1), that one's; nullptr: unlimited.
+Cache* limiting_cache(Cache* cache) {
+    while (cache && cache->params().mshrs == 0) {
+        auto* next = dynamic_cast<Cache*>(cache->next_level());
+        cache = next && next->level() == cache->level() ? next : nullptr;
+    }
+    return cache;
+}
+
+void ReferenceScheduler::load_line(uint32_t c, uint32_t generation, Cycle t) {
+    CoreState& cs = states_[c];
+    if (generation != cs.load_generation) return;  // replaced by a newer load
+    size_t kind = 0;
+    while (kind < size_t(kStepKinds) && cs.load_next[kind] >= cs.load_end[kind]) ++kind;
+    if (kind == size_t(kStepKinds)) return;
+    auto* cache = dynamic_cast<Cache*>(cores_[c]->memory(int(kind)));
+    if (!cache) return;  // ideal memory: nothing to load into
+    const uint32_t line_bytes = cache->params().line_bytes;
+    const uint64_t addr = cs.load_next[kind] & ~uint64_t(line_bytes - 1);
+    if (!cache->contains(addr)) {
+        if (Cache* limit = limiting_cache(cache)) {
+            CacheState& st = caches_[cache_state(limit)];
+            if (st.busy >= st.mshrs) {  // every MSHR busy: wait for one to free
+                st.loaders.emplace_back(c, generation);
+                return;
+            }
+        }
+    }
+    arrive(new_access(cache, addr, line_bytes, t), t);
+    cs.load_next[kind] = addr + line_bytes;
+    schedule(t + 1, kLoad, c, generation);
+}
+
+// A slot's next action at t: take a ray, finish one, move it to another treelet's queue, or
+// issue its next step (whose fetch then arrives at the L1 when issued).
+void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
+    Core& core = *cores_[c];
+    CoreState& cs = states_[c];
+    SlotState& s = cs.slots[i];
+    RayBuffer* rb = core.ray_buffer();
+    if (!s.busy) {
+        if (s.phase == kReadRecord) {  // the record is written: read it through a port
+            const Cycle got = rb->read(s.handle, t, s.work, s.pos);
+            core.stall_cycles[Core::kRayBuffer] += got - s.start;
+            s.phase = kSetUp;
+            schedule(got, kSlot, c, i);
+            return;
+        }
+        if (s.phase == kSetUp) {  // the ray's setup instructions, issued when it is there
+            const Cycle done = core.issue(t, core.params().ray_setup_instructions);
+            core.stall_cycles[Core::kIssue] += done - t;
+            s.phase = kTakeWork;
+            s.busy = true;
+            if (!rb && s.work.steps.empty()) {  // a ray missing the root box ends here
+                core.count_finished(s.work.rays, s.start, done);
+                s.busy = false;
+            }
+            schedule(done, kSlot, c, i);
+            return;
+        }
+        s.start = t;
+        if (!rb) {
+            if (!core.source()->next(s.work)) {
+                s.idle_since = t;
+                core.set_slot_idle(i, t, true);
+                return;
+            }
+            s.pos = 0;
+            s.phase = kSetUp;
+            slot_ready(c, i, t);
+            return;
+        }
+        if (cs.batch.empty()) {
+            const bool any = rb->next_batch(t, cs.batch_treelet, cs.batch);
+            if (!any) {
+                s.idle_since = t;
+                const bool retired = rb->finished();
+                core.set_slot_idle(i, t, retired);
+                if (!retired) parked_.emplace_back(c, i);
+                take_wakes(t);
+                return;
+            }
+            if (core.params().treelet_prefetch && cs.batch_treelet != cs.loaded_treelet)
+                load_treelet(c, cs.batch_treelet, t);
+            take_wakes(t);  // admissions queue rays
+        }
+        s.handle = cs.batch.front();
+        cs.batch.pop_front();
+        s.treelet = cs.batch_treelet;
+        s.phase = kReadRecord;
+        schedule(std::max(t, rb->record_written(s.handle)), kSlot, c, i);
+        return;
+    }
+    if (rb) {
+        if (s.pos == s.work.steps.size()) {
+            rb->release(s.handle);
+            core.count_finished(s.work.rays, s.start, t);
+            s.busy = false;
+            take_wakes(t);
+            schedule(t, kSlot, c, i);
+            return;
+        }
+        const uint32_t next_treelet = s.work.steps[s.pos].treelet;
+        if (next_treelet != s.treelet) {
+            const Cycle done = rb->requeue(s.handle, s.work, s.pos, next_treelet, t);
+            core.stall_cycles[Core::kRayBuffer] += done - t;
+            core.ray_latency_cycles += done - s.start;
+            s.busy = false;
+            take_wakes(t);
+            schedule(done, kSlot, c, i);
+            return;
+        }
+    }
+    const Step& st = s.work.steps[s.pos];
+    const int kind = int(st.kind);
+    const Cycle issued = core.issue(t, core.params().step_instructions[kind]);
+    core.stall_cycles[Core::kIssue] += issued - t;
+    s.kind = kind;
+    s.count = st.count;
+    s.lanes = st.lanes;
+    ++s.pos;
+    ++core.steps;
+    const int lanes = core.params().packet_lanes;
+    if (lanes > 0) {
+        core.active_lanes += st.lanes;
+        core.lane_slots += uint64_t(lanes);
+    }
+    const uint32_t a = new_access(core.memory(kind), st.addr, st.size_bytes, issued);
+    Access& A = accesses_[a];
+    A.for_kind = kForStep;
+    A.a = c;
+    A.b = i;
+    schedule(issued, kArrive, a);
+}
+
+void ReferenceScheduler::step_fetched(uint32_t c, uint32_t i, Cycle t, const Timeline& timeline) {
+    Core& core = *cores_[c];
+    SlotState& s = states_[c].slots[i];
+    uint64_t by_level[kMemLevels] = {0, 0, 0, 0};
+    timeline.charge(by_level);
+    for (int l = 0; l < kMemLevels; ++l) core.stall_cycles[Core::kL1 + l] += by_level[l];
+    const int lanes = core.params().packet_lanes > 0 ? core.params().packet_lanes : 1;
+    const Cycle done = core.unit(s.kind)->issue(t, s.count, lanes);
+    core.stall_cycles[Core::kUnitStall + s.kind] += done - t;
+    if (s.pos == s.work.steps.size() && !core.ray_buffer()) {
+        core.count_finished(s.work.rays, s.start, done);
+        s.busy = false;
+    }
+    schedule(done, kSlot, c, i);
+}
+
+// A request reaches its block at t.
+void ReferenceScheduler::arrive(uint32_t a, Cycle t) {
+    Access& A = accesses_[a];
+    if (auto* cache = dynamic_cast<Cache*>(A.node)) {
+        A.first_line = cache->arrive(A.addr, A.size_bytes, t, lookup_scratch_);
+        A.lines_left = uint32_t(lookup_scratch_.size());
+        for (uint32_t k = 0; k < lookup_scratch_.size(); ++k)
+            schedule(lookup_scratch_[k], kTag, a, k);
+        return;
+    }
+    // Ideal memory (the cores' only memory): the L1 hit latency, nothing shared.
+    A.lines_left = 1;
+    schedule(A.node->access(A.addr, A.size_bytes, t), kIdealDone, a);
+}
+
+// Line k of a request is looked up at t.
+void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
+    Cache* cache = static_cast<Cache*>(accesses_[a].node);
+    const uint64_t line = accesses_[a].first_line + k;
+    const uint32_t cs = cache_state(cache);
+    if (cache->check_tag(line, t)) {
+        auto it = caches_[cs].in_flight.find(line);
+        if (it != caches_[cs].in_flight.end()) {  // still filling: wait for it (merged miss)
+            ++cache->merged_misses;
+            fills_[it->second].waiters.push_back({a, k, t});
+            return;
+        }
+        Timeline tl(accesses_[a].start);
+        tl.add(t, cache->level());
+        line_done(a, k, t, tl);
+        return;
+    }
+    uint32_t f;
+    if (free_fills_.empty()) {
+        f = uint32_t(fills_.size());
+        fills_.emplace_back();
+    } else {
+        f = free_fills_.back();
+        free_fills_.pop_back();
+        fills_[f] = Fill{};
+    }
+    Fill& F = fills_[f];
+    F.cache = cache;
+    F.cache_state = cs;
+    F.line = line;
+    F.requested = t;
+    F.timeline = Timeline(t);
+    F.waiters.push_back({a, k, t});
+    CacheState& st = caches_[cs];
+    st.in_flight[line] = f;  // an older fill of the line (evicted while filling) ends unseen
+    if (st.mshrs == 0 || st.busy < st.mshrs) {
+        if (st.mshrs) ++st.busy;
+        issue_fill(f, t);
+    } else {
+        st.waiting.push_back(f);
+    }
+}
+
+// A miss holding an MSHR from t asks the next level for its line.
+void ReferenceScheduler::issue_fill(uint32_t f, Cycle t) {
+    Fill& F = fills_[f];
+    Cache* cache = F.cache;
+    cache->mshr_wait_cycles += t - F.requested;
+    F.timeline.add(t, cache->level());
+    const uint32_t line_bytes = cache->params().line_bytes;
+    uint64_t addr = F.line;
+    for (uint32_t b = line_bytes; b > 1; b >>= 1) addr <<= 1;  // line sizes are powers of two
+    MemoryPort* next = cache->next_level();
+    if (dynamic_cast<DramModel*>(next)) {
+        F.dram = DramRequest{};
+        F.dram.addr = addr;
+        F.dram.size_bytes = line_bytes;
+        dram_stage(f, t);
+        return;
+    }
+    Crossbar* via = dynamic_cast<Crossbar*>(next);
+    if (via) next = via->next_level();  // the request crosses at once; its line comes back later
+    const uint32_t a = new_access(next, addr, line_bytes, t);
+    Access& A = accesses_[a];
+    A.for_kind = kForFill;
+    A.a = f;
+    A.via = via;
+    arrive(a, t);
+}
+
+void ReferenceScheduler::dram_stage(uint32_t f, Cycle t) {
+    Fill& F = fills_[f];
+    auto* dram = static_cast<DramModel*>(F.cache->next_level());
+    bool done = false;
+    const Cycle next = dram->advance(F.dram, t, done);
+    if (!done) {
+        schedule(next, kDram, f);
+        return;
+    }
+    F.timeline.add(next, kLevelDram);
+    schedule(next, kFillDone, f);
+}
+
+// A fill's line is there at t: its MSHR goes to the next miss waiting, and every request that
+// waited on the line goes on, charged for the wait where the fill was at each cycle.
+void ReferenceScheduler::fill_done(uint32_t f, Cycle t) {
+    Fill& F = fills_[f];
+    CacheState& st = caches_[F.cache_state];
+    auto it = st.in_flight.find(F.line);
+    if (it != st.in_flight.end() && it->second == f) st.in_flight.erase(it);
+    if (st.mshrs) {
+        if (!st.waiting.empty()) {
+            const uint32_t next = st.waiting.front();
+            st.waiting.pop_front();
+            issue_fill(next, t);
+        } else {
+            --st.busy;
+            for (const auto& [core, generation] : st.loaders) schedule(t, kLoad, core, generation);
+            st.loaders.clear();
+        }
+    }
+    const int level = F.cache->level();
+    std::vector<Waiter> waiters;
+    waiters.swap(F.waiters);
+    const Timeline fill_timeline = F.timeline;
+    free_fills_.push_back(f);
+    for (const Waiter& w : waiters) {
+        Timeline tl(accesses_[w.access].start);
+        tl.add(w.from, level);
+        tl.add_overlap(fill_timeline, w.from, t);
+        line_done(w.access, w.k, t, tl);
+    }
+}
+
+void ReferenceScheduler::line_done(uint32_t a, uint64_t k, Cycle t, const Timeline& timeline) {
+    Access& A = accesses_[a];
+    if (!A.any || t > A.done || (t == A.done && k < A.slowest_k)) {
+        A.any = true;
+        A.done = t;
+        A.slowest_k = k;
+        A.timeline = timeline;
+    }
+    if (--A.lines_left == 0) access_done(a, t);
+}
+
+void ReferenceScheduler::access_done(uint32_t a, Cycle t) {
+    const Access A = accesses_[a];
+    free_accesses_.push_back(a);
+    switch (A.for_kind) {
+        case kForStep:
+            step_fetched(A.a, A.b, t, A.timeline);
+            break;
+        case kForFill: {
+            Fill& F = fills_[A.a];
+            for (int p = 0; p < A.timeline.parts; ++p)
+                F.timeline.add(A.timeline.part[p].end, A.timeline.part[p].level);
+            if (A.via) {
+                const Cycle end = A.via->carry(t, A.size_bytes);
+                F.timeline.add(end, kLevelCrossbar);
+                schedule(end, kFillDone, A.a);
+            } else {
+                fill_done(A.a, t);
+            }
+            break;
+        }
+        case kForNothing:
+            break;
+    }
+}
+
+std::unique_ptr<ChipDriver> make_accurate(const char* module_name, const DriverSetup& setup) {
+    return std::make_unique<ReferenceScheduler>(module_name, setup);
+}
+
+}  // namespace
+
+RTSIM_REGISTER(FidelityEntry,
+               {"accurate",
+                "the time-ordered reference: every stage of every request runs at its own cycle "
+                "from one event queue, so every shared resource serves in time order",
+                {},
+                &make_accurate})
+
+}  // namespace rtsim
