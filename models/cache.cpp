@@ -42,7 +42,14 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
         throw std::invalid_argument(
             std::string(name) + ": addresses up to " + std::to_string(params_.address_limit_bytes) +
             " bytes need tags wider than 32 bits with this cache's sets and lines");
-    if (level_ == kLevelL1) in_flight_.resize(kInFlightFills);
+    // Every level remembers its fills' timelines: a request merged on one is charged where the
+    // fill was at each cycle (the L2's merged waits were all charged to DRAM: 7 points of stall
+    // share off the time-ordered reference with 4 L2 MSHRs).
+    size_t fills = params_.mshrs > 0 ? std::max<size_t>(128, 4 * size_t(params_.mshrs)) : 1024;
+    size_t slots = 1;
+    while (slots < fills) slots *= 2;
+    in_flight_.resize(slots);
+    in_flight_mask_ = slots - 1;
     if (auto* next = dynamic_cast<Cache*>(next_level); next && next->level_ == level_)
         same_level_next_ = next;
     repl_.ways = params_.ways;
@@ -121,7 +128,7 @@ void Cache::Slowest::charge(const Cache& cache, AccessBreakdown* bd, Cycle now) 
 
 void Cache::charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const {
     const int below = level_ == kLevelL1 ? kLevelL2 : kLevelDram;
-    const InFlightFill* fill = in_flight_.empty() ? nullptr : &in_flight_[line % kInFlightFills];
+    const InFlightFill* fill = &in_flight_[line & in_flight_mask_];
     if (!fill || fill->line != line || fill->ready != until) {
         bd->cycles[below] += until - from;
         return;

@@ -251,25 +251,25 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         bd->cycles[level_] += lookup_done - now;
         if (done > lookup_done) charge_wait(bd, line, lookup_done, done);
     }
-    // A hit waiting from `from` to `until` on the fill of `line` still in flight: an L1 charges
+    // A hit waiting from `from` to `until` on the fill of `line` still in flight: charges
     // each cycle to the level the fill was at then (its MSHR wait, the L2, DRAM, the crossbar,
     // in that order; an L1 below a treelet cache first), from the fill's recorded breakdown;
     // otherwise, or when the fill is no longer remembered, the wait is the next level's.
     void charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle until) const;
-    // An L1's recent fills: when each left for the next level and how long it spent at each
+    // Recent fills: when each left for the next level and how long it spent at each
     // level below (the difference of the requester's breakdown across the fill).
     struct InFlightFill {
         uint64_t line = ~uint64_t(0);
         Cycle issue_at = 0, l1_end = 0, l2_end = 0, dram_end = 0, ready = 0;
     };
     // Direct-mapped by line: a fill overwritten by a newer one of the same slot falls back to
-    // charging the next level. (An L1's MSHRs bound its fills in flight, 16 by default; a
-    // treelet load has a few hundred.)
-    static constexpr size_t kInFlightFills = 128;
-    std::vector<InFlightFill> in_flight_;  // L1s only
+    // charging the next level. Sized for the fills the MSHRs allow in flight (a treelet load or
+    // a cache with unlimited MSHRs has more: 1024 slots).
+    std::vector<InFlightFill> in_flight_;
+    uint64_t in_flight_mask_ = 0;
     void remember_fill(uint64_t line, Cycle issue_at, const AccessBreakdown& before,
                        const AccessBreakdown& after, Cycle ready) {
-        InFlightFill& f = in_flight_[line % kInFlightFills];
+        InFlightFill& f = in_flight_[line & in_flight_mask_];
         f.line = line;
         f.issue_at = issue_at;
         f.l1_end = issue_at + (after.cycles[kLevelL1] - before.cycles[kLevelL1]);

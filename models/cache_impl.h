@@ -90,9 +90,9 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
         mshr_wait_cycles += issue_at - lookup_done;
     }
     if (bd) bd->cycles[level_] += issue_at - now;
-    // An L1 keeps the timeline of its fills in flight, so that a later hit waiting on one is
+    // A cache keeps the timeline of its fills in flight, so that a later hit waiting on one is
     // charged to the levels it actually waits on.
-    const bool keep = bd && level_ == kLevelL1;
+    const bool keep = bd != nullptr;
     AccessBreakdown before;
     if (keep) before = *bd;
     const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);

@@ -89,6 +89,8 @@ class ReferenceScheduler final : public ChipDriver {
     ReferenceScheduler(sc_core::sc_module_name name, const DriverSetup& setup)
         : ChipDriver(name), cores_(setup.cores), wake_(setup.wake) {
         for (Core* core : cores_) {
+            slot_rank_.push_back(slot_count_);
+            slot_count_ += uint64_t(core->params().ray_slots);
             CoreState cs;
             cs.slots.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
@@ -101,16 +103,25 @@ class ReferenceScheduler final : public ChipDriver {
 
   private:
     enum EventType : uint8_t { kSlot, kArrive, kTag, kFillDone, kDram, kIdealDone, kLoad };
+    // Within a cycle: fills complete first, then other memory stages, then ray slots by core and
+    // slot (the fast model's arbitration: at equal cycles the lower core, then the lower slot,
+    // takes the next ray), each group first scheduled first.
     struct Event {
         Cycle t;
-        uint64_t order;  // fills first within a cycle, then first scheduled first
+        uint64_t order;  // group << 48 | slot rank << 24 ... see schedule()
+        uint64_t seq;
         EventType type;
         uint32_t id, k;
-        bool operator>(const Event& o) const { return t != o.t ? t > o.t : order > o.order; }
+        bool operator>(const Event& o) const {
+            if (t != o.t) return t > o.t;
+            if (order != o.order) return order > o.order;
+            return seq > o.seq;
+        }
     };
     void schedule(Cycle t, EventType type, uint32_t id, uint32_t k = 0) {
-        const uint64_t cls = type == kFillDone ? 0 : uint64_t(1) << 62;
-        events_.push(Event{t, cls | seq_++, type, id, k});
+        uint64_t order = type == kFillDone ? 0 : 1;
+        if (type == kSlot) order = 2 + slot_rank_[id] + k;
+        events_.push(Event{t, order, seq_++, type, id, k});
     }
 
     // What a memory request's completion goes to.
@@ -196,6 +207,8 @@ class ReferenceScheduler final : public ChipDriver {
     std::vector<Core*> cores_;
     WakeSource* wake_;
     std::vector<CoreState> states_;
+    std::vector<uint64_t> slot_rank_;  // per core: the rank of its first slot among all slots
+    uint64_t slot_count_ = 0;
     std::vector<std::pair<uint32_t, uint32_t>> parked_;  // core, slot
     std::priority_queue<Event, std::vector<Event>, std::greater<Event>> events_;
     uint64_t seq_ = 0;

@@ -1,8 +1,8 @@
 // Small cases whose every cycle is worked out by hand, run through the whole simulator: a trace
 // written here (one ray, a node then a triangle, both missing every cache) replayed by `rtsim
 // run` on a config whose every latency is stated. The expected cycles come from the timeline in
-// the comments, not from the simulator. (Issue 15 runs the same cases through the time-ordered
-// reference once it exists.)
+// the comments, not from the simulator. Every case runs through both fidelities: the fast model
+// and the time-ordered reference (sim.fidelity = accurate) must each match the hand timeline.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -23,7 +23,7 @@ namespace {
 
 // One inner node (64 bytes at 0x10000000) and one triangle (48 bytes right after it): both in
 // the same 2 KiB DRAM row and each in its own 64-byte line.
-json tiny_layout_metadata() {
+json tiny_layout_metadata(int nodes = 1) {
     return {{"scene", {{"name", "hand-made"}, {"triangles", 1}}},
             {"bvh",
              {{"builder", "sah"},
@@ -32,21 +32,23 @@ json tiny_layout_metadata() {
               {"layout",
                {{"node_base_addr", 0x10000000},
                 {"node_size_bytes", 64},
-                {"inner_node_count", 1},
-                {"triangle_base_addr", 0x10000040},
+                {"inner_node_count", nodes},
+                {"triangle_base_addr", 0x10000000 + 64 * nodes},
                 {"triangle_size_bytes", 48},
                 {"triangle_count", 1}}}}},
             {"workload", {{"rays", "primary"}}}};
 }
 
-std::string write_trace(const fs::path& path, int rays) {
-    TraceWriter w(path.string(), tiny_layout_metadata().dump(), 16);
+// `rays` rays, each a node step then a triangle step; with `own_nodes`, ray i visits node i (its
+// own line), else all visit node 0.
+std::string write_trace(const fs::path& path, int rays, bool own_nodes = false) {
+    TraceWriter w(path.string(), tiny_layout_metadata(own_nodes ? rays : 1).dump(), 16);
     for (int i = 0; i < rays; ++i) {
         TraceRecord r;
         r.ray_id = uint32_t(i);
         Step node{}, tri{};
         node.kind = StepKind::Node;
-        node.id = 0;
+        node.id = own_nodes ? uint32_t(i) : 0;
         node.count = 2;
         tri.kind = StepKind::Triangle;
         tri.id = 0;
@@ -71,10 +73,14 @@ const char* kStatedConfig =
     " --set dram.t_rcd_cycles=14 --set dram.t_cas_cycles=14 --set dram.t_ccd_cycles=4"
     " --set dram.t_rp_cycles=14";
 
-json run_trace(const std::string& trace, const std::string& extra, const std::string& name) {
-    const fs::path out = test::scratch_dir() / name;
+const char* const kFidelities[] = {"fast", "accurate"};
+
+json run_trace(const std::string& trace, const std::string& extra, const std::string& name,
+               const std::string& fidelity) {
+    const fs::path out = test::scratch_dir() / (name + "_" + fidelity);
     const std::string cmd = std::string(RTSIM_BINARY) + " run -q --trace '" + trace + "'" +
-                            kStatedConfig + extra + " --out '" + out.string() + "' 2>&1";
+                            kStatedConfig + extra + " --set sim.fidelity=" + fidelity + " --out '" +
+                            out.string() + "' 2>&1";
     EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
     std::ifstream in(out / "stats.json");
     return json::parse(in);
@@ -91,18 +97,22 @@ json run_trace(const std::string& trace, const std::string& extra, const std::st
 //        open, so column at 261, data 275, burst 279, +150 -> 429; triangle test 18 -> 447
 TEST(Timeline, OneRayMissingEveryLevelByHand) {
     const std::string trace = write_trace(test::scratch_dir() / "one_ray.rtt", 1);
-    const json s = run_trace(trace, " --set core.ray_slots=1", "one_ray");
-    EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 447u);
-    const json& st = s["stalls"]["total"];
-    EXPECT_EQ(st["issue"].get<uint64_t>(), 1u + 1 + 1);
-    EXPECT_EQ(st["l1"].get<uint64_t>(), 4u + 4);
-    EXPECT_EQ(st["l2"].get<uint64_t>(), 30u + 30);
-    EXPECT_EQ(st["dram"].get<uint64_t>(), (218u - 36) + (429 - 261));
-    EXPECT_EQ(st["box_unit"].get<uint64_t>(), 8u);
-    EXPECT_EQ(st["triangle_unit"].get<uint64_t>(), 18u);
-    EXPECT_EQ(st["no_work"].get<uint64_t>(), 0u);
-    EXPECT_EQ(s["bandwidth"]["dram"]["row_hits"].get<uint64_t>(), 1u);
-    EXPECT_EQ(s["bandwidth"]["dram"]["row_empty"].get<uint64_t>(), 1u);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+
+        const json s = run_trace(trace, " --set core.ray_slots=1", "one_ray", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 447u);
+        const json& st = s["stalls"]["total"];
+        EXPECT_EQ(st["issue"].get<uint64_t>(), 1u + 1 + 1);
+        EXPECT_EQ(st["l1"].get<uint64_t>(), 4u + 4);
+        EXPECT_EQ(st["l2"].get<uint64_t>(), 30u + 30);
+        EXPECT_EQ(st["dram"].get<uint64_t>(), (218u - 36) + (429 - 261));
+        EXPECT_EQ(st["box_unit"].get<uint64_t>(), 8u);
+        EXPECT_EQ(st["triangle_unit"].get<uint64_t>(), 18u);
+        EXPECT_EQ(st["no_work"].get<uint64_t>(), 0u);
+        EXPECT_EQ(s["bandwidth"]["dram"]["row_hits"].get<uint64_t>(), 1u);
+        EXPECT_EQ(s["bandwidth"]["dram"]["row_empty"].get<uint64_t>(), 1u);
+    }
 }
 
 // Two identical rays on two slots, one issue per cycle: the slots take turns at the port, and
@@ -118,15 +128,59 @@ TEST(Timeline, OneRayMissingEveryLevelByHand) {
 //        pipeline took A's op at 430, so B's enters at 431 -> 449
 TEST(Timeline, TwoRaysShareFillsAndPipelinesByHand) {
     const std::string trace = write_trace(test::scratch_dir() / "two_rays.rtt", 2);
-    const json s = run_trace(trace, " --set core.ray_slots=2", "two_rays");
-    EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 449u);
-    const json& st = s["stalls"]["total"];
-    // Issue latency 1 on each of 6 issues, and 3 port waits (B's setup, A's and B's node steps).
-    EXPECT_EQ(st["issue"].get<uint64_t>(), 6u + 1 + 1 + 1);
-    // B's merged waits are charged where the fills were: L2 until they reached DRAM, then DRAM.
-    EXPECT_EQ(st["dram"].get<uint64_t>(), (219u - 37) + (430 - 262) + (219 - 37) + (430 - 262));
-    EXPECT_EQ(s["caches"]["l1_total"]["misses"].get<uint64_t>(), 2u);
-    EXPECT_EQ(s["caches"]["l1_total"]["merged_misses"].get<uint64_t>(), 2u);
-    EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), 128u);
-    EXPECT_EQ(s["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+
+        const json s = run_trace(trace, " --set core.ray_slots=2", "two_rays", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 449u);
+        const json& st = s["stalls"]["total"];
+        // Issue latency 1 on each of 6 issues, and 3 port waits (B's setup, A's and B's node
+        // steps).
+        EXPECT_EQ(st["issue"].get<uint64_t>(), 6u + 1 + 1 + 1);
+        // B's merged waits are charged where the fills were: L2 until they reached DRAM, then DRAM.
+        EXPECT_EQ(st["dram"].get<uint64_t>(), (219u - 37) + (430 - 262) + (219 - 37) + (430 - 262));
+        EXPECT_EQ(s["caches"]["l1_total"]["misses"].get<uint64_t>(), 2u);
+        EXPECT_EQ(s["caches"]["l1_total"]["merged_misses"].get<uint64_t>(), 2u);
+        EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), 128u);
+        EXPECT_EQ(s["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+    }
+}
+
+// Two rays on two slots, each with its own node line, and one L1 MSHR: a miss waits for the
+// MSHR, first come first served, and holds it until its data is there.
+//   0    A's setup -> 1; B's waits for the port -> 2
+//   1    A's node step: port at 2 -> fetch 3; L1 miss at 7 takes the MSHR; L2 miss at 37;
+//        DRAM empty bank: column 51, data 65, burst 69, +150 -> 219; box 219 -> 227
+//   2    B's node step (node 1, another line): port at 3 -> fetch 4; L1 miss at 8 waits for
+//        the MSHR until 219; L2 miss at 249; DRAM row hit (bank free since 55): column 249,
+//        data 263, burst 267, +150 -> 417; box 417 -> 425
+//   227  A's triangle: fetch 228; L1 miss at 232 waits for the MSHR until 417; L2 miss at 447;
+//        DRAM row hit: column 447, data 461, burst 465, +150 -> 615; triangle 615 -> 633
+//   425  B's triangle: fetch 426; lookup at 430 finds A's fill in flight (merged) until 615;
+//        the triangle pipeline took A's op at 615, so B's enters at 616 -> 634
+// Stalls: issue A 1+2+1, B 2+2+1; L1 A 4 + (4+185), B (4+211) + 4; L2 A 30+30, B 30 + 17 of
+// the merged wait (A's fill was at the L2 from 430 to 447); DRAM A 182+168, B 168 + 168;
+// box 8+8; triangle 18 + 19; no work: A's slot from 633 to 634.
+TEST(Timeline, OneMshrQueuesMissesByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "mshr.rtt", 2, true);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s =
+            run_trace(trace, " --set core.ray_slots=2 --set l1.mshrs=1", "one_mshr", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 634u);
+        const json& st = s["stalls"]["total"];
+        EXPECT_EQ(st["issue"].get<uint64_t>(), 4u + 5);
+        EXPECT_EQ(st["l1"].get<uint64_t>(), 4u + 189 + 215 + 4);
+        EXPECT_EQ(st["l2"].get<uint64_t>(), 30u + 30 + 30 + 17);
+        EXPECT_EQ(st["dram"].get<uint64_t>(), 182u + 168 + 168 + 168);
+        EXPECT_EQ(st["box_unit"].get<uint64_t>(), 16u);
+        EXPECT_EQ(st["triangle_unit"].get<uint64_t>(), 18u + 19);
+        EXPECT_EQ(st["no_work"].get<uint64_t>(), 1u);
+        EXPECT_EQ(st["unaccounted_cycles"].get<int64_t>(), 0);
+        EXPECT_EQ(s["caches"]["l1_total"]["misses"].get<uint64_t>(), 3u);
+        EXPECT_EQ(s["caches"]["l1_total"]["merged_misses"].get<uint64_t>(), 1u);
+        EXPECT_EQ(s["counters"]["l1[0].mshr_wait_cycles"].get<uint64_t>(), 211u + 185);
+        EXPECT_EQ(s["bandwidth"]["dram"]["row_hits"].get<uint64_t>(), 2u);
+        EXPECT_EQ(s["bandwidth"]["dram"]["row_empty"].get<uint64_t>(), 1u);
+    }
 }
