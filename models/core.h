@@ -123,7 +123,9 @@ class Core : public sc_core::sc_module {
     // empty and all rays are done).
     // `others_floor`: the earliest cycle the other cores may still send a request at; with this
     // core's own, it keeps the shared blocks' floor (set_shared_floor) current as the core runs.
-    Cycle advance(Cycle horizon, Cycle others_floor = kNeverCycle);
+    // `at_horizon`: whether shared work exactly at `horizon` may run (this core comes first
+    // among cores at that cycle).
+    Cycle advance(Cycle horizon, Cycle others_floor = kNeverCycle, bool at_horizon = true);
     void set_shared_floor(TimeFloor* shared) { shared_floor_ = shared; }
     // Parked slots look for work again from cycle `at`; false if none was parked.
     bool wake(Cycle at);
