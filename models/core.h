@@ -5,10 +5,12 @@
 // (one SystemC process for all cores) advances it, and the core runs its earliest-ready slot in
 // a tight loop against the resource calendars of its units and L1. Private work (an L1 hit on a
 // private unit) runs ahead freely; work that touches shared state (taking a ray, an L1 miss, a
-// shared unit) waits until it is the earliest such work on the chip, so every shared block sees
-// requests in global time order. `quantum_cycles` relaxes that bound (temporal decoupling, as
-// TLM-2.0's quantum keeper): a core may run shared work up to that many cycles ahead of the
-// others. Quantum 0 is the exact reference.
+// shared unit) waits until it is the earliest such work on the chip, so shared blocks see
+// requests nearly in time order (a miss's later stages still land out of order by their
+// latencies: stats.json out_of_order counts it, and sim.fidelity = accurate, the time-ordered
+// reference in models/fidelity/accurate.cpp, measures the error). `quantum_cycles` relaxes that
+// bound (temporal decoupling, as TLM-2.0's quantum keeper): a core may run shared work up to
+// that many cycles ahead of the others.
 #pragma once
 
 #include <deque>

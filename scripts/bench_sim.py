@@ -5,7 +5,8 @@ within one run rather than asserting times).
 For each ray kind on a scene it runs `rtsim run` at several temporal-decoupling quanta and prints
 simulated rays per host second, the shares of host time (waiting for rays, models, SystemC
 kernel), and the error
-of total cycles and DRAM bytes against quantum 0 (the exact reference).
+of total cycles and DRAM bytes against quantum 0 (the fast model's own order; its error against the
+time-ordered reference is what scripts/bench_fidelity.py measures).
 
 With --replay N it then records each kind's rays to a trace once and replays it N times per
 variant (the default config; the same pinned to one host core with taskset, so trace decoding
