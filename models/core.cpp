@@ -376,12 +376,8 @@ void Core::register_stats(StatsRegistry& reg) {
 }
 
 CoreScheduler::CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores,
-                             Cycle quantum_cycles, WakeSource* wake)
-    : ChipDriver(name),
-      cores_(std::move(cores)),
-      quantum_cycles_(quantum_cycles),
-      wake_(wake),
-      keys_(padded_to_8(cores_.size())) {
+                             WakeSource* wake)
+    : ChipDriver(name), cores_(std::move(cores)), wake_(wake), keys_(padded_to_8(cores_.size())) {
     for (Core* core : cores_) core->set_shared_floor(&floor_);
     SC_THREAD(run);
 }
@@ -419,14 +415,12 @@ void CoreScheduler::run() {
             resumed = std::chrono::steady_clock::now();
             kernel_cycle = first;
         }
-        const Cycle horizon = second >= kParkedCycle || second >= kNeverCycle - quantum_cycles_
-                                  ? kNeverCycle
-                                  : second + quantum_cycles_;
+        const Cycle horizon = second >= kParkedCycle ? kNeverCycle : second;
         // At equal cycles the lower core goes first (the time-ordered reference's arbitration
         // too): a core runs work at the next core's cycle only if its index is lower. (Letting
-        // the running core go on at equal cycles handed it runs of consecutive rays, a locality
-        // the reference does not have: -15% cycles on 64 cores x 32 slots.)
-        const bool at_horizon = quantum_cycles_ > 0 || c < keys_.index(two.second);
+        // the running core go on at equal cycles handed it runs of consecutive rays that the
+        // reference hands to other cores.)
+        const bool at_horizon = c < keys_.index(two.second);
         const Cycle next_c = cores_[c]->advance(horizon, others_floor, at_horizon);
         next[c] = keys_.key(next_c, c);
         floors_[c] = next_c < kParkedCycle ? cores_[c]->floor()->cycle : kNeverCycle;

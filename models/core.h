@@ -8,9 +8,9 @@
 // shared unit) waits until it is the earliest such work on the chip, so shared blocks see
 // requests nearly in time order (a miss's later stages still land out of order by their
 // latencies: stats.json out_of_order counts it, and sim.fidelity = accurate, the time-ordered
-// reference in models/fidelity/accurate.cpp, measures the error). `quantum_cycles` relaxes that
-// bound (temporal decoupling, as TLM-2.0's quantum keeper): a core may run shared work up to
-// that many cycles ahead of the others.
+// reference in models/fidelity/accurate.cpp, measures the error). (A temporal-decoupling quantum
+// that let a core run shared work ahead of the others bought at most 1.13x for large errors and
+// was removed: bench/results/fidelity_quanta.md.)
 #pragma once
 
 #include <deque>
@@ -29,7 +29,7 @@
 namespace rtsim {
 
 // Hands out rays to cores; the chip's shared work queue. Calls arrive in simulated time order
-// (to within the quantum) from every core.
+// from every core.
 class RayWorkSource {
   public:
     virtual ~RayWorkSource() = default;
@@ -257,8 +257,8 @@ class Core : public sc_core::sc_module {
 };
 
 // Runs a set of cores in global time order: the cores' one SystemC process. It picks the core
-// whose next shared work is earliest and advances it up to the next one's cycle (plus the
-// quantum), so shared blocks see requests in time order at the cost of a scan of the cores'
+// whose next shared work is earliest and advances it up to the next one's cycle, so shared
+// blocks see requests nearly in time order at the cost of a scan of the cores'
 // next cycles rather than a kernel event. It also keeps the shared blocks' time floor (the
 // earliest cycle any running core may still send a request at). SystemC time follows the
 // earliest core, synchronised every `kKernelSyncCycles` (nothing else in the chip is an active
@@ -268,7 +268,7 @@ class CoreScheduler : public ChipDriver {
     SC_HAS_PROCESS(CoreScheduler);
     static constexpr Cycle kKernelSyncCycles = 4096;
     // `wake`: where work for parked cores comes from (the ray buffer in treelet mode).
-    CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores, Cycle quantum_cycles,
+    CoreScheduler(sc_core::sc_module_name name, std::vector<Core*> cores,
                   WakeSource* wake = nullptr);
     // Host seconds the process ran (not simulated statistics: for the host section).
     double host_busy_seconds() const override { return host_busy_seconds_; }
@@ -280,7 +280,6 @@ class CoreScheduler : public ChipDriver {
   private:
     void run();
     std::vector<Core*> cores_;
-    Cycle quantum_cycles_;
     WakeSource* wake_;
     double host_busy_seconds_ = 0;
     TimeFloor floor_;

@@ -38,7 +38,6 @@ class ChipDriver : public sc_core::sc_module {
 
 struct DriverSetup {
     std::vector<Core*> cores;
-    Cycle quantum_cycles = 0;    // fast: temporal decoupling (sim.quantum_cycles)
     WakeSource* wake = nullptr;  // where work for parked cores comes from (the ray buffer)
 };
 

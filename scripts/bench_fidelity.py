@@ -2,16 +2,17 @@
 """The fast model's error against the time-ordered reference (sim.fidelity = accurate).
 
 Runs a matrix of scenes x ray kinds x configs that stress ordering and sharing, once with the
-reference and once per temporal-decoupling quantum with the fast model, and reports per cell the
+reference and once with the fast model, and reports per cell the
 fast model's error in total cycles and DRAM bytes (percent of the reference), the difference in
 L1 and L2 hit rates and in every stall share (percentage points), and the host seconds each
 fidelity spent simulating (host.simulation_s: the timing models, not scene loading or tracing).
 
 Writes bench/results/fidelity.json (every cell) and bench/results/fidelity.md (the summary: per
-config and quantum the largest errors, every cell over the 1% target with its figures, and the
-host-time ratio), and prints the summary.
+config the largest errors, every cell over the 1% target with its figures, and the host-time
+ratio), and prints the summary. (Until the temporal-decoupling quantum was removed it also ran
+the quanta: bench/results/fidelity_quanta.md is that record.)
 
-    scripts/bench_fidelity.py [--rtsim build/rtsim] [--res 64x64] [--quanta 0,10,100,1000]
+    scripts/bench_fidelity.py [--rtsim build/rtsim] [--res 64x64]
                               [--scenes a,b] [--kinds primary,ao,diffuse] [--configs a,b] [-j 2]
                               [--out bench/results]
 """
@@ -100,14 +101,12 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
     ap.add_argument("--res", default="64x64")
-    ap.add_argument("--quanta", default="0,10,100,1000")
     ap.add_argument("--scenes", default=DEFAULT_SCENES)
     ap.add_argument("--kinds", default="primary,ao,diffuse")
     ap.add_argument("--configs", default=",".join(CONFIGS))
     ap.add_argument("-j", type=int, default=2, help="runs at once")
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     a = ap.parse_args()
-    quanta = [int(q) for q in a.quanta.split(",")]
     scenes = a.scenes.split(",")
     for n in scenes:
         if n not in SCENES:
@@ -130,10 +129,9 @@ def main():
                 base += extra
                 cell = (scene, kind, c)
                 jobs[cell + ("accurate",)] = base + ["--set", "sim.fidelity=accurate"]
-                for q in quanta:
-                    jobs[cell + (q,)] = base + ["--set", f"sim.quantum_cycles={q}"]
+                jobs[cell + ("fast",)] = base
     print(f"bench_fidelity: {len(scenes)} scenes x {len(kinds)} kinds x {len(configs)} configs, "
-          f"reference + quanta {a.quanta}: {len(jobs)} runs at {a.res}", file=sys.stderr)
+          f"fast and accurate: {len(jobs)} runs at {a.res}", file=sys.stderr)
     results = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.j) as pool:
         futures = {pool.submit(run_one, (a.rtsim, args, os.path.join(tmp, "_".join(map(str, key))))): key
@@ -148,10 +146,9 @@ def main():
         for kind in kinds:
             for c in configs:
                 ref = results[(scene, kind, c, "accurate")]
-                for q in quanta:
-                    fast = results[(scene, kind, c, q)]
-                    cells.append({"scene": scene, "kind": kind, "config": c, "quantum": q,
-                                  "accurate": ref, "fast": fast, "error": compare(fast, ref)})
+                fast = results[(scene, kind, c, "fast")]
+                cells.append({"scene": scene, "kind": kind, "config": c, "accurate": ref,
+                              "fast": fast, "error": compare(fast, ref)})
 
     lines = [f"# Fast model against the time-ordered reference (sim.fidelity = accurate)", "",
              f"`scripts/bench_fidelity.py --res {a.res}` (gpu_64x32 at twice the resolution); "
@@ -160,27 +157,26 @@ def main():
              f"the reference, hit rates and stall shares in percentage points (largest absolute "
              f"value over the cells). Host time: the reference's simulation seconds over the fast "
              f"model's (median).", ""]
-    header = ("| config | quantum | max cycles % | mean cycles % | max DRAM % | max L1 hit pp | "
+    header = ("| config | max cycles % | mean cycles % | max DRAM % | max L1 hit pp | "
               "max L2 hit pp | max stall pp | cells > 1% | host ratio |")
-    lines += [header, "|" + "---|" * 10]
+    lines += [header, "|" + "---|" * 9]
     for c in configs:
-        for q in quanta:
-            sel = [x for x in cells if x["config"] == c and x["quantum"] == q]
-            err = [x["error"] for x in sel]
-            worst = lambda k: max(err, key=lambda e: abs(e[k]))[k]
-            stall_pp = max(abs(v) for e in err for k, v in e.items() if k.startswith("stall_"))
-            over = sum(1 for e in err if abs(e["cycles_pct"]) > TARGET_PERCENT
-                       or abs(e["dram_bytes_pct"]) > TARGET_PERCENT)
-            lines.append(
-                f"| {c} | {q} | {worst('cycles_pct'):+.2f} | "
-                f"{statistics.mean(e['cycles_pct'] for e in err):+.2f} | "
-                f"{worst('dram_bytes_pct'):+.2f} | {worst('l1_hit_rate_pp'):+.2f} | "
-                f"{worst('l2_hit_rate_pp'):+.2f} | {stall_pp:.2f} | {over}/{len(sel)} | "
-                f"{statistics.median(e['host_ratio'] for e in err):.1f}x |")
-    misses = [x for x in cells if x["quantum"] == 0 and (
+        sel = [x for x in cells if x["config"] == c]
+        err = [x["error"] for x in sel]
+        worst = lambda k: max(err, key=lambda e: abs(e[k]))[k]
+        stall_pp = max(abs(v) for e in err for k, v in e.items() if k.startswith("stall_"))
+        over = sum(1 for e in err if abs(e["cycles_pct"]) > TARGET_PERCENT
+                   or abs(e["dram_bytes_pct"]) > TARGET_PERCENT)
+        lines.append(
+            f"| {c} | {worst('cycles_pct'):+.2f} | "
+            f"{statistics.mean(e['cycles_pct'] for e in err):+.2f} | "
+            f"{worst('dram_bytes_pct'):+.2f} | {worst('l1_hit_rate_pp'):+.2f} | "
+            f"{worst('l2_hit_rate_pp'):+.2f} | {stall_pp:.2f} | {over}/{len(sel)} | "
+            f"{statistics.median(e['host_ratio'] for e in err):.1f}x |")
+    misses = [x for x in cells if (
         abs(x["error"]["cycles_pct"]) > TARGET_PERCENT or abs(x["error"]["dram_bytes_pct"]) > TARGET_PERCENT)]
-    lines += ["", f"## Cells over the {TARGET_PERCENT:g}% target at quantum 0 ({len(misses)} of "
-              f"{sum(1 for x in cells if x['quantum'] == 0)})", ""]
+    lines += ["", f"## Cells over the {TARGET_PERCENT:g}% target ({len(misses)} of "
+              f"{len(cells)})", ""]
     if misses:
         lines += ["| scene | kind | config | cycles % | DRAM % | fast cycles | reference cycles |",
                   "|" + "---|" * 7]
@@ -188,19 +184,15 @@ def main():
             lines.append(f"| {x['scene']} | {x['kind']} | {x['config']} | "
                          f"{x['error']['cycles_pct']:+.2f} | {x['error']['dram_bytes_pct']:+.2f} | "
                          f"{x['fast']['cycles']} | {x['accurate']['cycles']} |")
-    q0 = [x for x in cells if x["quantum"] == 0]
-    fast_s = sum(x["fast"]["host_s"] for x in q0)
-    ref_s = sum(x["accurate"]["host_s"] for x in q0)
-    lines += ["", f"Host simulation seconds over the quantum-0 cells: fast {fast_s:.2f} s, "
+    fast_s = sum(x["fast"]["host_s"] for x in cells)
+    ref_s = sum(x["accurate"]["host_s"] for x in cells)
+    lines += ["", f"Host simulation seconds over all cells: fast {fast_s:.2f} s, "
               f"accurate {ref_s:.2f} s ({ref_s / fast_s:.1f}x)."]
-    for q in quanta[1:]:
-        qs = sum(x["fast"]["host_s"] for x in cells if x["quantum"] == q)
-        lines.append(f"Quantum {q}: fast {qs:.2f} s ({fast_s / qs:.2f}x the speed of quantum 0).")
     text = "\n".join(lines) + "\n"
     print(text)
     os.makedirs(a.out, exist_ok=True)
     with open(os.path.join(a.out, "fidelity.json"), "w") as f:
-        json.dump({"res": a.res, "quanta": quanta, "cells": cells}, f, indent=1)
+        json.dump({"res": a.res, "cells": cells}, f, indent=1)
     with open(os.path.join(a.out, "fidelity.md"), "w") as f:
         f.write(text)
 

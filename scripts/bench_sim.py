@@ -2,11 +2,9 @@
 """Simulator speed vs. accuracy benchmark (not a test: machines are noisy, so it prints ratios
 within one run rather than asserting times).
 
-For each ray kind on a scene it runs `rtsim run` at several temporal-decoupling quanta and prints
-simulated rays per host second, the shares of host time (waiting for rays, models, SystemC
-kernel), and the error
-of total cycles and DRAM bytes against quantum 0 (the fast model's own order; its error against the
-time-ordered reference is what scripts/bench_fidelity.py measures).
+For each ray kind on a scene it runs `rtsim run` and prints simulated rays per host second and the
+shares of host time (waiting for rays, models, SystemC kernel). (The fast model's error against
+the time-ordered reference is what scripts/bench_fidelity.py measures.)
 
 With --replay N it then records each kind's rays to a trace once and replays it N times per
 variant (the default config; the same pinned to one host core with taskset, so trace decoding
@@ -18,7 +16,7 @@ second on one host core. With --profile as well, one more default replay runs un
 taking the most of the simulation thread's samples are listed; skipped with a note where perf
 is missing or not permitted.
 
-    scripts/bench_sim.py [--rtsim build/rtsim] [--scene FILE] [--res 256x256] [--quanta 0,10,100,1000]
+    scripts/bench_sim.py [--rtsim build/rtsim] [--scene FILE] [--res 256x256]
                          [--kinds primary,ao,diffuse] [--set bvh.width=8 ...] [--replay N] [--profile]
 """
 import argparse
@@ -49,7 +47,7 @@ REPLAY_VARIANTS = [("default", [], ()),
 
 
 def replay_section(a, tmp, extra):
-    print(f"\nReplays of a recorded trace (no functional work), quantum 0, {a.replay} runs per variant:")
+    print(f"\nReplays of a recorded trace (no functional work), {a.replay} runs per variant:")
     print(f"{'rays':8} {'variant':24} {'rays':>9} {'Mcycles':>9} {'best M/host s':>14} "
           f"{'median':>7} {'vs default':>10}")
     for kind in a.kinds.split(","):
@@ -128,33 +126,27 @@ def main():
     p.add_argument("--res", default="256x256")
     p.add_argument("--kinds", default="primary,ao,diffuse")
     p.add_argument("--set", action="append", default=[], help="config override, KEY=VALUE (repeatable)")
-    p.add_argument("--quanta", default="0,10,100,1000")
     p.add_argument("--replay", type=int, default=0, help="replays per variant of a recorded trace")
     p.add_argument("--profile", action="store_true",
                    help="with --replay: profile one default replay with perf (cpu-clock samples)")
     a = p.parse_args()
-    quanta = [int(q) for q in a.quanta.split(",")]
     print(f"scene {a.scene}, config {a.config}, {a.res}, overrides {a.set or 'none'}")
     print("Shares of simulation host time: waiting for rays (generation and functional tracing on a")
     print("helper thread), models (the core scheduler's process running the cores), kernel (the rest).")
-    print(f"{'rays':8} {'quantum':>8} {'rays':>9} {'Mcycles':>9} {'cyc err':>8} {'DRAM err':>9} "
-          f"{'host s':>7} {'sim Mrays/host s':>17} {'speedup':>8} {'rays wait':>9} {'models':>7} {'kernel':>7}")
+    print(f"{'rays':8} {'rays':>9} {'Mcycles':>9} {'DRAM MB':>8} {'host s':>7} {'sim Mrays/host s':>17} "
+          f"{'rays wait':>9} {'models':>7} {'kernel':>7}")
     with tempfile.TemporaryDirectory() as tmp:
         for kind in a.kinds.split(","):
-            ref = None
-            for q in quanta:
-                extra = [x for kv in a.set for x in ("--set", kv)]
-                s = run(a.rtsim, ["--config", a.config, "--scene", a.scene, "--rays", kind, "--res", a.res,
-                                  "--set", f"sim.quantum_cycles={q}"] + extra, os.path.join(tmp, f"{kind}{q}"))
-                h = s["host"]
-                row = (s["total_cycles"], s["bandwidth"]["dram"]["bytes"], h["simulation_s"])
-                ref = ref or row
-                cyc_err = (row[0] - ref[0]) / ref[0] * 100
-                dram_err = (row[1] - ref[1]) / max(ref[1], 1) * 100
-                print(f"{kind:8} {q:8d} {s['rays']['total']:9d} {row[0] / 1e6:9.3f} {cyc_err:+7.2f}% "
-                      f"{dram_err:+8.2f}% {row[2]:7.3f} {h['simulated_rays_per_host_second'] / 1e6:17.3f} "
-                      f"{ref[2] / row[2]:7.2f}x {h['functional_s'] / row[2] * 100:8.0f}% "
-                      f"{h['models_s'] / row[2] * 100:6.0f}% {h['kernel_s'] / row[2] * 100:6.0f}%")
+            extra = [x for kv in a.set for x in ("--set", kv)]
+            s = run(a.rtsim, ["--config", a.config, "--scene", a.scene, "--rays", kind, "--res", a.res]
+                    + extra, os.path.join(tmp, kind))
+            h = s["host"]
+            sim_s = h["simulation_s"]
+            print(f"{kind:8} {s['rays']['total']:9d} {s['total_cycles'] / 1e6:9.3f} "
+                  f"{s['bandwidth']['dram']['bytes'] / 1e6:8.2f} {sim_s:7.3f} "
+                  f"{h['simulated_rays_per_host_second'] / 1e6:17.3f} "
+                  f"{h['functional_s'] / sim_s * 100:8.0f}% "
+                  f"{h['models_s'] / sim_s * 100:6.0f}% {h['kernel_s'] / sim_s * 100:6.0f}%")
         if a.replay > 0:
             replay_section(a, tmp, [x for kv in a.set for x in ("--set", kv)])
 

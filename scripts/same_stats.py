@@ -56,9 +56,9 @@ CASES = {
     "replay": ["--trace", "{trace}", "--set", "bvh.width=4", "--set", "bvh.treelet_bytes=8192",
                "--set", "l1.size_kib=8"],
     "replay_treelet": ["--trace", "{trace}", "--config", cfg("treelet.json")],
-    "ideal_units_quantum": ["--scene", BUNNY, "--rays", "ao", "--res", "64x64", "--set",
-                            "sim.ideal_units=true", "--set", "sim.quantum_cycles=100", "--set",
-                            "dram.channels=4", "--set", "crossbar.bytes_per_cycle=0"],
+    "ideal_units_4ch": ["--scene", BUNNY, "--rays", "ao", "--res", "64x64", "--set",
+                        "sim.ideal_units=true", "--set",
+                        "dram.channels=4", "--set", "crossbar.bytes_per_cycle=0"],
 }
 
 
@@ -139,11 +139,13 @@ def main():
         args = [x.replace("{trace}", trace) for x in CASES[n]]
         old = run(a.old, args, os.path.join(work, n, "old"))
         new = run(a.new, args, os.path.join(work, n, "new"))
-        added = []
+        added, removed = [], []
         drop_added(old.get("config", {}), new.get("config", {}), "config", added)
+        # Config fields a change removed (their old value was what the new binary always does).
+        drop_added(new.get("config", {}), old.get("config", {}), "config", removed)
         if a.allow_added:
             drop_added(old, new, "", added)
-        if added:  # the hash covers the added fields; the rest of the config is compared
+        if added or removed:  # the hash covers those fields; the rest of the config is compared
             old.pop("config_hash", None)
             new.pop("config_hash", None)
         d = diff(old, new)
@@ -152,6 +154,8 @@ def main():
             sys.exit(1)
         shown = ", ".join(added[:6]) + (f", ... ({len(added)} in all)" if len(added) > 6 else "")
         extra = f"; fields only the new binary reports: {shown}" if added else ""
+        if removed:
+            extra += f"; config fields only the old binary had: {', '.join(removed)}"
         print(f"{n}: identical ({count_fields(new)} fields, {new['total_cycles']} cycles{extra})")
     print(f"all {len(names)} cases identical")
 

@@ -133,7 +133,6 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     for (auto& c : cores) core_ptrs.push_back(c.get());
     DriverSetup setup;
     setup.cores = std::move(core_ptrs);
-    setup.quantum_cycles = P.sim.quantum_cycles;
     setup.wake = ray_buffer.get();
     driver = FidelityRegistry::at(P.sim.fidelity).make("core_driver", setup);
     for (int i = 0; i < n; ++i) {

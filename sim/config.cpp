@@ -122,6 +122,14 @@ std::string check_leaf(const json& field, const json& v) {
     return ok ? std::string() : expectation(field);
 }
 
+// Keys that configs once had, with why they went: a config that still sets one is told so.
+const char* removed_key(const std::string& path) {
+    if (path == "sim.quantum_cycles")
+        return "removed: the temporal-decoupling quantum bought 1.06x-1.13x speed for mean cycle "
+               "errors up to +159% (bench/results/fidelity_quanta.md); delete the key";
+    return nullptr;
+}
+
 // Validates a (partial) config object against the schema node; `where` names the source.
 void validate(const json& schema_node, const json& v, const std::string& path,
               const std::string& where) {
@@ -132,6 +140,8 @@ void validate(const json& schema_node, const json& v, const std::string& path,
         for (auto& [k, child] : v.items()) {
             if (path.empty() && k == "extends") continue;
             const std::string p = path.empty() ? k : path + "." + k;
+            if (const char* why = removed_key(p))
+                throw InputError(fmt::format("{}: {}: {}", where, p, why));
             if (!schema_node["fields"].contains(k)) {
                 std::string known;
                 for (auto& [fk, fv] : schema_node["fields"].items())
@@ -213,11 +223,6 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
             "l1.split to false or the treelet cache to 0",
             where));
-    if (c["sim"]["fidelity"] != "fast" && c["sim"]["quantum_cycles"].get<int64_t>() != 0)
-        throw InputError(fmt::format(
-            "{}: sim.quantum_cycles: the quantum relaxes the fast model's order; sim.fidelity={} "
-            "serves every request in time order (set the quantum to 0)",
-            where, c["sim"]["fidelity"].get<std::string>()));
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(
             "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,
@@ -249,6 +254,8 @@ Config load_config(const std::string& path, const std::vector<std::string>& sets
             throw InputError(fmt::format("{}: expected KEY=VALUE, e.g. l1.size_kib=64", where));
         const std::string key = s.substr(0, eq), text = s.substr(eq + 1);
         const json* field = schema_entry(key);
+        if (const char* why = removed_key(key))
+            throw InputError(fmt::format("{}: {}: {}", where, key, why));
         if (!field) throw InputError(fmt::format("{}: {}: unknown key", where, key));
         if (field->contains("fields"))
             throw InputError(

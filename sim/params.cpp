@@ -158,7 +158,6 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.ideal_memory", M(sim.ideal_memory), 1, kNotMirrored),
         field("sim.ideal_units", M(sim.ideal_units), 1, kNotMirrored),
         field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),
-        field("sim.quantum_cycles", M(sim.quantum_cycles), 1, kNotMirrored),
         field("sim.fidelity", M(sim.fidelity), 1, kNotMirrored),
     };
     t.insert(t.end(), rest.begin(), rest.end());

@@ -32,7 +32,6 @@ struct SimParams {
     bool ideal_memory = false;
     bool ideal_units = false;
     uint64_t window_cycles = 0;  // time series windows; 0: none
-    Cycle quantum_cycles = 0;    // temporal-decoupling quantum (fast fidelity)
     std::string fidelity;        // a registered fidelity level
 };
 

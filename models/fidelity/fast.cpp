@@ -5,8 +5,7 @@
 namespace rtsim {
 namespace {
 std::unique_ptr<ChipDriver> make_fast(const char* module_name, const DriverSetup& setup) {
-    return std::make_unique<CoreScheduler>(module_name, setup.cores, setup.quantum_cycles,
-                                           setup.wake);
+    return std::make_unique<CoreScheduler>(module_name, setup.cores, setup.wake);
 }
 }  // namespace
 
@@ -15,7 +14,7 @@ RTSIM_REGISTER(FidelityEntry,
                 "ray slots run in tight loops against the blocks' calendars; a request's path "
                 "through the memory levels is computed when it is issued (error against accurate: "
                 "bench/results/fidelity.md)",
-                {"quantum_cycles"},
+                {},
                 &make_fast})
 
 }  // namespace rtsim

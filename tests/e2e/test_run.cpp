@@ -1055,9 +1055,13 @@ TEST(Fidelity, AccurateServesInTimeOrderAndFastStaysClose) {
     }
 }
 
-TEST(Fidelity, QuantumIsTheFastModelsOnly) {
-    expect_one_line_error(
-        run_rtsim("run -q --res 8x8 --set sim.fidelity=accurate --set sim.quantum_cycles=100"),
-        "sim.quantum_cycles");
+TEST(Fidelity, UnknownLevelAndRemovedQuantumAreRefused) {
     expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.fidelity=exact"), "sim.fidelity");
+    // The quantum was removed for buying too little speed: a config that still sets it is told.
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.quantum_cycles=100"),
+                          "sim.quantum_cycles: removed");
+    const fs::path cfg = work_dir() / "old_quantum.json";
+    std::ofstream(cfg) << R"({"sim": {"quantum_cycles": 0}})";
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
+                          "sim.quantum_cycles: removed");
 }

@@ -44,7 +44,7 @@ TEST(Core, FullPipelineThroughCoreFinishesInNPlusLMinusOne) {
     cp.issue_width = n;
     cp.issue_latency_cycles = 0;
     Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.rays, uint64_t(n));
     EXPECT_EQ(core.last_cycle, n + L - 1);
@@ -67,7 +67,7 @@ TEST(Core, NoWorkCyclesAreChargedAndNothingIsLeftOver) {
     cp.issue_width = 4;
     cp.issue_latency_cycles = I;
     Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     const Cycle D = I + I + M + T;
     ASSERT_EQ(core.last_cycle, D);
@@ -93,7 +93,7 @@ TEST(Core, SingleSlotLatenciesAdd) {
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
     Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * (I + M + T)));
     EXPECT_EQ(core.steps, uint64_t(rays * steps));
@@ -122,7 +122,7 @@ TEST(Core, IssueWidthLimitsThroughput) {
     cp.issue_width = 1;
     cp.issue_latency_cycles = 0;
     Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     // 2k issue slots at one per cycle: the last issues at 2k - 1, then the unit adds 1.
     EXPECT_EQ(core.last_cycle, Cycle(2 * k));
@@ -134,7 +134,7 @@ TEST(Core, NoWorkCostsNothing) {
     PipelinedUnit box("box", UnitParams{}), tri("tri", UnitParams{});
     SyntheticSource src(0, 1, StepKind::Node);
     Core core("core", CoreParams{}, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.rays, 0u);
     EXPECT_EQ(core.last_cycle, 0u);
@@ -154,16 +154,15 @@ TEST(Core, StepInstructionsOccupyTheIssuePort) {
     cp.issue_latency_cycles = I;
     cp.step_instructions[int(StepKind::Triangle)] = n;
     Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
-    CoreScheduler sched("sched", {&core}, 0);
+    CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * ((n - 1) + I + M + T)));
     EXPECT_EQ(core.stall_cycles[Core::kIssue], Cycle(rays) * (I + steps * ((n - 1) + I)));
 }
 
-// Cores of different speeds sharing one memory level: with quantum 0 the scheduler hands that
-// level every request in time order; with quantum Q no request is more than Q cycles older than
-// one already seen. Both runs do the same work.
-void run_cores_sharing_memory(Cycle quantum, std::vector<Cycle>& times, uint64_t& rays) {
+// Cores of different speeds sharing one memory level: the scheduler hands that level every
+// request in time order.
+void run_cores_sharing_memory(std::vector<Cycle>& times, uint64_t& rays) {
     test::FixedLatencyMemory mem(20);
     std::vector<std::unique_ptr<PipelinedUnit>> units;
     std::vector<std::unique_ptr<SyntheticSource>> sources;
@@ -182,7 +181,7 @@ void run_cores_sharing_memory(Cycle quantum, std::vector<Cycle>& times, uint64_t
             sources.back().get()));
         ptrs.push_back(cores.back().get());
     }
-    CoreScheduler sched("sched", ptrs, quantum);
+    CoreScheduler sched("sched", ptrs);
     sc_core::sc_start();
     times = mem.times;
     rays = 0;
@@ -199,23 +198,13 @@ Cycle worst_lag(const std::vector<Cycle>& times) {
     return lag;
 }
 
-TEST(CoreScheduler, QuantumZeroKeepsSharedRequestsInTimeOrder) {
+TEST(CoreScheduler, KeepsSharedRequestsInTimeOrder) {
     std::vector<Cycle> times;
     uint64_t rays = 0;
-    run_cores_sharing_memory(0, times, rays);
+    run_cores_sharing_memory(times, rays);
     EXPECT_EQ(rays, uint64_t(20 + 25 + 30 + 35));
     EXPECT_EQ(times.size(), size_t(20 * 3 + 25 * 4 + 30 * 5 + 35 * 6));
     EXPECT_EQ(worst_lag(times), 0u);
-}
-
-TEST(CoreScheduler, QuantumBoundsHowFarRequestsArriveOutOfOrder) {
-    const Cycle q = 50;
-    std::vector<Cycle> times;
-    uint64_t rays = 0;
-    run_cores_sharing_memory(q, times, rays);
-    EXPECT_EQ(rays, uint64_t(20 + 25 + 30 + 35));
-    EXPECT_GT(worst_lag(times), 0u);  // the quantum did relax the order
-    EXPECT_LE(worst_lag(times), q);
 }
 
 // The slot and core picks take the least key: keys must order by cycle, then by index, with

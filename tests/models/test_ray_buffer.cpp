@@ -163,7 +163,7 @@ void run_cores_through_buffer(uint32_t capacity, uint64_t& rays_done, uint64_t& 
         cores.back()->set_ray_buffer(&rb);
         ptrs.push_back(cores.back().get());
     }
-    static CoreScheduler sched("sched", ptrs, 0, &rb);
+    static CoreScheduler sched("sched", ptrs, &rb);
     sc_core::sc_start();
     rays_done = steps_done = 0;
     for (auto& c : cores) {
