@@ -15,12 +15,13 @@ struct RayPrecomp {
     int perm;          // 2 * kz + (kx and ky swapped): selects the specialised test
     float sx, sy, sz;  // shear constants
     explicit RayPrecomp(const Ray& r) : org(r.org), dir(r.dir) {
-        // A zero component gets a huge reciprocal instead of inf, so the slab distances of an
-        // origin lying on a slab plane are 0, never 0 * inf = NaN (as Embree's rcp_safe).
-        for (int a = 0; a < 3; ++a) {
-            const float d = r.dir[a];
-            inv_dir[a] = 1.0f / (std::fabs(d) > 1e-18f ? d : std::copysign(1e-18f, d));
-        }
+        // The exact reciprocal: a zero component gives an infinity of its sign, a tiny one a
+        // huge value (a clamp, as Embree's rcp_safe, moved far hits: a 1e-30 component read as
+        // 1e-18). An origin lying in a slab plane along such an axis then gives 0 * inf = NaN
+        // for that plane's distance, which the box tests ignore (their min and max keep the
+        // other operand): the ray runs inside the closed slab. Which plane is near comes from
+        // the reciprocal's sign bit, so +0 and -0 behave the same.
+        for (int a = 0; a < 3; ++a) inv_dir[a] = 1.0f / r.dir[a];
         kz = max_axis(vabs(r.dir));
         kx = (kz + 1) % 3;
         ky = (kx + 1) % 3;
@@ -52,14 +53,15 @@ inline bool finite_ray(const Ray& r) {
 }
 
 // Returns true if the ray overlaps box within [tmin, tmax]; tnear gets the entry distance.
-// Boxes are closed: a ray grazing a face or running inside a face's plane overlaps it.
+// Boxes are closed: a ray grazing a face or running inside a face's plane overlaps it, whatever
+// the sign of its zero direction component. A NaN slab distance (an origin in a plane the ray
+// runs along) fails both compares, so it leaves the interval as it was.
 inline bool intersect_box(const RayPrecomp& r, const AABB& b, float tmin, float tmax,
                           float& tnear) {
     for (int a = 0; a < 3; ++a) {
-        float t0 = (b.lo[a] - r.org[a]) * r.inv_dir[a];
-        float t1 = (b.hi[a] - r.org[a]) * r.inv_dir[a];
-        if (t0 > t1) std::swap(t0, t1);
-        t1 *= kSlabFarScale;
+        const bool negative = std::signbit(r.inv_dir[a]);
+        const float t0 = ((negative ? b.hi[a] : b.lo[a]) - r.org[a]) * r.inv_dir[a];
+        const float t1 = ((negative ? b.lo[a] : b.hi[a]) - r.org[a]) * r.inv_dir[a] * kSlabFarScale;
         tmin = t0 > tmin ? t0 : tmin;
         tmax = t1 < tmax ? t1 : tmax;
         if (tmin > tmax) return false;

@@ -45,8 +45,9 @@ struct BoxRay {
         for (int a = 0; a < 3; ++a) {
             org[a] = r.org[a];
             inv[a] = r.inv_dir[a];
-            near_off[a] = r.inv_dir[a] >= 0.0f ? lo[a] : hi[a];
-            far_off[a] = r.inv_dir[a] >= 0.0f ? hi[a] : lo[a];
+            const bool negative = std::signbit(r.inv_dir[a]);
+            near_off[a] = negative ? hi[a] : lo[a];
+            far_off[a] = negative ? lo[a] : hi[a];
         }
     }
     const float* plane(const WideNode<W>& n, size_t off) const {
@@ -71,8 +72,10 @@ inline unsigned box_test(const WideNode<W>& n, const BoxRay<W>& r, float tmin, f
                     _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(r.plane(n, r.near_off[a]) + k), o), inv);
                 const __m128 t1 =
                     _mm_mul_ps(_mm_sub_ps(_mm_loadu_ps(r.plane(n, r.far_off[a]) + k), o), inv);
-                tn = _mm_max_ps(tn, t0);
-                tf = _mm_min_ps(tf, _mm_mul_ps(t1, scale));
+                // The new distance first: max/min return the second operand when either is
+                // NaN, so a NaN distance (origin in a plane the ray runs along) is ignored.
+                tn = _mm_max_ps(t0, tn);
+                tf = _mm_min_ps(_mm_mul_ps(t1, scale), tf);
             }
             _mm_storeu_ps(tnear + k, tn);
             mask |= unsigned(_mm_movemask_ps(_mm_cmple_ps(tn, tf))) << k;

@@ -228,3 +228,131 @@ TEST(Intersect, SlabTestHandlesAxisParallelRaysOnPlanes) {
     EXPECT_TRUE(intersect_box(RayPrecomp(r), b, 0.0f, 100.0f, tn));
     EXPECT_EQ(tn, 0.0f);
 }
+
+// Issue 18, item 2: a ray lying exactly in a box's face plane overlaps the (closed) box whatever
+// the sign of its zero direction component, on the lower and the upper face, for tmin 0 and > 0.
+// (With a clamped reciprocal, 1 of the 4 sign and face pairs culled it once tmin > 0.)
+TEST(Intersect, RaysInAFacePlaneOverlapWhateverTheSignOfZero) {
+    AABB b;
+    b.lo = Vec3(0, 0, 0);
+    b.hi = Vec3(1, 1, 1);
+    int checked = 0;
+    for (int a = 0; a < 3; ++a) {          // the axis whose direction component is zero
+        const int m = (a + 1) % 3;         // the axis the ray moves along
+        for (float face : {0.0f, 1.0f}) {  // lies in the lower or the upper face plane
+            for (float zero : {0.0f, -0.0f}) {
+                for (float tmin : {0.0f, 1e-3f}) {
+                    Ray r;
+                    r.org = Vec3(0.5f, 0.5f, 0.5f);
+                    r.org[a] = face;
+                    r.org[m] = -1.0f;
+                    r.dir = Vec3(0, 0, 0);
+                    r.dir[m] = 1.0f;
+                    r.dir[a] = zero;
+                    float tn = -1;
+                    EXPECT_TRUE(intersect_box(RayPrecomp(r), b, tmin, 100.0f, tn))
+                        << "axis " << a << " face " << face << " zero " << zero << " tmin " << tmin;
+                    EXPECT_FLOAT_EQ(tn, 1.0f);
+                    ++checked;
+                }
+            }
+        }
+    }
+    EXPECT_EQ(checked, 3 * 2 * 2 * 2);
+}
+
+namespace {
+// A unit quad in the z = 0 plane, as two triangles (flat, axis-aligned geometry: a floor).
+Scene flat_quad() {
+    Scene s;
+    s.name = "flat_quad";
+    s.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    s.triangles = {{0, 1, 2}, {0, 2, 3}};
+    return s;
+}
+}  // namespace
+
+// Issue 18, item 2, through whole traversals: rays straight down (x and y direction components
+// +0 or -0) at every vertex and along every edge and the diagonal of an axis-aligned quad must
+// hit, for every BVH width, node format and builder, closest and any hit, single rays and packets.
+// (Before: an axis-aligned quad missed 40 of 88 such rays.)
+TEST(Tracer, AxisAlignedQuadHitsAtVerticesAndEdgesWithSignedZeros) {
+    const Scene s = flat_quad();
+    std::vector<Ray> rays;
+    for (float x : {0.0f, 0.25f, 0.5f, 1.0f})
+        for (float y : {0.0f, 0.5f, 0.75f, 1.0f}) {
+            const bool on_edge_or_diagonal = x == 0 || x == 1 || y == 0 || y == 1 || x == y;
+            if (!on_edge_or_diagonal) continue;
+            for (float zx : {0.0f, -0.0f})
+                for (float zy : {0.0f, -0.0f}) {
+                    Ray r;
+                    r.org = Vec3(x, y, 1.0f);
+                    r.dir = Vec3(zx, zy, -1.0f);
+                    rays.push_back(r);
+                }
+        }
+    ASSERT_GE(rays.size(), 40u);
+    for (int width : {2, 4, 8})
+        for (NodeFormat f : {NodeFormat::Full, NodeFormat::Compressed})
+            for (BvhBuilder builder : {BvhBuilder::Sah, BvhBuilder::Lbvh}) {
+                BvhBuildOptions o;
+                o.width = width;
+                o.node_format = f;
+                o.builder = builder;
+                const Bvh bvh = build_bvh(s, o);
+                int misses = 0;
+                for (const Ray& r : rays)
+                    for (HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
+                        const Hit h = trace_ray(bvh, r, q);
+                        misses += !h.valid();
+                        if (h.valid() && q == HitQuery::Closest) {
+                            EXPECT_FLOAT_EQ(h.t, 1.0f);
+                        }
+                    }
+                std::vector<Hit> hits(rays.size());
+                PacketOptions po;
+                po.size = 8;
+                PacketStats ps;
+                for (size_t i = 0; i < rays.size(); i += 8) {
+                    const int n = int(std::min<size_t>(8, rays.size() - i));
+                    trace_packet(bvh, &rays[i], n, HitQuery::Closest, &hits[i], po, ps);
+                }
+                for (const Hit& h : hits) misses += !h.valid();
+                EXPECT_EQ(misses, 0) << "BVH" << width << " format " << int(f) << " builder "
+                                     << int(builder) << ", of " << rays.size() * 3 << " rays";
+            }
+}
+
+// Issue 18, item 3: tiny direction components are not clamped, so far hits stay hits: a ray
+// whose only direction component is -1e-30 reaches the quad (at t = 1e30), and rays from 1e18
+// away along an axis with tiny sideways components hit it where a double-precision check says.
+TEST(Tracer, TinyDirectionComponentsKeepFarHits) {
+    const Bvh bvh = build_bvh(flat_quad(), BvhBuildOptions());
+    Ray r;
+    r.org = Vec3(0.5f, 0.5f, 1.0f);
+    r.dir = Vec3(0, 0, -1e-30f);
+    const Hit h = trace_ray(bvh, r, HitQuery::Closest);
+    ASSERT_TRUE(h.valid());
+    EXPECT_NEAR(h.t / 1e30f, 1.0f, 1e-5f);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<float> u(0.05f, 0.95f), side(-1e-19f, 1e-19f);
+    int hits = 0, expected = 0;
+    for (int i = 0; i < 2000; ++i) {
+        Ray far;
+        far.org = Vec3(u(rng), u(rng), 1e18f);
+        far.dir = Vec3(side(rng), side(rng), -1.0f);
+        // Where it crosses z = 0, in double precision: inside the quad's [0, 1]^2?
+        const double t = 1e18;
+        const double x = double(far.org.x) + t * double(far.dir.x);
+        const double y = double(far.org.y) + t * double(far.dir.y);
+        const bool inside = x > 1e-3 && x < 1 - 1e-3 && y > 1e-3 && y < 1 - 1e-3;
+        const bool outside = x < -1e-3 || x > 1 + 1e-3 || y < -1e-3 || y > 1 + 1e-3;
+        if (!inside && !outside) continue;  // too close to an edge to call
+        const bool hit = trace_ray(bvh, far, HitQuery::Closest).valid();
+        EXPECT_EQ(hit, inside) << x << " " << y;
+        hits += hit;
+        expected += inside;
+    }
+    EXPECT_GT(expected, 500);
+    EXPECT_EQ(hits, expected);
+}
