@@ -1,6 +1,7 @@
 // Error kinds that map to exit codes: bad input (2) vs. runtime failure (1).
 #pragma once
 
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
@@ -12,5 +13,11 @@ class InputError : public std::runtime_error {
   public:
     using std::runtime_error::runtime_error;
 };
+
+// A one-line warning on stderr: the input is usable but outside what the results are checked
+// for (the run goes on).
+inline void warn(const std::string& message) {
+    std::fprintf(stderr, "rtsim: warning: %s\n", message.c_str());
+}
 
 }  // namespace rtsim

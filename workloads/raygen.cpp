@@ -105,8 +105,9 @@ Ray Camera::generate(float px, float py, int width, int height) const {
     return r;
 }
 
-Vec3 offset_ray_origin(Vec3 p, Vec3 n) {
-    constexpr float kOrigin = 1.0f / 32.0f, kFloatScale = 1.0f / 65536.0f, kIntScale = 256.0f;
+Vec3 offset_ray_origin(Vec3 p, Vec3 n, float scene_scale) {
+    const float kOrigin = scene_scale / 32.0f, kFloatScale = scene_scale / 65536.0f;
+    constexpr float kIntScale = 256.0f;
     Vec3 out;
     for (int a = 0; a < 3; ++a) {
         const auto of = static_cast<int32_t>(kIntScale * n[a]);
@@ -178,6 +179,28 @@ RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptio
             "{}: scene bounds ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}) are too large for "
             "single-precision rays (their extent overflows a float); scale the scene down",
             scene.name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
+    // Outside the range the stress suite checks, say so: too large a scene overflows the
+    // triangle test's products (every ray misses), too small or too far from the origin a one
+    // loses hit precision.
+    const float magnitude = std::max({std::fabs(b.lo.x), std::fabs(b.lo.y), std::fabs(b.lo.z),
+                                      std::fabs(b.hi.x), std::fabs(b.hi.y), std::fabs(b.hi.z)});
+    const float extent = std::max({e0.x, e0.y, e0.z});
+    if (extent > kMaxSceneExtent)
+        throw InputError(fmt::format(
+            "{}: scene extent {:g} is above {:g}, where single-precision triangle tests overflow "
+            "and rays miss; scale the scene down",
+            scene.name, extent, kMaxSceneExtent));
+    if (extent > 0 && extent < kMinSceneExtent)
+        warn(
+            fmt::format("{}: scene extent {:g} is below {:g}: hit distances may lose precision; "
+                        "scale the scene up",
+                        scene.name, extent, kMinSceneExtent));
+    if (extent > 0 && magnitude > kMaxOffsetOverExtent * extent)
+        warn(
+            fmt::format("{}: coordinates reach {:g}, over {:g} times the scene's extent {:g}: "
+                        "hits may be missed or off; move the scene nearer the origin",
+                        scene.name, magnitude, kMaxOffsetOverExtent, extent));
+    scene_scale_ = magnitude > 0 ? magnitude : 1.0f;
     // Lights just under the top of the scene's bounds (inside a closed room): a point at the
     // centre, or a horizontal quad a quarter of the bounds' width and depth around it.
     const Vec3 c = b.center(), e = b.extent();
@@ -203,7 +226,7 @@ bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
     ng = ng / len;
     if (dot(ng, r.dir) > 0.0f) ng = -ng;
     const Vec3 p = v0 * (1.0f - h.u - h.v) + v1 * h.u + v2 * h.v;
-    out = {offset_ray_origin(p, ng), ng, r.dir, stream};
+    out = {offset_ray_origin(p, ng, scene_scale_), ng, r.dir, stream};
     return true;
 }
 

@@ -50,7 +50,17 @@ struct Camera {
 // Moves a surface point off the surface along the geometric normal by an amount scaled to the
 // point's magnitude (Wächter & Binder, Ray Tracing Gems ch. 6), so secondary rays do not
 // re-hit the surface they start on. `n` points to the side the new ray leaves from.
-Vec3 offset_ray_origin(Vec3 p, Vec3 n);
+// `scene_scale` is the scene's largest coordinate magnitude: near the origin, where a point's
+// own ulps are far finer than the rounding of the vertices it was interpolated from, the move
+// is a fixed fraction of it (1/65536) instead of the paper's constant for scenes of size ~1,
+// which moved points of a 1e-6-sized scene 15 times its size away.
+Vec3 offset_ray_origin(Vec3 p, Vec3 n, float scene_scale = 1.0f);
+
+// The scenes whose guarantees (watertight traversal, hit distances to double precision,
+// secondary rays that neither re-hit nor escape their surface) the stress suite checks
+// (tests/workloads/test_numerics.cpp, bench/results/stress_numerics.txt).
+constexpr float kMinSceneExtent = 1e-9f, kMaxSceneExtent = 1e12f;
+constexpr float kMaxOffsetOverExtent = 1e3f;  // coordinates up to this many extents from 0
 
 struct GeneratedRay {
     Ray ray;
@@ -96,6 +106,7 @@ class RayGenerator {
     const Bvh& bvh_;
     RayGenOptions opt_;
     Camera camera_;
+    float scene_scale_ = 1.0f;  // largest coordinate magnitude (offset_ray_origin)
     Vec3 light_, light_u_, light_v_;
     float ao_length_;
     int tiles_x_, tiles_y_, next_tile_ = 0;
