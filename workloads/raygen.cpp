@@ -182,8 +182,7 @@ RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptio
     // Outside the range the stress suite checks, say so: too large a scene overflows the
     // triangle test's products (every ray misses), too small or too far from the origin a one
     // loses hit precision.
-    const float magnitude = std::max({std::fabs(b.lo.x), std::fabs(b.lo.y), std::fabs(b.lo.z),
-                                      std::fabs(b.hi.x), std::fabs(b.hi.y), std::fabs(b.hi.z)});
+    const float magnitude = b.largest_coordinate();
     const float extent = std::max({e0.x, e0.y, e0.z});
     if (extent > kMaxSceneExtent)
         throw InputError(fmt::format(

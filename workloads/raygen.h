@@ -60,7 +60,7 @@ Vec3 offset_ray_origin(Vec3 p, Vec3 n, float scene_scale = 1.0f);
 // secondary rays that neither re-hit nor escape their surface) the stress suite checks
 // (tests/workloads/test_numerics.cpp, bench/results/stress_numerics.txt).
 constexpr float kMinSceneExtent = 1e-9f, kMaxSceneExtent = 1e12f;
-constexpr float kMaxOffsetOverExtent = 1e3f;  // coordinates up to this many extents from 0
+constexpr float kMaxOffsetOverExtent = 1e2f;  // coordinates up to this many extents from 0
 
 struct GeneratedRay {
     Ray ray;

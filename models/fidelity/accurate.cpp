@@ -203,6 +203,18 @@ class ReferenceScheduler final : public ChipDriver {
     void line_done(uint32_t a, uint64_t k, Cycle t, const Timeline& timeline);
     void access_done(uint32_t a, Cycle t);
     uint32_t cache_state(Cache* cache);
+    // A fresh record from a pool of them (reusing a freed one when there is one).
+    template <typename T>
+    static uint32_t take(std::vector<T>& pool, std::vector<uint32_t>& free) {
+        if (free.empty()) {
+            pool.emplace_back();
+            return uint32_t(pool.size() - 1);
+        }
+        const uint32_t i = free.back();
+        free.pop_back();
+        pool[i] = T{};
+        return i;
+    }
 
     std::vector<Core*> cores_;
     WakeSource* wake_;
@@ -234,15 +246,7 @@ uint32_t ReferenceScheduler::cache_state(Cache* cache) {
 
 uint32_t ReferenceScheduler::new_access(MemoryPort* node, uint64_t addr, uint32_t size,
                                         Cycle start) {
-    uint32_t a;
-    if (free_accesses_.empty()) {
-        a = uint32_t(accesses_.size());
-        accesses_.emplace_back();
-    } else {
-        a = free_accesses_.back();
-        free_accesses_.pop_back();
-        accesses_[a] = Access{};
-    }
+    const uint32_t a = take(accesses_, free_accesses_);
     Access& A = accesses_[a];
     A.node = node;
     A.addr = addr;
@@ -511,15 +515,7 @@ void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
         line_done(a, k, t, tl);
         return;
     }
-    uint32_t f;
-    if (free_fills_.empty()) {
-        f = uint32_t(fills_.size());
-        fills_.emplace_back();
-    } else {
-        f = free_fills_.back();
-        free_fills_.pop_back();
-        fills_[f] = Fill{};
-    }
+    const uint32_t f = take(fills_, free_fills_);
     Fill& F = fills_[f];
     F.cache = cache;
     F.cache_state = cs;

@@ -5,6 +5,7 @@
 #include <future>
 #include <random>
 
+#include "support/numerics_stress.h"
 #include "workloads/bvh.h"
 #include "workloads/intersect.h"
 #include "workloads/packet.h"
@@ -136,44 +137,38 @@ TEST(Tracer, RayMissingRootBoxCostsNoStep) {
 // a miss at the root, with no step, for every width, format and builder, single or in packets.
 TEST(Tracer, NonFiniteRaysMissAndEnd) {
     Scene s = load_scene("builtin:cornell");
-    for (int width : {2, 4, 8})
-        for (NodeFormat f : {NodeFormat::Full, NodeFormat::Compressed})
-            for (BvhBuilder builder : {BvhBuilder::Sah, BvhBuilder::Lbvh}) {
-                BvhBuildOptions o;
-                o.width = width;
-                o.node_format = f;
-                o.builder = builder;
-                const Bvh bvh = build_bvh(s, o);
-                for (float bad : {std::nanf(""), INFINITY}) {
-                    Ray r;
-                    r.org = Vec3(bad, bad, bad);
-                    r.dir = normalize(Vec3(0.3f, -0.2f, -1.0f));
-                    // Runs in a thread with a deadline: a regression hangs, it must not hang CI.
-                    auto done = std::async(std::launch::async, [&] {
-                        std::vector<Step> steps;
-                        return std::make_pair(trace_ray(bvh, r, HitQuery::Closest, &steps),
-                                              steps.size());
-                    });
-                    if (done.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
-                        ADD_FAILURE() << "traversal of a non-finite ray does not end (BVH" << width;
-                        std::_Exit(1);
-                    }
-                    const auto [hit, steps] = done.get();
-                    EXPECT_FALSE(hit.valid()) << width;
-                    EXPECT_EQ(steps, 0u) << width;
-                    // In a packet with a finite ray: the bad lanes miss, the good one is traced.
-                    Ray rays[3] = {r, r, r};
-                    rays[1].org = Vec3(0.0f, 0.0f, 5.0f);
-                    rays[1].dir = Vec3(0.0f, 0.0f, -1.0f);
-                    Hit hits[3];
-                    PacketOptions po;
-                    po.size = 3;
-                    PacketStats ps;
-                    trace_packet(bvh, rays, 3, HitQuery::Closest, hits, po, ps);
-                    EXPECT_FALSE(hits[0].valid() || hits[2].valid()) << width;
-                    EXPECT_EQ(hits[1].valid(), trace_ray(bvh, rays[1], HitQuery::Closest).valid());
-                }
+    for (const BvhBuildOptions& o : test::bvh_variants()) {
+        const int width = o.width;
+        const Bvh bvh = build_bvh(s, o);
+        for (float bad : {std::nanf(""), INFINITY}) {
+            Ray r;
+            r.org = Vec3(bad, bad, bad);
+            r.dir = normalize(Vec3(0.3f, -0.2f, -1.0f));
+            // Runs in a thread with a deadline: a regression hangs, it must not hang CI.
+            auto done = std::async(std::launch::async, [&] {
+                std::vector<Step> steps;
+                return std::make_pair(trace_ray(bvh, r, HitQuery::Closest, &steps), steps.size());
+            });
+            if (done.wait_for(std::chrono::seconds(20)) != std::future_status::ready) {
+                ADD_FAILURE() << "traversal of a non-finite ray does not end (BVH" << width;
+                std::_Exit(1);
             }
+            const auto [hit, steps] = done.get();
+            EXPECT_FALSE(hit.valid()) << width;
+            EXPECT_EQ(steps, 0u) << width;
+            // In a packet with a finite ray: the bad lanes miss, the good one is traced.
+            Ray rays[3] = {r, r, r};
+            rays[1].org = Vec3(0.0f, 0.0f, 5.0f);
+            rays[1].dir = Vec3(0.0f, 0.0f, -1.0f);
+            Hit hits[3];
+            PacketOptions po;
+            po.size = 3;
+            PacketStats ps;
+            trace_packet(bvh, rays, 3, HitQuery::Closest, hits, po, ps);
+            EXPECT_FALSE(hits[0].valid() || hits[2].valid()) << width;
+            EXPECT_EQ(hits[1].valid(), trace_ray(bvh, rays[1], HitQuery::Closest).valid());
+        }
+    }
 }
 
 TEST(Intersect, WatertightOnSharedEdgesAndVertices) {
@@ -292,35 +287,28 @@ TEST(Tracer, AxisAlignedQuadHitsAtVerticesAndEdgesWithSignedZeros) {
                 }
         }
     ASSERT_GE(rays.size(), 40u);
-    for (int width : {2, 4, 8})
-        for (NodeFormat f : {NodeFormat::Full, NodeFormat::Compressed})
-            for (BvhBuilder builder : {BvhBuilder::Sah, BvhBuilder::Lbvh}) {
-                BvhBuildOptions o;
-                o.width = width;
-                o.node_format = f;
-                o.builder = builder;
-                const Bvh bvh = build_bvh(s, o);
-                int misses = 0;
-                for (const Ray& r : rays)
-                    for (HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
-                        const Hit h = trace_ray(bvh, r, q);
-                        misses += !h.valid();
-                        if (h.valid() && q == HitQuery::Closest) {
-                            EXPECT_FLOAT_EQ(h.t, 1.0f);
-                        }
-                    }
-                std::vector<Hit> hits(rays.size());
-                PacketOptions po;
-                po.size = 8;
-                PacketStats ps;
-                for (size_t i = 0; i < rays.size(); i += 8) {
-                    const int n = int(std::min<size_t>(8, rays.size() - i));
-                    trace_packet(bvh, &rays[i], n, HitQuery::Closest, &hits[i], po, ps);
+    for (const BvhBuildOptions& o : test::bvh_variants()) {
+        const Bvh bvh = build_bvh(s, o);
+        int misses = 0;
+        for (const Ray& r : rays)
+            for (HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
+                const Hit h = trace_ray(bvh, r, q);
+                misses += !h.valid();
+                if (h.valid() && q == HitQuery::Closest) {
+                    EXPECT_FLOAT_EQ(h.t, 1.0f);
                 }
-                for (const Hit& h : hits) misses += !h.valid();
-                EXPECT_EQ(misses, 0) << "BVH" << width << " format " << int(f) << " builder "
-                                     << int(builder) << ", of " << rays.size() * 3 << " rays";
             }
+        std::vector<Hit> hits(rays.size());
+        PacketOptions po;
+        po.size = 8;
+        PacketStats ps;
+        for (size_t i = 0; i < rays.size(); i += 8) {
+            const int n = int(std::min<size_t>(8, rays.size() - i));
+            trace_packet(bvh, &rays[i], n, HitQuery::Closest, &hits[i], po, ps);
+        }
+        for (const Hit& h : hits) misses += !h.valid();
+        EXPECT_EQ(misses, 0) << test::variant_name(o) << ", of " << rays.size() * 3 << " rays";
+    }
 }
 
 // Issue 18, item 3: tiny direction components are not clamped, so far hits stay hits: a ray
