@@ -7,6 +7,7 @@
 #include "sim/compare.h"
 #include "sim/config.h"
 #include "sim/errors.h"
+#include "sim/interrupt.h"
 #include "sim/list_cmd.h"
 #include "sim/run.h"
 #include "sim/sweep.h"
@@ -46,6 +47,7 @@ void refuse_workload_options_with_trace(CLI::App* run_cmd) {
 }
 
 int main_impl(int argc, char** argv) {
+    rtsim::install_interrupt_handlers();
     CLI::App app{"RTSim: a cycle-approximate ray-tracing hardware simulator"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("rtsim ") + RTSIM_VERSION);
@@ -139,6 +141,8 @@ int main_impl(int argc, char** argv) {
             fmt::print("{}\n", c.values.dump(2));
             return 0;
         }
+    } catch (const rtsim::Interrupted& e) {
+        return rtsim::report_interrupt(e.signal(), e.what());
     } catch (const rtsim::InputError& e) {
         return rtsim::report_failure(e.what(), true);
     } catch (const std::exception& e) {

@@ -14,6 +14,7 @@
 #include "sim/bound.h"
 #include "sim/chip.h"
 #include "sim/errors.h"
+#include "sim/interrupt.h"
 #include "sim/run_report.h"
 #include "sim/work_sources.h"
 #include "workloads/error.h"
@@ -112,6 +113,11 @@ int run_command(const RunOptions& opt) {
     sc_core::sc_start();
     host.simulation_s = seconds_since(t_sim);
     source.finish_progress();
+    if (source.interrupted_by) {
+        std::error_code ec;
+        fs::remove(out_dir, ec);  // only if empty: the folder this run made for its output
+        return report_interrupt(source.interrupted_by, "no stats written");
+    }
     if (source.failed()) return report_failure(source.failure, source.failure_is_input);
     if (chip.total_cycles() >= kCalendarCycleLimit)
         return report_failure(fmt::format("simulated time reached {} cycles, past the {} cycles "

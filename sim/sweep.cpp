@@ -1,5 +1,8 @@
 #include "sim/sweep.h"
 
+#include <cerrno>
+#include <csignal>
+
 #include <fcntl.h>
 #include <spawn.h>
 #include <sys/wait.h>
@@ -15,6 +18,7 @@
 
 #include "sim/compare.h"
 #include "sim/config.h"
+#include "sim/interrupt.h"
 #include "sim/run.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
@@ -247,7 +251,26 @@ size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, b
         if (running.empty()) break;
         int st = 0;
         const pid_t pid = waitpid(-1, &st, 0);
-        if (pid < 0) break;
+        if (const int sig = interrupt_signal()) {
+            // SIGINT/SIGTERM: start nothing more; the running points get the signal too (a
+            // terminal's Ctrl-C reaches them already; a `kill` of this process only it) and
+            // leave no stats; what finished stays for --resume.
+            for (const auto& [child, point] : running) kill(child, sig);
+            while (!running.empty()) {
+                const pid_t c = waitpid(-1, &st, 0);
+                if (c < 0 && errno != EINTR) break;
+                if (c > 0 && running.erase(c) && WIFEXITED(st) && WEXITSTATUS(st) == 0)
+                    ++done;  // it finished before the signal reached it
+            }
+            throw Interrupted(
+                sig, fmt::format("{} of {} points finished under {}, no table written; run the "
+                                 "same command with --resume to finish",
+                                 done, plan.points.size(), out_dir));
+        }
+        if (pid < 0) {
+            if (errno == EINTR) continue;
+            break;
+        }
         const auto it = running.find(pid);
         if (it == running.end()) continue;
         status[it->second] = WIFEXITED(st) ? WEXITSTATUS(st) : 128;

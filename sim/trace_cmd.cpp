@@ -5,6 +5,7 @@
 #include <chrono>
 #include <memory>
 
+#include "sim/interrupt.h"
 #include "sim/run_report.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
@@ -111,6 +112,7 @@ class TraceJob {
     void run() {
         const auto t0 = SteadyClock::now();
         while (gather()) {
+            check_interrupt();  // SIGINT/SIGTERM: the outputs' temporary files go with the stack
             trace_batch();
             write_batch();
         }

@@ -16,6 +16,7 @@
 
 #include "models/core.h"
 #include "sim/errors.h"
+#include "sim/interrupt.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/packet.h"
@@ -34,6 +35,12 @@ class CountingSource : public RayWorkSource {
     explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work) override {
+        // SIGINT or SIGTERM: no more rays (the slots finish the ones they hold, then the run
+        // reports the interruption and writes nothing).
+        if (!failed() && interrupt_signal()) {
+            interrupted_by = interrupt_signal();
+            failure = "interrupted";
+        }
         uint32_t hit = 0;
         const bool more = failed() ? false : produce(work, hit);
         if (!more) return false;
@@ -56,6 +63,7 @@ class CountingSource : public RayWorkSource {
     // coroutine stacks, which AddressSanitizer cannot follow either).
     std::string failure;
     bool failure_is_input = false;
+    int interrupted_by = 0;  // the signal that stopped the run (sim/interrupt.h), or 0
     bool failed() const { return !failure.empty(); }
 
   protected:

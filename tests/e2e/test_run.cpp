@@ -1065,3 +1065,57 @@ TEST(Fidelity, UnknownLevelAndRemovedQuantumAreRefused) {
     expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
                           "sim.quantum_cycles: removed");
 }
+
+namespace {
+// Runs `command` in the background, sends `signal` after `seconds`, and returns its exit status.
+int interrupted_status(const std::string& command, const char* signal, double seconds) {
+    const fs::path status = work_dir() / "interrupted_status.txt";
+    const std::string script = fmt::format(
+        "sh -c '{} >/dev/null 2>\"{}\" & p=$!; sleep {}; kill -{} $p; wait $p; echo $? > \"{}\"'",
+        command, (work_dir() / "interrupted_err.txt").string(), seconds, signal, status.string());
+    EXPECT_EQ(std::system(script.c_str()), 0);
+    return std::stoi(slurp(status));
+}
+}  // namespace
+
+// Issue 18: SIGINT or SIGTERM stops a long run, trace or sweep with one line and 128 + the
+// signal, leaving no partial output; a sweep keeps its finished points and --resume completes it.
+TEST(Interrupt, RunTraceAndSweepLeaveNoPartialOutput) {
+    const std::string bin = RTSIM_BINARY;
+    const std::string big = "--scene " RTSIM_BUNNY_OBJ " --rays diffuse --res 2048x2048";
+    const fs::path run_dir = work_dir() / "interrupted_run";
+    EXPECT_EQ(interrupted_status(bin + " run -q " + big + " --out " + run_dir.string(), "INT", 1.0),
+              130);
+    EXPECT_FALSE(fs::exists(run_dir));  // the folder it made for its output is gone
+    EXPECT_NE(slurp(work_dir() / "interrupted_err.txt").find("interrupted by SIGINT"),
+              std::string::npos);
+
+    const fs::path trace = work_dir() / "interrupted.rtt";
+    EXPECT_EQ(interrupted_status(bin + " trace -q " + big + " -o " + trace.string(), "TERM", 1.0),
+              143);
+    EXPECT_FALSE(fs::exists(trace));
+    EXPECT_FALSE(fs::exists(trace.string() + ".tmp"));
+
+    const fs::path sweep_file = work_dir() / "interrupted_sweep.json";
+    std::ofstream(sweep_file) << R"({"workload": {"scene": ")" RTSIM_BUNNY_OBJ
+                                 R"(", "rays": "diffuse", "res": "768x768"},
+                                    "vary": {"l1.size_kib": [8, 16, 32, 64, 128, 256]}})";
+    const fs::path out = work_dir() / "interrupted_sweep";
+    const std::string sweep = bin + " sweep " + sweep_file.string() + " -j 2 --out " + out.string();
+    EXPECT_EQ(interrupted_status(sweep, "TERM", 2.0), 143);
+    EXPECT_FALSE(fs::exists(out / "results.json"));
+    EXPECT_NE(slurp(work_dir() / "interrupted_err.txt").find("--resume"), std::string::npos);
+    int finished = 0;
+    for (const auto& point : fs::directory_iterator(out))
+        finished += fs::exists(point.path() / "stats.json");
+    EXPECT_LT(finished, 6);  // the signal came before the end
+    const Result resumed =
+        run_rtsim("sweep " + sweep_file.string() + " -j 2 --out '" + out.string() + "' --resume");
+    EXPECT_EQ(resumed.status, 0) << resumed.err;
+    EXPECT_TRUE(fs::exists(out / "results.json"));
+    if (finished > 0) {
+        EXPECT_NE(resumed.out.find(std::to_string(finished) + " finished before"),
+                  std::string::npos)
+            << resumed.out;
+    }
+}
