@@ -288,7 +288,6 @@ class CoreScheduler : public ChipDriver {
     std::vector<uint64_t> next_;
     std::vector<Cycle> floors_;
     CycleKeys keys_;
-    TimeFloor* shared_floor_ = nullptr;
 };
 
 }  // namespace rtsim

@@ -2,9 +2,10 @@
 # One-step set-up for a fresh Debian bookworm machine (as root, no terminal needed):
 # installs what is missing, fetches the Debian test meshes, builds Release, then
 #   scripts/setup.sh run    runs the main job (rtsim run, default config, built-in scene)
-#   scripts/setup.sh test   runs the whole test suite through ctest
+#   scripts/setup.sh test   runs the whole test suite through ctest, then the fuzz targets briefly
 #   scripts/setup.sh build  only builds
-# Environment: BUILD_DIR (default build), RTSIM_SANITIZE=ON for an ASan+UBSan build.
+# Environment: BUILD_DIR (default build), RTSIM_SANITIZE=ON for an ASan+UBSan build,
+# RTSIM_FUZZ_SECONDS (default 8) for each fuzz target in the test command.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode="${1:-run}"
@@ -12,6 +13,8 @@ build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
           libassimp-dev libembree-dev libcli11-dev libzstd-dev zlib1g-dev zstd glmark2-data)
+# The test command also fuzzes the input readers (scripts/fuzz.sh): clang and its libFuzzer.
+[ "$mode" != test ] || packages+=(clang libclang-rt-14-dev)
 sudo_cmd=""
 [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
 apt_updated=0
@@ -55,6 +58,9 @@ cmake --build "$build_dir" -j"$(nproc)"
 case "$mode" in
     build) ;;
     run) "$build_dir"/rtsim run --out out/default ;;
-    test) ctest --test-dir "$build_dir" --output-on-failure -j"$(nproc)" ;;
+    test)
+        ctest --test-dir "$build_dir" --output-on-failure -j"$(nproc)"
+        scripts/fuzz.sh "${RTSIM_FUZZ_SECONDS:-8}"
+        ;;
     *) echo "usage: scripts/setup.sh [run|test|build]" >&2; exit 2 ;;
 esac

@@ -17,6 +17,7 @@ FieldBinding field(const char* path, At at, int64_t scale = 1, bool mirrors = tr
     b.path = path;
     b.cpp_default_mirrors_schema = mirrors;
     b.set = [at, scale](Params& p, const json& v) {
+        (void)scale;  // unused for strings and flags (clang warns per instance)
         if constexpr (std::is_same_v<T, std::string> || std::is_same_v<T, bool>)
             at(p) = v.get<T>();
         else if constexpr (std::is_floating_point_v<T>)
@@ -25,6 +26,7 @@ FieldBinding field(const char* path, At at, int64_t scale = 1, bool mirrors = tr
             at(p) = T(v.get<int64_t>() * scale);
     };
     b.get = [at, scale](const Params& p) -> json {
+        (void)scale;
         const T& m = at(const_cast<Params&>(p));
         if constexpr (std::is_same_v<T, std::string> || std::is_same_v<T, bool>)
             return m;

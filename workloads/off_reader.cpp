@@ -2,9 +2,11 @@
 // (libcgal-demo's mesh_with_colors.off), so OFF gets this small line-based reader with
 // precise errors. Other formats go through assimp.
 #include <fmt/format.h>
+#include <algorithm>
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -74,7 +76,12 @@ Scene read_off(const std::string& path) {
     if (nv > (1l << 30) || nf > (1l << 30)) lines.fail("vertex or face count too large");
 
     Scene s;
-    s.vertices.reserve(static_cast<size_t>(nv));
+    // A count is only a claim: reserve no more than the file can hold (a vertex line has at
+    // least 6 bytes), so a 20-byte file claiming 2^30 vertices allocates nothing much.
+    std::error_code size_error;
+    const auto file_bytes = std::filesystem::file_size(path, size_error);
+    const size_t most_vertices = size_error ? 0 : size_t(file_bytes / 6);
+    s.vertices.reserve(std::min(static_cast<size_t>(nv), most_vertices));
     for (long i = 0; i < nv; ++i) {
         if (!lines.next(line)) lines.fail(fmt::format("file ends after {} of {} vertices", i, nv));
         const char* p = line.c_str();
@@ -93,6 +100,10 @@ Scene read_off(const std::string& path) {
         std::istringstream face(line);
         long n;
         if (!(face >> n) || n < 1) lines.fail("expected a face's vertex count");
+        // Each index takes at least two characters of the line (found by fuzzing: a face of
+        // 1.2e17 vertices asked for an allocation of 480 PB).
+        if (n > long(line.size()) / 2 + 1)
+            lines.fail(fmt::format("a face of {} vertices does not fit its line", n));
         std::vector<uint32_t> idx(static_cast<size_t>(n));
         for (auto& i : idx) {
             long v;

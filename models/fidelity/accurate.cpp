@@ -81,8 +81,6 @@ struct Timeline {
     }
 };
 
-constexpr uint32_t kNone = ~0u;
-
 class ReferenceScheduler final : public ChipDriver {
   public:
     SC_HAS_PROCESS(ReferenceScheduler);

@@ -87,6 +87,30 @@ TEST(Scene, OffCommentsColorsAndPolygons) {
     EXPECT_EQ(s.triangles[2], (std::array<uint32_t, 3>{3, 2, 4}));
 }
 
+// Found by fuzzing (scripts/fuzz.sh, fuzz_off): counts are claims, not allocations. A face of
+// 1.2e17 vertices asked for 480 PB; a short file claiming 2^30 vertices reserved 12 GiB. Both are
+// now one-line errors, quickly.
+TEST(Scene, OffCountsBeyondTheFileAreErrorsNotAllocations) {
+    const std::string face =
+        write_temp("huge_face.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n121111111111111111 0 1 2\n");
+    try {
+        load_scene(face);
+        ADD_FAILURE() << "a face of 1.2e17 vertices was accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("does not fit its line"), std::string::npos)
+            << e.what();
+    }
+    const std::string vertices = write_temp("huge_count.off", "OFF\n1000000000 1 0\n0 0 0\n");
+    try {
+        load_scene(vertices);
+        ADD_FAILURE() << "a file with 1 of 1e9 vertices was accepted";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("file ends after 1 of 1000000000 vertices"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(Scene, LoadsPlyAndStlThroughAssimp) {
     const std::string ply = write_temp("tri.ply",
                                        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n"

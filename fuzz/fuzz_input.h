@@ -1,0 +1,37 @@
+// Shared by the fuzz targets: the readers take paths, so each input goes to a scratch file
+// (one per process, rewritten per input). Bad input must end in InputError (a clear one-line
+// error), never a crash, a hang or unbounded memory; the sanitizers and libFuzzer's limits
+// catch the rest.
+#pragma once
+
+#include <unistd.h>
+
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+// The libraries link SystemC, whose shared library wants an sc_main; a fuzz target's entry is
+// libFuzzer's own main.
+extern "C" int sc_main(int, char**) {
+    return 0;
+}
+
+namespace rtsim::fuzz {
+
+inline const std::string& scratch_path(const char* suffix) {
+    static const std::string path =
+        "/tmp/rtsim_fuzz_" + std::to_string(getpid()) + std::string(suffix);
+    return path;
+}
+
+inline const std::string& write_input(const uint8_t* data, size_t size, const char* suffix) {
+    const std::string& path = scratch_path(suffix);
+    std::FILE* f = std::fopen(path.c_str(), "wb");
+    if (f) {
+        if (size) std::fwrite(data, 1, size, f);
+        std::fclose(f);
+    }
+    return path;
+}
+
+}  // namespace rtsim::fuzz
