@@ -181,6 +181,18 @@ void TraceReader::read_at(uint64_t offset, void* data, size_t size, const char* 
 TraceReader::TraceReader(const std::string& path) : path_(path) {
     f_ = std::fopen(path.c_str(), "rb");
     if (!f_) throw InputError(fmt::format("{}: cannot open trace file", path));
+    // A constructor that throws runs no destructor: close the file here (found by fuzzing, a
+    // reader of many damaged traces ran out of file descriptors).
+    try {
+        read_header_and_index();
+    } catch (...) {
+        std::fclose(f_);
+        f_ = nullptr;
+        throw;
+    }
+}
+
+void TraceReader::read_header_and_index() {
     std::fseek(f_, 0, SEEK_END);
     const long size = std::ftell(f_);
     file_size_ = size < 0 ? 0 : uint64_t(size);
@@ -212,7 +224,7 @@ TraceReader::TraceReader(const std::string& path) : path_(path) {
     // sets it up itself (other writers' metadata, as in tests, leave it to set_layout).
     meta_ = nlohmann::json::parse(metadata_, nullptr, false);
     if (meta_.is_object() && meta_.contains("bvh") && meta_["bvh"].is_object())
-        layout_ = layout_from_summary(meta_["bvh"], path);
+        layout_ = layout_from_summary(meta_["bvh"], path_);
 
     if (file_size_ < header_end_ + kFooterBytes)
         fail(header_end_, "file ends before the footer (truncated)");

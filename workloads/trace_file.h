@@ -102,6 +102,7 @@ class TraceReader {
     uint64_t chunk_rays_left() const { return chunk_rays_left_; }
 
   private:
+    void read_header_and_index();  // the constructor's checks, after the file is open
     [[noreturn]] void chunk_fail(const std::string& what) const;
     [[noreturn]] void fail(uint64_t offset, const std::string& what) const;
     void read_at(uint64_t offset, void* data, size_t size, const char* what);

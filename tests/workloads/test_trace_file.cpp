@@ -9,6 +9,10 @@
 
 #include "support/input_error.h"
 #include "support/scratch_dir.h"
+
+#include <sys/resource.h>
+
+#include <algorithm>
 #include "workloads/error.h"
 #include "workloads/trace_file.h"
 
@@ -280,4 +284,35 @@ TEST(TraceFile, StepsOutsideTheLayoutAreRefused) {
 
 TEST(TraceFile, Crc32MatchesTheStandardCheckValue) {
     EXPECT_EQ(crc32("123456789", 9), 0xCBF43926u);  // CRC-32/ISO-HDLC check value, as zlib's
+}
+
+// Found by fuzzing (scripts/fuzz.sh, fuzz_trace): a reader refusing a damaged trace in its
+// constructor kept the file open, so a process checking many traces ran out of descriptors.
+// More damaged traces than a process may hold open must each be refused for their damage.
+TEST(TraceFile, RefusedTracesReleaseTheirFiles) {
+    const std::string bytes = slurp(write_trace("good_fd.rtt", random_records(20, 5), 10));
+    const std::string p = temp_path("truncated_fd.rtt");
+    spit(p, bytes.substr(0, bytes.size() / 2));
+    // Few descriptors for the duration, so a leak shows within the loop.
+    rlimit saved{};
+    getrlimit(RLIMIT_NOFILE, &saved);
+    rlimit few = saved;
+    few.rlim_cur = std::min<rlim_t>(saved.rlim_cur, 256);
+    setrlimit(RLIMIT_NOFILE, &few);
+    struct Restore {
+        rlimit limit;
+        ~Restore() { setrlimit(RLIMIT_NOFILE, &limit); }
+    } restore{saved};
+    for (int i = 0; i < 1000; ++i) {
+        try {
+            TraceReader r(p);
+            ADD_FAILURE() << "a truncated trace was accepted";
+            return;
+        } catch (const InputError& e) {
+            if (std::string(e.what()).find("footer missing") == std::string::npos) {
+                ADD_FAILURE() << "attempt " << i << ": " << e.what();
+                return;
+            }
+        }
+    }
 }
