@@ -118,6 +118,10 @@ inline Scene axis_aligned_grid_box(int n) {
 }
 
 namespace detail {
+// A mesh's bounds' centre and diagonal (the size rays are placed by).
+inline std::pair<Vec3, float> centre_and_size(const AABB& b) {
+    return {(b.lo + b.hi) * 0.5f, length(b.hi - b.lo)};
+}
 // Traces a ray that must hit, closest and any hit, into the tally.
 inline void must_hit_both(const Bvh& bvh, const Ray& r, StressTally& t) {
     for (HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
@@ -288,8 +292,7 @@ inline StressTally against_double(const Scene& s, const Bvh& bvh, uint64_t rays,
     StressTally t;
     std::mt19937_64 rng(seed);
     const AABB b = s.bounds();
-    const Vec3 c = (b.lo + b.hi) * 0.5f;
-    const float radius = length(b.hi - b.lo);
+    const auto [c, radius] = detail::centre_and_size(b);
     std::uniform_int_distribution<uint32_t> prim(0, uint32_t(s.triangle_count() - 1));
     std::uniform_real_distribution<float> bary(0.1f, 0.8f);
     for (uint64_t i = 0; i < rays; ++i) {
@@ -366,8 +369,7 @@ inline StressTally secondary(const Scene& s, const Bvh& bvh, uint64_t rays, uint
     StressTally t;
     std::mt19937_64 rng(seed);
     const AABB b = s.bounds();
-    const Vec3 c = (b.lo + b.hi) * 0.5f;
-    const float radius = length(b.hi - b.lo);
+    const auto [c, radius] = detail::centre_and_size(b);
     const float scale = b.largest_coordinate();
     for (uint64_t i = 0; i < rays; ++i) {
         Ray primary;
@@ -434,8 +436,7 @@ inline StressTally degenerates(const Scene& s, const Bvh& bvh, uint64_t rays, ui
     StressTally t;
     std::mt19937_64 rng(seed);
     const AABB b = s.bounds();
-    const Vec3 c = (b.lo + b.hi) * 0.5f;
-    const float radius = length(b.hi - b.lo);
+    const auto [c, radius] = detail::centre_and_size(b);
     std::uniform_real_distribution<float> on(0.0f, 1.0f);
     for (uint64_t i = 0; i < rays; ++i) {
         // A point on the z = 0 face, where the degenerate triangles lie.
