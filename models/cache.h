@@ -106,10 +106,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // Whether the line holding `addr` is present (or being filled); changes nothing.
     bool contains(uint64_t addr) const {
         const uint64_t line = addr >> line_shift_;
-        const uint32_t* t = tags(set_of(line));
-        for (int w = 0; w < params_.ways; ++w)
-            if (t[w] == tag_of(line)) return true;
-        return false;
+        return find_way<0>(set_of(line), line) >= 0;
     }
     // A miss looked up from `now` on: the cycle it can first leave for the next level, when all
     // MSHRs are busy until later (otherwise `now`). A cache with unlimited MSHRs in front of

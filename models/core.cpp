@@ -95,13 +95,13 @@ bool Core::wake(Cycle at) {
     at = std::max(at, floor_.cycle);  // never behind the core's own floor
     for (size_t i = 0; i < slots_.size(); ++i)
         if (keys_.cycle(ready_[i]) == kParkedCycle) {
-            // Never before it parked (this core may have run ahead of `at` on private work).
             // Every ray done: the slot retires where it parked (its idle tail is counted up to
             // the run's end, which may come before this core's floor).
             if (ray_buffer_->finished()) {
                 set_ready(i, kNeverCycle);
                 continue;
             }
+            // Never before it parked (this core may have run ahead of `at` on private work).
             const Cycle from = std::max(at, slots_[i].idle_since);
             no_work_cycles += from - slots_[i].idle_since;
             set_ready(i, from);
@@ -119,8 +119,8 @@ uint64_t Core::retired_idle_cycles(Cycle end) const {
     return idle;
 }
 
-// Loads a treelet's nodes and triangles with one request per run: the cache looks its lines up
-// in parallel and fills them; rays that need a line still filling wait for it (miss merging).
+// Starts loading a batch's treelet: the loader (run_loader) requests its lines from now on; rays
+// that need a line still filling wait for it (miss merging).
 void Core::load_treelet(uint32_t treelet, Cycle now) {
     const TreeletSpan& span = ray_buffer_->span(treelet);
     const size_t node = size_t(StepKind::Node), tri = size_t(StepKind::Triangle);

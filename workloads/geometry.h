@@ -70,12 +70,7 @@ struct AABB {
 
     bool empty() const { return lo.x > hi.x || lo.y > hi.y || lo.z > hi.z; }
     // The largest coordinate magnitude of the box's corners.
-    float largest_coordinate() const {
-        return std::max(std::max(vmax_abs(lo), vmax_abs(hi)), 0.0f);
-    }
-    static float vmax_abs(Vec3 v) {
-        return std::max(std::fabs(v.x), std::max(std::fabs(v.y), std::fabs(v.z)));
-    }
+    float largest_coordinate() const { return max_component(vmax(vabs(lo), vabs(hi))); }
     void grow(Vec3 p) {
         lo = vmin(lo, p);
         hi = vmax(hi, p);

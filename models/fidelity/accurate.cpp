@@ -86,9 +86,10 @@ class ReferenceScheduler final : public ChipDriver {
     SC_HAS_PROCESS(ReferenceScheduler);
     ReferenceScheduler(sc_core::sc_module_name name, const DriverSetup& setup)
         : ChipDriver(name), cores_(setup.cores), wake_(setup.wake) {
+        uint64_t slots = 0;
         for (Core* core : cores_) {
-            slot_rank_.push_back(slot_count_);
-            slot_count_ += uint64_t(core->params().ray_slots);
+            slot_rank_.push_back(slots);
+            slots += uint64_t(core->params().ray_slots);
             CoreState cs;
             cs.slots.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
@@ -106,7 +107,7 @@ class ReferenceScheduler final : public ChipDriver {
     // takes the next ray), each group first scheduled first.
     struct Event {
         Cycle t;
-        uint64_t order;  // group << 48 | slot rank << 24 ... see schedule()
+        uint64_t order;  // 0: a fill completing; 1: another memory stage; 2 + slot rank: a slot
         uint64_t seq;
         EventType type;
         uint32_t id, k;
@@ -171,8 +172,8 @@ class ReferenceScheduler final : public ChipDriver {
         Cycle start = 0;
         bool busy = false;
         uint32_t handle = 0, treelet = 0;
-        int kind = 0;  // the step being fetched
-        int count = 1, lanes = 1;
+        int kind = 0;  // the step being fetched, and its unit's items
+        int count = 1;
         Cycle idle_since = 0;
     };
     struct CoreState {
@@ -218,7 +219,6 @@ class ReferenceScheduler final : public ChipDriver {
     WakeSource* wake_;
     std::vector<CoreState> states_;
     std::vector<uint64_t> slot_rank_;  // per core: the rank of its first slot among all slots
-    uint64_t slot_count_ = 0;
     std::vector<std::pair<uint32_t, uint32_t>> parked_;  // core, slot
     std::priority_queue<Event, std::vector<Event>, std::greater<Event>> events_;
     uint64_t seq_ = 0;
@@ -449,7 +449,6 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
     core.stall_cycles[Core::kIssue] += issued - t;
     s.kind = kind;
     s.count = st.count;
-    s.lanes = st.lanes;
     ++s.pos;
     ++core.steps;
     const int lanes = core.params().packet_lanes;

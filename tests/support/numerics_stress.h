@@ -176,9 +176,7 @@ inline Vec3 unit_vector(std::mt19937_64& rng) {
 // A point strictly inside a closed mesh: the midpoint between the first two hits of a ray from
 // outside through the bounds' centre (parity: inside between the first and second crossing).
 inline bool interior_point(const Scene& s, const Bvh& bvh, Vec3& out) {
-    const AABB b = s.bounds();
-    const Vec3 c = (b.lo + b.hi) * 0.5f;
-    const float r = length(b.hi - b.lo);
+    const auto [c, r] = centre_and_size(s.bounds());
     std::mt19937_64 rng(11);
     for (int attempt = 0; attempt < 64; ++attempt) {
         Ray in;
