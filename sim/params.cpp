@@ -109,6 +109,8 @@ std::vector<FieldBinding> make_bindings() {
     // CacheParams and UnitParams default to the first section's values (l1, box_unit).
     add_unit_rows(t, StepKind::Node, true, /*width=*/true);
     add_unit_rows(t, StepKind::Triangle, kNotMirrored, /*width=*/false);
+    t.push_back(field("box_unit.mantissa_bits", M(bvh.box_mantissa_bits)));
+    t.push_back(field("box_unit.translate_origin", M(bvh.box_translate_origin)));
     add_cache_rows(t, "l1", &Params::l1, true);
     t.push_back(field("l1.split", M(l1_split), 1, kNotMirrored));
     add_cache_rows(t, "l2", &Params::l2, kNotMirrored);

@@ -190,6 +190,7 @@ class TraceJob {
         for (size_t i = 0; i < n; ++i) {
             hits_ += results_[i].valid();
             nodes_ += counters_[i].nodes;
+            boxes_ += counters_[i].box_tests;
             tris_ += counters_[i].tri_tests;
             by_kind_[int(batch_.kinds[i])]++;
         }
@@ -213,6 +214,7 @@ class TraceJob {
         for (size_t p = 0; p < packets.size(); ++p) {
             packet_by_kind_[int(batch_.kinds[packets[p].first])].add(stats[p]);
             nodes_ += stats[p].node_visits + stats[p].single_ray_nodes;
+            boxes_ += stats[p].box_tests;
             tris_ += stats[p].tri_tests;
         }
     }
@@ -270,8 +272,9 @@ class TraceJob {
                 ray_kind_name(RayKind(k)), p.packets, opt_.packet, 100 * p.utilization(),
                 p.node_visits, p.switches, p.single_ray_nodes);
         }
-        fmt::print("  work     {:.2f} nodes, {:.2f} triangle tests per ray\n",
-                   total_ ? double(nodes_) / total_ : 0.0, total_ ? double(tris_) / total_ : 0.0);
+        const double per_ray = total_ ? 1.0 / double(total_) : 0.0;
+        fmt::print("  work     {:.3f} nodes, {:.3f} box tests, {:.3f} triangle tests per ray\n",
+                   nodes_ * per_ray, boxes_ * per_ray, tris_ * per_ray);
         fmt::print("  speed    {:.2f} Mrays/s tracing on {} thread{} ({:.3f} s; {:.3f} s in all)\n",
                    trace_seconds_ > 0 ? total_ / trace_seconds_ / 1e6 : 0.0, threads_,
                    threads_ == 1 ? "" : "s", trace_seconds_, wall);
@@ -312,7 +315,7 @@ class TraceJob {
     std::vector<TraceRecord> records_;
     std::string text_;
     double trace_seconds_ = 0, write_seconds_ = 0;
-    uint64_t total_ = 0, hits_ = 0, nodes_ = 0, tris_ = 0;
+    uint64_t total_ = 0, hits_ = 0, nodes_ = 0, boxes_ = 0, tris_ = 0;
     std::array<uint64_t, kRayKindCount> by_kind_{};
     std::array<PacketStats, kRayKindCount> packet_by_kind_;
 };

@@ -6,6 +6,7 @@
 
 #include "models/traversal_mode.h"
 #include "workloads/error.h"
+#include "workloads/reduced_box.h"
 #include "workloads/trace_file.h"
 
 namespace rtsim {
@@ -90,11 +91,16 @@ json workload_summary(const RayGenOptions& rg, float ao_length) {
 }
 
 json open_trace_metadata(TraceReader& reader, const std::string& path) {
-    const json& meta = reader.metadata();
+    json meta = reader.metadata();
     if (meta.is_discarded() || !meta.is_object() || !meta.contains("bvh") ||
-        !meta.contains("scene"))
+        !meta["bvh"].is_object() || !meta.contains("scene"))
         throw InputError(
             fmt::format("{}: header metadata is not the JSON an RTSim trace carries", path));
+    // Traces from before reduced-precision box units were all traced in fp32.
+    if (!meta["bvh"].contains("box_mantissa_bits")) {
+        meta["bvh"]["box_mantissa_bits"] = kFullMantissaBits;
+        meta["bvh"]["box_translate_origin"] = true;
+    }
     return meta;
 }
 
@@ -122,6 +128,15 @@ void check_trace_matches_config(const json& bvh, const Config& cfg, const std::s
     const std::string format = bvh.value("node_format", std::string("?"));
     if (format != node_format_name(P.bvh.node_format))
         refuse("bvh.node_format", format, node_format_name(P.bvh.node_format));
+    const int bits = bvh.value("box_mantissa_bits", kFullMantissaBits);
+    if (bits != P.bvh.box_mantissa_bits)
+        refuse("box_unit.mantissa_bits", std::to_string(bits),
+               std::to_string(P.bvh.box_mantissa_bits));
+    // Translation changes nothing in fp32, where it is not applied.
+    const bool translate = bvh.value("box_translate_origin", true);
+    if (bits < kFullMantissaBits && translate != P.bvh.box_translate_origin)
+        refuse("box_unit.translate_origin", translate ? "true" : "false",
+               P.bvh.box_translate_origin ? "true" : "false");
     const BvhLayout L = layout_from_summary(bvh, where);
     if (P.node_size_bytes != 0 && P.node_size_bytes != L.node_size_bytes)
         refuse("bvh.node_size_bytes", std::to_string(L.node_size_bytes),

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include "workloads/error.h"
+#include "workloads/reduced_box.h"
 
 namespace rtsim {
 
@@ -354,6 +355,11 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
     if (options.max_leaf_size < 1 || options.max_leaf_size > 255)
         throw InputError(
             fmt::format("bvh.max_leaf_size: expected 1..255, got {}", options.max_leaf_size));
+    if (options.box_mantissa_bits < kMinMantissaBits ||
+        options.box_mantissa_bits > kFullMantissaBits)
+        throw InputError(fmt::format("box_unit.mantissa_bits: expected {}..{}, got {}",
+                                     kMinMantissaBits, kFullMantissaBits,
+                                     options.box_mantissa_bits));
     const auto t0 = std::chrono::steady_clock::now();
     BinaryBvh bin = options.builder == BvhBuilder::Sah ? build_binary_sah(scene, options)
                                                        : build_binary_lbvh(scene, options);

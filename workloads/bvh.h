@@ -41,6 +41,10 @@ struct BvhBuildOptions {
     uint32_t treelet_bytes = 0;   // cut the tree into treelets of at most this (0: none)
     float traversal_cost = 1.0f;  // SAH cost of visiting an inner node, relative to...
     float intersection_cost = 1.0f;  // ...the cost of one ray-triangle test
+    // Not build settings: the box unit's datapath (workloads/reduced_box.h), which decides the
+    // boxes a traversal of this tree enters. 23 bits: fp32 (and no translation).
+    int box_mantissa_bits = 23;
+    bool box_translate_origin = true;
 };
 
 // Stated record size of an uncompressed node of `width` children: per child a 24-byte box and a

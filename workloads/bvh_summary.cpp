@@ -16,6 +16,8 @@ json bvh_summary(const Bvh& bvh, bool treelet_tables) {
                 {"restructure_passes", bo.restructure_passes},
                 {"width", bvh.width()},
                 {"node_format", node_format_name(bo.node_format)},
+                {"box_mantissa_bits", bo.box_mantissa_bits},
+                {"box_translate_origin", bo.box_translate_origin},
                 {"sah_cost", q.sah_cost},
                 {"sah_traversal_cost", bo.traversal_cost},
                 {"sah_intersection_cost", bo.intersection_cost},

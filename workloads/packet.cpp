@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "workloads/intersect.h"
+#include "workloads/reduced_box.h"
 
 namespace rtsim {
 
@@ -102,7 +103,8 @@ void traverse_packet(const Bvh& bvh, const Ray* rays, const RayPrecomp* rp, int 
                 const int i = __builtin_ctzll(m);
                 st.box_tests++;
                 float tn;
-                if (intersect_box(rp[i], box, rays[i].tmin, hits[i].t * kCullScale, tn)) {
+                if (intersect_box_bits(rp[i], box, rays[i].tmin, hits[i].t * kCullScale, tn,
+                                       bvh.options, std::max(e.tnear, rays[i].tmin))) {
                     c.mask |= uint64_t(1) << i;
                     c.tnear = std::min(c.tnear, tn);
                 }
@@ -130,8 +132,8 @@ void trace_packet(const Bvh& bvh, const Ray* rays, int n, HitQuery query, Hit* h
         hits[i] = Hit();
         hits[i].t = rays[i].tmax;
         float tn;
-        if (finite_ray(rays[i]) &&
-            intersect_box(rp[i], bvh.bounds(), rays[i].tmin, rays[i].tmax, tn))
+        if (finite_ray(rays[i]) && intersect_box_bits(rp[i], bvh.bounds(), rays[i].tmin,
+                                                      rays[i].tmax, tn, bvh.options, rays[i].tmin))
             mask |= uint64_t(1) << i;
     }
     st.packets++;

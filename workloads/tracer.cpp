@@ -3,6 +3,7 @@
 #include <cstddef>
 
 #include "workloads/intersect.h"
+#include "workloads/reduced_box.h"
 
 #if defined(__SSE2__)
 #include <emmintrin.h>
@@ -95,6 +96,16 @@ inline unsigned box_test(const WideNode<W>& n, const BoxRay<W>& r, float tmin, f
         tnear[l] = tn;
         mask |= unsigned(tn <= tf) << l;
     }
+    return mask;
+}
+
+// box_test on the reduced-precision datapath, lane by lane (the fp32 path's mask and tnear).
+template <int W>
+inline unsigned box_test_reduced(const WideNode<W>& n, const ReducedBoxRay& r, float tmin,
+                                 float tmax, float* tnear, float t_ref) {
+    unsigned mask = 0;
+    for (int l = 0; l < n.num; ++l)
+        if (intersect_box_reduced(r, n.box(l), tmin, tmax, tnear[l], t_ref)) mask |= 1u << l;
     return mask;
 }
 
@@ -203,11 +214,15 @@ struct NoCounters {
 };
 
 // Traverses from `start` (the root record, or any subtree) with `hit` holding the best hit so far.
-template <int W, class Sink, class Counters>
+// Reduced: the box unit's reduced-precision datapath (a template argument, so the fp32 path
+// carries no test of it).
+template <int W, bool Reduced, class Sink, class Counters>
 Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery query, Entry start,
              Hit hit, Sink& sink, Counters& c) {
     const std::vector<WideNode<W>>& nodes = bvh.nodes<W>();
     const BoxRay<W> box_ray(rp);
+    const ReducedBoxRay reduced_ray(rp, Reduced ? bvh.options.box_mantissa_bits : kFullMantissaBits,
+                                    bvh.options.box_translate_origin);
     const bool any = query == HitQuery::Any;
     // Each node visit pushes at most W-1 entries, once per level of depth.
     Entry stack[(W - 1) * kMaxBvhDepth + 2];
@@ -226,7 +241,10 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
             c.nodes++;
             c.box_tests += n.num;
             float tn[W];
-            unsigned mask = box_test<W>(n, box_ray, ray.tmin, hit.t * kCullScale, tn);
+            unsigned mask = Reduced
+                                ? box_test_reduced<W>(n, reduced_ray, ray.tmin, hit.t * kCullScale,
+                                                      tn, std::max(cur.tnear, ray.tmin))
+                                : box_test<W>(n, box_ray, ray.tmin, hit.t * kCullScale, tn);
             if (mask) {
                 // Sort hit children far to near; go on with the nearest, push the others.
                 int order[W], k = 0;
@@ -261,13 +279,23 @@ template <class Sink, class Counters>
 Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Entry start, Hit hit, Sink& sink,
              Counters& c) {
     const RayPrecomp rp(ray);
+    if (bvh.options.box_mantissa_bits < kFullMantissaBits) {
+        switch (bvh.width()) {
+            case 2:
+                return traverse<2, true>(bvh, ray, rp, q, start, hit, sink, c);
+            case 4:
+                return traverse<4, true>(bvh, ray, rp, q, start, hit, sink, c);
+            default:
+                return traverse<8, true>(bvh, ray, rp, q, start, hit, sink, c);
+        }
+    }
     switch (bvh.width()) {
         case 2:
-            return traverse<2>(bvh, ray, rp, q, start, hit, sink, c);
+            return traverse<2, false>(bvh, ray, rp, q, start, hit, sink, c);
         case 4:
-            return traverse<4>(bvh, ray, rp, q, start, hit, sink, c);
+            return traverse<4, false>(bvh, ray, rp, q, start, hit, sink, c);
         default:
-            return traverse<8>(bvh, ray, rp, q, start, hit, sink, c);
+            return traverse<8, false>(bvh, ray, rp, q, start, hit, sink, c);
     }
 }
 
@@ -278,8 +306,8 @@ Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>*
     Hit hit;
     hit.t = ray.tmax;
     float root_t;
-    if (!finite_ray(ray) ||
-        !intersect_box(RayPrecomp(ray), bvh.bounds(), ray.tmin, ray.tmax, root_t)) {
+    if (!finite_ray(ray) || !intersect_box_bits(RayPrecomp(ray), bvh.bounds(), ray.tmin, ray.tmax,
+                                                root_t, bvh.options, ray.tmin)) {
         hit.t = std::numeric_limits<float>::infinity();
         return hit;
     }

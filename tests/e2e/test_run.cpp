@@ -187,6 +187,27 @@ TEST(Run, BiggerCachesNeverMoveMoreDramBytes) {
               stats_of(small)["bandwidth"]["dram"]["bytes"].get<uint64_t>());
 }
 
+// Issue 18: a reduced-precision box unit finds the same hits (conservative rounding) with more
+// box and triangle operations, and the trace it records carries its width.
+TEST(Run, ReducedPrecisionBoxUnitsKeepHitsAndAddWork) {
+    const fs::path full = work_dir() / "fp32", narrow = work_dir() / "box6b";
+    const std::string common = "run --scene builtin:sphere --rays primary,diffuse --res 32x32 ";
+    ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(common + "--set box_unit.mantissa_bits=6 -o '" + narrow.string() + "'")
+                  .status,
+              0);
+    const json f = stats_of(full), n = stats_of(narrow);
+    EXPECT_EQ(n["bvh"]["box_mantissa_bits"], 6);
+    EXPECT_EQ(f["bvh"]["box_mantissa_bits"], 23);
+    EXPECT_EQ(f["rays"]["hits_by_kind"], n["rays"]["hits_by_kind"]);
+    EXPECT_GT(n["units"]["box_unit_total"]["ops"].get<uint64_t>(),
+              f["units"]["box_unit_total"]["ops"].get<uint64_t>());
+    EXPECT_GT(n["units"]["triangle_unit_total"]["ops"].get<uint64_t>(),
+              f["units"]["triangle_unit_total"]["ops"].get<uint64_t>());
+    expect_one_line_error(run_rtsim(common + "--set box_unit.mantissa_bits=30"),
+                          "box_unit.mantissa_bits");
+}
+
 TEST(Run, BrokenConfigExitsTwoWithOneLine) {
     const fs::path cfg = work_dir() / "broken.json";
     std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";
@@ -479,6 +500,10 @@ TEST(TraceFileRun, MismatchedLayoutOrOptionsAreRefused) {
         run_rtsim("run --set bvh.width=8 --set bvh.node_format=compressed --trace '" +
                   rtt.string() + "'"),
         "bvh.node_format");
+    expect_one_line_error(
+        run_rtsim("run --set bvh.width=8 --set box_unit.mantissa_bits=10 --trace '" +
+                  rtt.string() + "'"),
+        "recorded with box_unit.mantissa_bits=23");
     expect_one_line_error(
         run_rtsim("run --set bvh.width=8 --scene builtin:sphere --trace '" + rtt.string() + "'"),
         "--scene: cannot be combined with --trace");

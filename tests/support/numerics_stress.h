@@ -56,7 +56,9 @@ inline bool is_closed(const Scene& s) {
     return true;
 }
 
-// Widths 2, 4 and 8, full and compressed nodes, SAH and LBVH builders.
+// Widths 2, 4 and 8, full and compressed nodes, SAH and LBVH builders; then the same widths and
+// formats (SAH) with reduced-precision box units: fp16's 10 mantissa bits and a deliberately
+// coarse 5, with and without origin translation, whose outward rounding must lose no hit either.
 inline std::vector<BvhBuildOptions> bvh_variants() {
     std::vector<BvhBuildOptions> out;
     for (int width : {2, 4, 8})
@@ -68,13 +70,27 @@ inline std::vector<BvhBuildOptions> bvh_variants() {
                 o.builder = b;
                 out.push_back(o);
             }
+    for (int bits : {10, 5})
+        for (bool translate : {true, false})
+            for (int width : {2, 4, 8})
+                for (NodeFormat f : {NodeFormat::Full, NodeFormat::Compressed}) {
+                    BvhBuildOptions o;
+                    o.width = width;
+                    o.node_format = f;
+                    o.box_mantissa_bits = bits;
+                    o.box_translate_origin = translate;
+                    out.push_back(o);
+                }
     return out;
 }
 
 inline std::string variant_name(const BvhBuildOptions& o) {
     return "BVH" + std::to_string(o.width) +
            (o.node_format == NodeFormat::Compressed ? " compressed" : " full") +
-           (o.builder == BvhBuilder::Lbvh ? " lbvh" : " sah");
+           (o.builder == BvhBuilder::Lbvh ? " lbvh" : " sah") +
+           (o.box_mantissa_bits < 23 ? " box" + std::to_string(o.box_mantissa_bits) + "b" +
+                                           (o.box_translate_origin ? " translated" : "")
+                                     : "");
 }
 
 // A copy with every vertex v -> v * scale + offset (each coordinate), rounded once to float.

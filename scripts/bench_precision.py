@@ -1,0 +1,167 @@
+#!/usr/bin/env python3
+"""Reduced-precision box units against fp32: the extra work they cost and its timing effect.
+
+For each scene x ray kind x node format (full, compressed) x box datapath width
+(box_unit.mantissa_bits: 23 is fp32; 16; 10, fp16's mantissa; 7, bfloat16's; 5), runs
+
+  * `rtsim trace` for the functional work: nodes, box tests (child boxes) and triangle tests
+    per ray, and the hits (--hits-bin), which are compared ray by ray with the fp32 run of the
+    same format: conservative rounding may add work but must never change a hit (a differing
+    hit is counted as a mismatch; the target is 0);
+  * `rtsim run` for the timing: total cycles, and the bytes the traversal fetches per ray (L1
+    requested bytes) and moves from DRAM.
+
+Every figure is reported against the fp32 run of the same scene, kind and node format (Koskela
+et al. 2015 report +2.5% box tests and +15% triangle tests for half-precision nodes). Writes
+bench/results/reduced_precision.{md,json} and prints the summary.
+
+    scripts/bench_precision.py [--rtsim build/rtsim] [--res 128x128] [--width 4]
+                               [--scenes a,b] [--kinds primary,ao,diffuse] [--bits 23,16,10,7,5]
+                               [-j 2] [--out bench/results]
+"""
+import argparse
+import concurrent.futures
+import json
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from rtsim_run import run_stats  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CGAL = os.path.join(ROOT, ".cache", "meshes", "cgal")
+SCENES = {
+    "cornell": "builtin:cornell",
+    "bunny": "/usr/share/glmark2/models/bunny.obj",
+    "armadillo": os.path.join(CGAL, "armadillo.off"),
+    "elephant": os.path.join(CGAL, "elephant.off"),
+    "homer": os.path.join(CGAL, "homer.off"),
+    "turbine": os.path.join(CGAL, "turbine.off"),
+}
+WORK = re.compile(r"work\s+([\d.]+) nodes, ([\d.]+) box tests, ([\d.]+) triangle tests per ray")
+
+
+def trace(rtsim, scene, kind, fmt, bits, width, res, hits):
+    cmd = [rtsim, "trace", "--scene", scene, "--rays", kind, "--res", res, "--set",
+           f"bvh.width={width}", "--set", f"bvh.node_format={fmt}", "--set",
+           f"box_unit.mantissa_bits={bits}", "--hits-bin", hits, "-j", "1"]
+    r = subprocess.run(cmd, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit(f"bench_precision: {' '.join(cmd)} failed: {r.stderr.strip()}")
+    m = WORK.search(r.stdout)
+    if not m:
+        sys.exit(f"bench_precision: no work line in the output of {' '.join(cmd)}")
+    return {"nodes": float(m.group(1)), "box_tests": float(m.group(2)),
+            "tri_tests": float(m.group(3))}
+
+
+def cell(args, tmp, scene_name, kind, fmt, bits):
+    scene = SCENES[scene_name]
+    tag = f"{scene_name}-{kind}-{fmt}-{bits}"
+    hits = os.path.join(tmp, tag + ".hits")
+    out = trace(args.rtsim, scene, kind, fmt, bits, args.width, args.res, hits)
+    s = run_stats(args.rtsim, ["--scene", scene, "--rays", kind, "--res", args.res, "--set",
+                               f"bvh.width={args.width}", "--set", f"bvh.node_format={fmt}",
+                               "--set", f"box_unit.mantissa_bits={bits}"],
+                  os.path.join(tmp, tag), "bench_precision")
+    rays = s["rays"]["total"]
+    out.update({"scene": scene_name, "kind": kind, "format": fmt, "bits": bits, "rays": rays,
+                "hits_file": hits, "cycles": s["total_cycles"],
+                "l1_bytes_per_ray": s["bandwidth"]["l1"]["bytes"] / rays,
+                "dram_bytes_per_ray": s["bandwidth"]["dram"]["bytes"] / rays,
+                "hits": sum(s["rays"]["hits_by_kind"].values())})
+    return out
+
+
+def pct(a, b):
+    return 100.0 * (a - b) / b if b else 0.0
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
+    ap.add_argument("--res", default="128x128")
+    ap.add_argument("--width", type=int, default=4)
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--kinds", default="primary,ao,diffuse")
+    ap.add_argument("--bits", default="23,16,10,7,5")
+    ap.add_argument("-j", type=int, default=2)
+    ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
+    args = ap.parse_args()
+    scenes, kinds = args.scenes.split(","), args.kinds.split(",")
+    bits_list = [int(b) for b in args.bits.split(",")]
+    if 23 not in bits_list:
+        sys.exit("bench_precision: --bits must include 23, the fp32 reference")
+    for s in scenes:
+        if s not in SCENES:
+            sys.exit(f"bench_precision: unknown scene {s} (known: {', '.join(SCENES)})")
+    with tempfile.TemporaryDirectory() as tmp:
+        jobs = [(sc, k, f, b) for sc in scenes for k in kinds for f in ("full", "compressed")
+                for b in bits_list]
+        with concurrent.futures.ThreadPoolExecutor(args.j) as pool:
+            cells = list(pool.map(lambda j: cell(args, tmp, *j), jobs))
+        by_key = {(c["scene"], c["kind"], c["format"], c["bits"]): c for c in cells}
+        for c in cells:
+            ref = by_key[(c["scene"], c["kind"], c["format"], 23)]
+            with open(c["hits_file"], "rb") as f, open(ref["hits_file"], "rb") as g:
+                a, b = f.read(), g.read()
+            # Records of 20 bytes (ray, t, prim, u, v): a mismatch is any differing record.
+            c["hit_mismatches"] = (sum(a[i:i + 20] != b[i:i + 20] for i in range(0, len(a), 20))
+                                   if len(a) == len(b) else -1)
+            for k in ("nodes", "box_tests", "tri_tests", "l1_bytes_per_ray",
+                      "dram_bytes_per_ray", "cycles"):
+                c[k + "_pct"] = pct(c[k], ref[k])
+        for c in cells:
+            del c["hits_file"]
+
+    lines = [f"# Reduced-precision box units against fp32 (scripts/bench_precision.py)", "",
+             f"BVH{args.width}, SAH, {args.res} rays per kind, config baseline (8 cores, one "
+             "box and one triangle unit each). Per cell the change against the fp32 "
+             "(mantissa_bits = 23) run of the same scene, kind and node format. 'mismatch': "
+             "rays whose hit (t, primitive, u, v) differs from fp32; conservative rounding must "
+             "keep it at 0.", ""]
+    lines += ["## Mean over scenes", "",
+              "| format | bits | kind | nodes | box tests | tri tests | L1 bytes | DRAM bytes "
+              "| cycles | mismatches |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for f in ("full", "compressed"):
+        for b in bits_list:
+            if b == 23:
+                continue
+            for k in kinds:
+                cs = [c for c in cells if c["format"] == f and c["bits"] == b and c["kind"] == k]
+                mean = {x: statistics.mean(c[x + "_pct"] for c in cs)
+                        for x in ("nodes", "box_tests", "tri_tests", "l1_bytes_per_ray",
+                                  "dram_bytes_per_ray", "cycles")}
+                lines.append(
+                    f"| {f} | {b} | {k} | {mean['nodes']:+.2f}% | {mean['box_tests']:+.2f}% | "
+                    f"{mean['tri_tests']:+.2f}% | {mean['l1_bytes_per_ray']:+.2f}% | "
+                    f"{mean['dram_bytes_per_ray']:+.2f}% | {mean['cycles']:+.2f}% | "
+                    f"{sum(c['hit_mismatches'] for c in cs)} |")
+    lines += ["", "## Every cell", "",
+              "| scene | kind | format | bits | box tests/ray | tri tests/ray | L1 B/ray | "
+              "DRAM B/ray | cycles | mismatches |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for c in cells:
+        lines.append(
+            f"| {c['scene']} | {c['kind']} | {c['format']} | {c['bits']} | "
+            f"{c['box_tests']:.2f} ({c['box_tests_pct']:+.1f}%) | "
+            f"{c['tri_tests']:.2f} ({c['tri_tests_pct']:+.1f}%) | "
+            f"{c['l1_bytes_per_ray']:.0f} ({c['l1_bytes_per_ray_pct']:+.1f}%) | "
+            f"{c['dram_bytes_per_ray']:.1f} ({c['dram_bytes_per_ray_pct']:+.1f}%) | "
+            f"{c['cycles']} ({c['cycles_pct']:+.1f}%) | {c['hit_mismatches']} |")
+    text = "\n".join(lines) + "\n"
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "reduced_precision.md"), "w") as f:
+        f.write(text)
+    with open(os.path.join(args.out, "reduced_precision.json"), "w") as f:
+        json.dump({"res": args.res, "width": args.width, "cells": cells}, f, indent=1)
+    print("\n".join(lines[:lines.index("## Every cell")]))
+    if any(c["hit_mismatches"] != 0 for c in cells):
+        sys.exit("bench_precision: some reduced-precision run changed a hit")
+
+
+if __name__ == "__main__":
+    main()
