@@ -193,9 +193,9 @@ TEST(Run, ReducedPrecisionBoxUnitsKeepHitsAndAddWork) {
     const fs::path full = work_dir() / "fp32", narrow = work_dir() / "box6b";
     const std::string common = "run --scene builtin:sphere --rays primary,diffuse --res 32x32 ";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
-    ASSERT_EQ(run_rtsim(common + "--set box_unit.mantissa_bits=6 -o '" + narrow.string() + "'")
-                  .status,
-              0);
+    ASSERT_EQ(
+        run_rtsim(common + "--set box_unit.mantissa_bits=6 -o '" + narrow.string() + "'").status,
+        0);
     const json f = stats_of(full), n = stats_of(narrow);
     EXPECT_EQ(n["bvh"]["box_mantissa_bits"], 6);
     EXPECT_EQ(f["bvh"]["box_mantissa_bits"], 23);
@@ -501,8 +501,8 @@ TEST(TraceFileRun, MismatchedLayoutOrOptionsAreRefused) {
                   rtt.string() + "'"),
         "bvh.node_format");
     expect_one_line_error(
-        run_rtsim("run --set bvh.width=8 --set box_unit.mantissa_bits=10 --trace '" +
-                  rtt.string() + "'"),
+        run_rtsim("run --set bvh.width=8 --set box_unit.mantissa_bits=10 --trace '" + rtt.string() +
+                  "'"),
         "recorded with box_unit.mantissa_bits=23");
     expect_one_line_error(
         run_rtsim("run --set bvh.width=8 --scene builtin:sphere --trace '" + rtt.string() + "'"),
