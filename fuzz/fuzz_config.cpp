@@ -4,7 +4,7 @@
 #include "workloads/error.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-    const std::string& path = rtsim::fuzz::write_input(data, size, ".json");
+    const std::string path = rtsim::fuzz::write_input(data, size, ".json");
     try {
         const rtsim::Config c = rtsim::load_config(path, {});
         (void)c.hash();

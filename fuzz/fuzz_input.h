@@ -18,14 +18,13 @@ extern "C" int sc_main(int, char**) {
 
 namespace rtsim::fuzz {
 
-inline const std::string& scratch_path(const char* suffix) {
-    static const std::string path =
-        "/tmp/rtsim_fuzz_" + std::to_string(getpid()) + std::string(suffix);
-    return path;
+inline std::string scratch_path(const char* suffix) {
+    return "/tmp/rtsim_fuzz_" + std::to_string(getpid()) + std::string(suffix);
 }
 
-inline const std::string& write_input(const uint8_t* data, size_t size, const char* suffix) {
-    const std::string& path = scratch_path(suffix);
+// The readers pick a format by the file name's extension: `suffix`.
+inline std::string write_input(const uint8_t* data, size_t size, const char* suffix) {
+    const std::string path = scratch_path(suffix);
     std::FILE* f = std::fopen(path.c_str(), "wb");
     if (f) {
         if (size) std::fwrite(data, 1, size, f);

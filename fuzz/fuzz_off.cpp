@@ -4,7 +4,7 @@
 #include "workloads/scene.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-    const std::string& path = rtsim::fuzz::write_input(data, size, ".off");
+    const std::string path = rtsim::fuzz::write_input(data, size, ".off");
     try {
         const rtsim::Scene s = rtsim::load_scene(path);
         (void)s.bounds();

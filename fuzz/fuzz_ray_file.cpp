@@ -6,7 +6,7 @@
 #include "workloads/ray_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-    const std::string& path = rtsim::fuzz::write_input(data, size, ".rays");
+    const std::string path = rtsim::fuzz::write_input(data, size, ".rays");
     try {
         rtsim::RayFileReader reader(path);
         std::vector<rtsim::Ray> rays;

@@ -6,7 +6,7 @@
 #include "workloads/trace_file.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-    const std::string& path = rtsim::fuzz::write_input(data, size, ".rtt");
+    const std::string path = rtsim::fuzz::write_input(data, size, ".rtt");
     try {
         rtsim::TraceReader reader(path);
         std::vector<rtsim::TraceRecord> records;

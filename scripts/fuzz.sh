@@ -9,7 +9,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-10}"
 dir="${FUZZ_BUILD_DIR:-build-fuzz}"
-targets=(off ray_file trace config)
+targets=(off ray_file trace config sweep mesh)
 # -O1 -g1, as libFuzzer advises: quick to build, fast enough to fuzz, symbols for the reports.
 CC=clang CXX=clang++ cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE= -DCMAKE_CXX_FLAGS="-O1 -g1" \
     -DRTSIM_FUZZ=ON -DRTSIM_BUILD_TESTS=OFF >/dev/null

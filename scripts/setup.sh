@@ -60,7 +60,7 @@ case "$mode" in
     run) "$build_dir"/rtsim run --out out/default ;;
     test)
         ctest --test-dir "$build_dir" --output-on-failure -j"$(nproc)"
-        scripts/fuzz.sh "${RTSIM_FUZZ_SECONDS:-8}"
+        scripts/fuzz.sh "${RTSIM_FUZZ_SECONDS:-6}"
         ;;
     *) echo "usage: scripts/setup.sh [run|test|build]" >&2; exit 2 ;;
 esac

@@ -311,6 +311,12 @@ json read_json_file(const std::string& path, const std::string& what) {
         const auto pos = msg.find("] ");
         if (pos != std::string::npos) msg = msg.substr(pos + 2);
         throw InputError(fmt::format("{}: invalid JSON at byte {}: {}", path, e.byte, msg));
+    } catch (const json::exception& e) {
+        // A number beyond double's range is out_of_range, not a parse error (found by fuzzing).
+        std::string msg = e.what();
+        const auto pos = msg.find("] ");
+        if (pos != std::string::npos) msg = msg.substr(pos + 2);
+        throw InputError(fmt::format("{}: invalid JSON: {}", path, msg));
     }
 }
 

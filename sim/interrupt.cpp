@@ -5,6 +5,8 @@
 
 #include <csignal>
 
+#include "workloads/error.h"
+
 namespace rtsim {
 namespace {
 volatile std::sig_atomic_t g_signal = 0;
@@ -21,6 +23,7 @@ void install_interrupt_handlers() {
     sa.sa_flags = 0;  // no SA_RESTART: a sweep's waitpid returns to look at the signal
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
+    interrupt_probe() = interrupt_signal;
 }
 
 int interrupt_signal() {

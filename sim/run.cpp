@@ -94,12 +94,14 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
 int run_command(const RunOptions& opt) {
     const auto host_start = Clock::now();
     const Config cfg = load_config(opt.config_path, opt.sets);
-    const std::string out_dir = make_out_dir(opt);
     check_config_combination(cfg, opt.trace_path);
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
     const auto t_prepare = Clock::now();
     Workload w = prepare_workload(opt, cfg, progress);
+    // After the workload: a scene or trace refused (or a reader stopped by its watchdog) leaves
+    // no output folder behind.
+    const std::string out_dir = make_out_dir(opt);
     HostTimes host;
     host.prepare_s = seconds_since(t_prepare);
     CountingSource& source = *w.source;

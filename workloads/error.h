@@ -20,4 +20,13 @@ inline void warn(const std::string& message) {
     std::fprintf(stderr, "rtsim: warning: %s\n", message.c_str());
 }
 
+// The SIGINT or SIGTERM received so far, or 0; set by the command line (sim/interrupt.cpp), whose
+// handlers only record the signal. Code that cannot poll for it (a third-party reader) is
+// watched from another thread with it.
+using InterruptProbe = int (*)();
+inline InterruptProbe& interrupt_probe() {
+    static InterruptProbe probe = nullptr;
+    return probe;
+}
+
 }  // namespace rtsim

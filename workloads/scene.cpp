@@ -6,9 +6,15 @@
 #include <fmt/format.h>
 #include <assimp/Importer.hpp>
 #include <cctype>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <mutex>
+#include <thread>
 
 #include "workloads/error.h"
 
@@ -92,8 +98,71 @@ Scene load_scene(const std::string& spec) {
     return scene;
 }
 
+namespace {
+
+// assimp cannot be stopped from outside, and some of its readers loop forever on a damaged file
+// (fuzz_mesh found a 219-byte PLY header that hangs assimp 5.2.5's). While it reads, this
+// watchdog ends the process with a one-line error past a deadline (RTSIM_IMPORT_TIMEOUT_S, or
+// 30 s plus 3 s per MB: far beyond what a sound file takes), and at once on SIGINT or SIGTERM.
+// Nothing has been written yet when a scene loads, so exiting leaves no partial output.
+class ImportWatchdog {
+  public:
+    explicit ImportWatchdog(const std::string& spec) : spec_(spec) {
+        double seconds = 30.0;
+        std::error_code ec;
+        const auto bytes = std::filesystem::file_size(spec, ec);
+        if (!ec) seconds += 3.0 * double(bytes) / 1e6;
+        if (const char* env = std::getenv("RTSIM_IMPORT_TIMEOUT_S")) seconds = std::atof(env);
+        thread_ = std::thread([this, seconds] { watch(seconds); });
+    }
+    ~ImportWatchdog() {
+        {
+            std::lock_guard<std::mutex> lock(mutex_);
+            done_ = true;
+        }
+        cv_.notify_all();
+        thread_.join();
+    }
+
+  private:
+    void watch(double seconds) {
+        using clock = std::chrono::steady_clock;
+        const auto deadline = clock::now() + std::chrono::duration_cast<clock::duration>(
+                                                 std::chrono::duration<double>(seconds));
+        std::unique_lock<std::mutex> lock(mutex_);
+        while (!cv_.wait_for(lock, std::chrono::milliseconds(50), [this] { return done_; })) {
+            const InterruptProbe probe = interrupt_probe();
+            if (const int s = probe ? probe() : 0) {
+                std::fprintf(stderr,
+                             "rtsim: interrupted by %s while reading %s: no output written\n",
+                             s == SIGINT    ? "SIGINT"
+                             : s == SIGTERM ? "SIGTERM"
+                                            : "a signal",
+                             spec_.c_str());
+                std::_Exit(128 + s);
+            }
+            if (clock::now() > deadline) {
+                std::fprintf(stderr,
+                             "rtsim: error: %s: the mesh reader (assimp) did not finish in %.0f s; "
+                             "the file is likely damaged (RTSIM_IMPORT_TIMEOUT_S sets the limit)\n",
+                             spec_.c_str(), seconds);
+                std::_Exit(2);
+            }
+        }
+    }
+
+    const std::string spec_;
+    std::mutex mutex_;
+    std::condition_variable cv_;
+    bool done_ = false;
+    std::thread thread_;
+};
+
+}  // namespace
+
 void read_with_assimp(const std::string& spec, Scene& scene) {
     Assimp::Importer importer;
+    const ImportWatchdog watchdog(spec);
     // Triangulate splits polygons in file order; no vertex joining or sorting, so primitive ids
     // follow the file's own face order.
     const aiScene* ai = importer.ReadFile(spec, aiProcess_Triangulate);

@@ -208,6 +208,18 @@ TEST(Run, ReducedPrecisionBoxUnitsKeepHitsAndAddWork) {
                           "box_unit.mantissa_bits");
 }
 
+// Found by fuzz_mesh: a damaged 219-byte PLY header on which assimp 5.2.5's reader never returns.
+// The watchdog ends the read with a one-line error naming the file, exit 2, and no output.
+TEST(Run, AMeshReaderThatHangsIsStoppedWithOneLine) {
+    const std::string ply = std::string(RTSIM_SOURCE_DIR) + "/tests/data/assimp_hang.ply";
+    const fs::path out = work_dir() / "hang";
+    setenv("RTSIM_IMPORT_TIMEOUT_S", "1", 1);
+    const Result r = run_rtsim("run --scene '" + ply + "' -o '" + out.string() + "'");
+    unsetenv("RTSIM_IMPORT_TIMEOUT_S");
+    expect_one_line_error(r, ply + ": the mesh reader (assimp) did not finish in 1 s");
+    EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Run, BrokenConfigExitsTwoWithOneLine) {
     const fs::path cfg = work_dir() / "broken.json";
     std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";

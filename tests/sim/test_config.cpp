@@ -112,6 +112,10 @@ TEST(Config, InvalidJsonGivesByteOffset) {
     const auto p = write_cfg("broken.json", "{\"core\": {\"count\": 4,}}");
     expect_error(p, {}, {p, "invalid JSON at byte"});
     expect_error("/no/such/config.json", {}, {"/no/such/config.json", "cannot open"});
+    // Found by fuzz_sweep: a number beyond double's range is not a parse error to the JSON
+    // library, and escaped as an uncaught exception.
+    const auto huge = write_cfg("huge.json", "{\"core\": {\"count\": 2e99999}}");
+    expect_error(huge, {}, {huge, "invalid JSON", "number overflow"});
 }
 
 TEST(Config, ExtendsInheritsAndOverrides) {

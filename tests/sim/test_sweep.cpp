@@ -92,4 +92,9 @@ TEST(Sweep, BadFilesAreRefusedBeforeAnythingRuns) {
               "workload.scene: /no/mesh.obj: no such file");
     // The offset is the end of the text, where the array should have closed.
     EXPECT_EQ(refusal("[1, 2").rfind("invalid JSON at byte 6: ", 0), 0u) << refusal("[1, 2");
+    // Found by fuzz_sweep (fuzz/corpus/sweep/number_overflow.json): a number beyond double's
+    // range escaped as an uncaught exception.
+    EXPECT_EQ(
+        refusal(R"({"vary": {"l1.ways": [2e99999]}})").rfind("invalid JSON: number overflow", 0),
+        0u);
 }
