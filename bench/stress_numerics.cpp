@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
         // Watertightness on every BVH variant.
         StressTally w;
         for (const BvhBuildOptions& o : bvh_variants())
-            w.add(watertight(s, build_bvh(s, o), rays / 12 + 1, seed));
+            w.add(watertight(s, build_bvh(s, o), rays / bvh_variants().size() + 1, seed));
         print("watertight", name + fmt::format(" x {} BVH variants", bvh_variants().size()), w);
         all.add(w);
         // Secondary rays at three scales.
@@ -117,7 +117,8 @@ int main(int argc, char** argv) {
     for (const BvhBuildOptions& o : bvh_variants()) {
         flat.add(axis_aligned(build_bvh(axis_aligned_grid_box(8), o), 8, seed + 4));
         const Scene messy = grid_box_with_degenerates(8);
-        flat.add(degenerates(messy, build_bvh(messy, o), rays / 12 + 1, seed + 5));
+        flat.add(
+            degenerates(messy, build_bvh(messy, o), rays / bvh_variants().size() + 1, seed + 5));
     }
     print("flat", fmt::format("grid box 8x8, degenerates, {} BVH variants", bvh_variants().size()),
           flat);
