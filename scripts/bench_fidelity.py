@@ -25,17 +25,9 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rtsim_run import run_stats  # noqa: E402
+from rtsim_run import SCENES, run_stats  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CGAL = os.path.join(ROOT, ".cache", "meshes", "cgal")
-SCENES = {
-    "cornell": "builtin:cornell",
-    "sphere": "builtin:sphere",
-    "bunny": "/usr/share/glmark2/models/bunny.obj",
-    "armadillo": os.path.join(CGAL, "armadillo.off"),
-    "camel": os.path.join(CGAL, "camel.off"),
-}
 DEFAULT_SCENES = "cornell,sphere,bunny,armadillo"
 
 

@@ -34,18 +34,10 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rtsim_run import run_stats  # noqa: E402
+from rtsim_run import SCENES, run_stats  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CGAL = os.path.join(ROOT, ".cache", "meshes", "cgal")
-SCENES = {
-    "cornell": "builtin:cornell",
-    "bunny": "/usr/share/glmark2/models/bunny.obj",
-    "armadillo": os.path.join(CGAL, "armadillo.off"),
-    "elephant": os.path.join(CGAL, "elephant.off"),
-    "homer": os.path.join(CGAL, "homer.off"),
-    "turbine": os.path.join(CGAL, "turbine.off"),
-}
+PRECISION_SCENES = "cornell,bunny,armadillo,elephant,homer,turbine"
 WORK = re.compile(r"work\s+([\d.]+) nodes, ([\d.]+) box tests, ([\d.]+) triangle tests per ray")
 
 
@@ -120,7 +112,7 @@ def main():
     ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
     ap.add_argument("--res", default="128x128")
     ap.add_argument("--width", type=int, default=4)
-    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--scenes", default=PRECISION_SCENES)
     ap.add_argument("--kinds", default="primary,ao,diffuse")
     ap.add_argument("--bits", default="23,16,10,7,5")
     ap.add_argument("-j", type=int, default=2)

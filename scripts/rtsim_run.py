@@ -1,8 +1,17 @@
-"""Shared by the benchmark scripts: one `rtsim run` whose stats.json is returned."""
+"""Shared by the benchmark scripts: the scenes they know by name, and one `rtsim run` whose
+stats.json is returned."""
 import json
 import os
 import subprocess
 import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+CGAL = os.path.join(ROOT, ".cache", "meshes", "cgal")  # scripts/setup.sh unpacks libcgal-demo here
+# Built-in scenes, glmark2-data's bunny and libcgal-demo's meshes (closed ones).
+SCENES = {"cornell": "builtin:cornell", "sphere": "builtin:sphere",
+          "bunny": "/usr/share/glmark2/models/bunny.obj"}
+SCENES.update({m: os.path.join(CGAL, m + ".off")
+               for m in ("armadillo", "camel", "elephant", "homer", "turbine")})
 
 
 def run_stats(rtsim, args, out, who, prefix=()):

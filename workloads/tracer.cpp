@@ -275,28 +275,26 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
     }
 }
 
+template <bool Reduced, class Sink, class Counters>
+Hit dispatch_width(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery q, Entry start,
+                   Hit hit, Sink& sink, Counters& c) {
+    switch (bvh.width()) {
+        case 2:
+            return traverse<2, Reduced>(bvh, ray, rp, q, start, hit, sink, c);
+        case 4:
+            return traverse<4, Reduced>(bvh, ray, rp, q, start, hit, sink, c);
+        default:
+            return traverse<8, Reduced>(bvh, ray, rp, q, start, hit, sink, c);
+    }
+}
+
 template <class Sink, class Counters>
 Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Entry start, Hit hit, Sink& sink,
              Counters& c) {
     const RayPrecomp rp(ray);
-    if (bvh.options.box_mantissa_bits < kFullMantissaBits) {
-        switch (bvh.width()) {
-            case 2:
-                return traverse<2, true>(bvh, ray, rp, q, start, hit, sink, c);
-            case 4:
-                return traverse<4, true>(bvh, ray, rp, q, start, hit, sink, c);
-            default:
-                return traverse<8, true>(bvh, ray, rp, q, start, hit, sink, c);
-        }
-    }
-    switch (bvh.width()) {
-        case 2:
-            return traverse<2, false>(bvh, ray, rp, q, start, hit, sink, c);
-        case 4:
-            return traverse<4, false>(bvh, ray, rp, q, start, hit, sink, c);
-        default:
-            return traverse<8, false>(bvh, ray, rp, q, start, hit, sink, c);
-    }
+    return bvh.options.box_mantissa_bits < kFullMantissaBits
+               ? dispatch_width<true>(bvh, ray, rp, q, start, hit, sink, c)
+               : dispatch_width<false>(bvh, ray, rp, q, start, hit, sink, c);
 }
 
 }  // namespace
