@@ -30,6 +30,7 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
     run_cmd->add_option("--out,-o", run.out_dir,
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
+    rtsim::add_bvh_cache_option(run_cmd, run.bvh_cache);
     run_cmd->add_flag(
         "--bound", run.bound,
         "Also simulate the same rays with ideal memory and unlimited units, and report "

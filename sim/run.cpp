@@ -60,6 +60,7 @@ std::string make_out_dir(const RunOptions& opt) {
 struct Workload {
     json meta;  // scene, bvh and workload sections of stats.json
     std::unique_ptr<Scene> scene;
+    BvhCacheStatus bvh_cache;
     std::unique_ptr<Bvh> bvh;
     std::unique_ptr<RayGenerator> gen;
     std::unique_ptr<TraceReader> reader;
@@ -78,7 +79,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     }
     const RayGenOptions& rg = opt.workload.gen;
     w.scene = std::make_unique<Scene>(load_scene(opt.workload.scene));
-    w.bvh = std::make_unique<Bvh>(build_bvh_from_config(cfg, *w.scene));
+    w.bvh = std::make_unique<Bvh>(
+        build_bvh_from_config(cfg, *w.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.bvh_cache));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);
     w.meta = {{"scene", scene_summary(*w.scene)},
               {"bvh", bvh_summary(*w.bvh)},
@@ -128,7 +130,10 @@ int run_command(const RunOptions& opt) {
                               false);
 
     host.run_time_s = seconds_since(host_start);
-    if (w.bvh) host.bvh_build_s = w.bvh->quality.build_seconds;
+    if (w.bvh) {
+        host.bvh_build_s = w.bvh->quality.build_seconds;
+        host.bvh_cache = bvh_cache_outcome_name(w.bvh_cache.outcome);
+    }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));

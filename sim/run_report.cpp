@@ -115,6 +115,7 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
                    {"peak_rss_mib", peak_rss_mib()}};
     if (host.bvh_build_s >= 0) out["host"]["bvh_build_s"] = host.bvh_build_s;
     if (!host.trace.empty()) out["host"]["trace"] = host.trace;
+    if (!host.bvh_cache.empty()) out["host"]["bvh_cache"] = host.bvh_cache;
     return out;
 }
 

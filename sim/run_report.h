@@ -17,6 +17,7 @@ struct HostTimes {
     double run_time_s = 0, prepare_s = 0, simulation_s = 0;
     double bvh_build_s = -1;  // < 0: the BVH came with a trace
     std::string trace;        // the trace replayed, if any
+    std::string bvh_cache;    // what the BVH cache did: off, hit, built, rebuilt (empty: trace)
 };
 
 // What the blocks' reports need of the run.

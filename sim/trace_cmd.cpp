@@ -38,6 +38,7 @@ void add_trace_options(CLI::App* cmd, TraceOptions& t) {
     cmd->add_option("--chunk-rays", t.trace_chunk_rays, "Rays per compressed trace chunk")
         ->capture_default_str();
     cmd->add_option("--threads,-j", t.threads, "Host threads (0: all)")->capture_default_str();
+    add_bvh_cache_option(cmd, t.bvh_cache);
     cmd->add_option(
            "--packet", t.packet,
            "Trace consecutive rays of one kind in packets of this many (1..64); 0: single rays")
@@ -103,7 +104,7 @@ class TraceJob {
           cfg_(load_config(opt.config_path, opt.sets)),
           reader_(opt.rays_file.empty() ? nullptr : std::make_unique<RayFileReader>(opt.rays_file)),
           scene_(load_scene(opt.workload.scene)),
-          bvh_(build_bvh_from_config(cfg_, scene_)),
+          bvh_(build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
           threads_(resolve_threads(opt.threads)) {
         if (!reader_) gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
         open_outputs();

@@ -18,6 +18,7 @@ struct TraceOptions {
     std::string hits_bin;    // binary hits output
     std::string write_rays;  // write the rays traced, in the ray-file format
     std::string trace_out;   // record a trace file (.rtt)
+    std::string bvh_cache;   // --bvh-cache: "off", a folder, or empty for the default
     uint32_t trace_chunk_rays = 4096;
     bool any_hit = false;     // external rays: occlusion (any hit) instead of closest hit
     int threads = 0;          // 0: all hardware threads

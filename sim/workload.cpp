@@ -32,11 +32,24 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
     height = h;
 }
 
-Bvh build_bvh_from_config(const Config& cfg, const Scene& scene) {
+Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,
+                          BvhCacheStatus* status) {
     BvhLayout layout;
     layout.node_size_bytes = cfg.typed.node_size_bytes;
     layout.tri_size_bytes = cfg.typed.triangle_size_bytes;
-    return build_bvh(scene, cfg.typed.bvh, layout);
+    return build_bvh_cached(scene, cfg.typed.bvh, layout, cache_dir, status);
+}
+
+std::string resolve_bvh_cache_dir(const std::string& option) {
+    if (option == "off") return {};
+    return option.empty() ? default_bvh_cache_dir() : option;
+}
+
+void add_bvh_cache_option(CLI::App* cmd, std::string& dir) {
+    cmd->add_option("--bvh-cache", dir,
+                    "Folder of built BVHs, reused by runs with the same scene content and BVH "
+                    "settings ('off': build every time; default $RTSIM_BVH_CACHE, else "
+                    "~/.cache/rtsim/bvh)");
 }
 
 void WorkloadOptions::resolve() {

@@ -7,6 +7,7 @@
 
 #include "sim/config.h"
 #include "workloads/bvh.h"
+#include "workloads/bvh_cache.h"
 #include "workloads/bvh_summary.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
@@ -36,8 +37,14 @@ void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
 // "WxH" -> width, height. Throws InputError naming `what`.
 void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);
 
-// The BVH the config's "bvh" section asks for.
-Bvh build_bvh_from_config(const Config& cfg, const Scene& scene);
+// The BVH the config's "bvh" section asks for, through the BVH cache in `cache_dir` (empty:
+// none; workloads/bvh_cache.h).
+Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,
+                          BvhCacheStatus* status = nullptr);
+// The --bvh-cache option: "off" -> none, empty -> default_bvh_cache_dir(), else the folder.
+std::string resolve_bvh_cache_dir(const std::string& option);
+// Adds --bvh-cache to a command that builds BVHs.
+void add_bvh_cache_option(CLI::App* cmd, std::string& dir);
 
 // Sections of stats.json and of a trace's header metadata.
 nlohmann::json scene_summary(const Scene& scene);

@@ -220,6 +220,39 @@ TEST(Run, AMeshReaderThatHangsIsStoppedWithOneLine) {
     EXPECT_FALSE(fs::exists(out));
 }
 
+// Issue 16: a scene's BVH is built once per scene content and settings and reused from the cache;
+// a run from the cache simulates exactly what a run that built it does.
+TEST(Run, TheBvhCacheServesLaterRunsTheSameTree) {
+    const fs::path cache = work_dir() / "bvh_cache";
+    fs::remove_all(cache);
+    const std::string common =
+        "run --scene builtin:sphere --rays primary,ao --res 32x32 "
+        "--set bvh.width=4 --bvh-cache '" +
+        cache.string() + "' ";
+    const fs::path a = work_dir() / "cache_a", b = work_dir() / "cache_b",
+                   c = work_dir() / "cache_c";
+    ASSERT_EQ(run_rtsim(common + "-o '" + a.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(common + "-o '" + b.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim("run --scene builtin:sphere --rays primary,ao --res 32x32 --set "
+                        "bvh.width=4 --bvh-cache off -o '" +
+                        c.string() + "'")
+                  .status,
+              0);
+    const json sa = stats_of(a), sb = stats_of(b), sc = stats_of(c);
+    EXPECT_EQ(sa["host"]["bvh_cache"], "built");
+    EXPECT_EQ(sb["host"]["bvh_cache"], "hit");
+    EXPECT_EQ(sc["host"]["bvh_cache"], "off");
+    EXPECT_EQ(without_host(sa), without_host(sb));
+    EXPECT_EQ(without_host(sa), without_host(sc));
+    // Another BVH setting is another entry.
+    const fs::path d = work_dir() / "cache_d";
+    ASSERT_EQ(run_rtsim(common + "--set bvh.max_leaf_size=2 -o '" + d.string() + "'").status, 0);
+    EXPECT_EQ(stats_of(d)["host"]["bvh_cache"], "built");
+    size_t entries = 0;
+    for (const auto& e : fs::directory_iterator(cache)) entries += e.path().extension() == ".bvh";
+    EXPECT_EQ(entries, 2u);
+}
+
 TEST(Run, BrokenConfigExitsTwoWithOneLine) {
     const fs::path cfg = work_dir() / "broken.json";
     std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";

@@ -1,0 +1,335 @@
+#include "workloads/bvh_cache.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <type_traits>
+
+#include "workloads/error.h"
+#include "workloads/trace_file.h"  // crc32
+
+namespace rtsim {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// Bump when the entry layout or anything in Bvh it stores changes: older entries then miss.
+constexpr uint32_t kFormatVersion = 1;
+constexpr char kMagic[8] = {'R', 'T', 'S', 'I', 'M', 'B', 'V', 'H'};
+
+// An entry found unusable, and why.
+struct Unusable {
+    std::string why;
+};
+
+class Writer {
+  public:
+    template <class T>
+    void pod(const T& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        out_.append(reinterpret_cast<const char*>(&v), sizeof v);
+    }
+    template <class T>
+    void vec(const std::vector<T>& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        pod(uint64_t(v.size()));
+        if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    }
+    std::string& bytes() { return out_; }
+
+  private:
+    std::string out_;
+};
+
+class Reader {
+  public:
+    Reader(const char* data, size_t size) : p_(data), end_(data + size) {}
+    template <class T>
+    T pod() {
+        T v;
+        take(&v, sizeof v);
+        return v;
+    }
+    template <class T>
+    void vec(std::vector<T>& v) {
+        const uint64_t n = pod<uint64_t>();
+        if (n > uint64_t(end_ - p_) / sizeof(T)) throw Unusable{"truncated"};
+        v.resize(size_t(n));
+        take(v.data(), size_t(n) * sizeof(T));
+    }
+    bool done() const { return p_ == end_; }
+
+  private:
+    void take(void* dst, size_t n) {
+        if (n > size_t(end_ - p_)) throw Unusable{"truncated"};
+        if (n) std::memcpy(dst, p_, n);
+        p_ += n;
+    }
+    const char* p_;
+    const char* end_;
+};
+
+uint64_t fnv(uint64_t h, const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) {
+        h ^= p[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+void write_nodes(Writer& w, const Bvh& b) {
+    switch (b.width()) {
+        case 2:
+            w.vec(b.nodes2);
+            break;
+        case 4:
+            w.vec(b.nodes4);
+            break;
+        default:
+            w.vec(b.nodes8);
+            break;
+    }
+}
+
+// Every index a traversal follows stays inside its array: an entry that passed its checksum but
+// was written by a faulty build would otherwise crash a run rather than be rebuilt.
+template <int W>
+void check_nodes(const std::vector<WideNode<W>>& nodes, const Bvh& b) {
+    const size_t tris = b.prim_order.size();
+    for (const WideNode<W>& n : nodes) {
+        if (n.num > W) throw Unusable{"a node with too many children"};
+        for (int l = 0; l < n.num; ++l) {
+            if (n.count[l] == 0) {
+                if (n.child[l] >= nodes.size()) throw Unusable{"a child index out of range"};
+            } else if (uint64_t(n.child[l]) + n.count[l] > tris ||
+                       n.child[l] >= b.leaf_block.size() ||
+                       b.leaf_block[n.child[l]] + (n.count[l] + 3u) / 4u > b.tri4.size()) {
+                throw Unusable{"a leaf out of range"};
+            }
+        }
+    }
+}
+
+std::string serialize(const Bvh& b, uint64_t key) {
+    Writer w;
+    w.bytes().append(kMagic, sizeof kMagic);
+    w.pod(kFormatVersion);
+    w.pod(key);
+    w.pod(b.options.builder);
+    w.pod(b.options.node_format);
+    w.pod(b.options.restructure_passes);
+    w.pod(b.options.width);
+    w.pod(b.options.sah_buckets);
+    w.pod(b.options.max_leaf_size);
+    w.pod(b.options.treelet_bytes);
+    w.pod(b.options.traversal_cost);
+    w.pod(b.options.intersection_cost);
+    const BvhLayout& L = b.layout;
+    w.pod(L.node_base_addr);
+    w.pod(L.node_size_bytes);
+    w.pod(L.tri_base_addr);
+    w.pod(L.tri_size_bytes);
+    w.pod(L.inner_node_count);
+    w.pod(L.triangle_count);
+    w.pod(L.treelet_bytes);
+    w.vec(L.treelet_node_start);
+    w.vec(L.treelet_tri_start);
+    w.pod(b.quality);
+    w.pod(b.bounds_box);
+    write_nodes(w, b);
+    w.vec(b.prim_order);
+    w.vec(b.tri_verts);
+    w.vec(b.tri4);
+    w.vec(b.leaf_block);
+    const uint32_t crc = crc32(w.bytes().data(), w.bytes().size());
+    w.pod(crc);
+    return std::move(w.bytes());
+}
+
+Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& want) {
+    if (bytes.size() < sizeof kMagic + 8 || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
+        throw Unusable{"not a BVH cache entry"};
+    uint32_t crc;
+    std::memcpy(&crc, bytes.data() + bytes.size() - sizeof crc, sizeof crc);
+    if (crc32(bytes.data(), bytes.size() - sizeof crc) != crc)
+        throw Unusable{"checksum mismatch (a damaged or truncated file)"};
+    Reader r(bytes.data() + sizeof kMagic, bytes.size() - sizeof kMagic - sizeof crc);
+    if (r.pod<uint32_t>() != kFormatVersion) throw Unusable{"an older entry format"};
+    if (r.pod<uint64_t>() != key) throw Unusable{"its key is not this build's"};
+    Bvh b;
+    b.options = want;
+    // The stored settings must be the ones asked for (the key says so; this catches a collision).
+    const bool same =
+        r.pod<BvhBuilder>() == want.builder && r.pod<NodeFormat>() == want.node_format &&
+        r.pod<int>() == want.restructure_passes && r.pod<int>() == want.width &&
+        r.pod<int>() == want.sah_buckets && r.pod<int>() == want.max_leaf_size &&
+        r.pod<uint32_t>() == want.treelet_bytes && r.pod<float>() == want.traversal_cost &&
+        r.pod<float>() == want.intersection_cost;
+    if (!same) throw Unusable{"its build settings are not this build's"};
+    BvhLayout& L = b.layout;
+    L.node_base_addr = r.pod<uint64_t>();
+    L.node_size_bytes = r.pod<uint32_t>();
+    L.tri_base_addr = r.pod<uint64_t>();
+    L.tri_size_bytes = r.pod<uint32_t>();
+    L.inner_node_count = r.pod<uint32_t>();
+    L.triangle_count = r.pod<uint32_t>();
+    L.treelet_bytes = r.pod<uint32_t>();
+    r.vec(L.treelet_node_start);
+    r.vec(L.treelet_tri_start);
+    b.quality = r.pod<BvhQuality>();
+    b.bounds_box = r.pod<AABB>();
+    switch (want.width) {
+        case 2:
+            r.vec(b.nodes2);
+            break;
+        case 4:
+            r.vec(b.nodes4);
+            break;
+        default:
+            r.vec(b.nodes8);
+            break;
+    }
+    r.vec(b.prim_order);
+    r.vec(b.tri_verts);
+    r.vec(b.tri4);
+    r.vec(b.leaf_block);
+    if (!r.done()) throw Unusable{"trailing bytes"};
+    const size_t nodes = want.width == 2   ? b.nodes2.size()
+                         : want.width == 4 ? b.nodes4.size()
+                                           : b.nodes8.size();
+    if (nodes != L.inner_node_count || b.prim_order.size() != L.triangle_count ||
+        b.tri_verts.size() != L.triangle_count || b.leaf_block.size() != L.triangle_count ||
+        nodes == 0 || !L.index_treelets())
+        throw Unusable{"inconsistent record counts"};
+    switch (want.width) {
+        case 2:
+            check_nodes(b.nodes2, b);
+            break;
+        case 4:
+            check_nodes(b.nodes4, b);
+            break;
+        default:
+            check_nodes(b.nodes8, b);
+            break;
+    }
+    return b;
+}
+
+// Writes through a temporary file and a rename, so a concurrent reader (another sweep point)
+// sees the old entry, no entry or the whole new one.
+void store(const std::string& path, const std::string& bytes) {
+    std::error_code ec;
+    fs::create_directories(fs::path(path).parent_path(), ec);
+    const std::string tmp = fmt::format("{}.tmp.{}", path, getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+        if (!out) {
+            fs::remove(tmp, ec);
+            warn(fmt::format("{}: cannot write the BVH cache entry (the run goes on)", path));
+            return;
+        }
+    }
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        fs::remove(tmp, ec);
+        warn(fmt::format("{}: cannot write the BVH cache entry (the run goes on)", path));
+    }
+}
+
+}  // namespace
+
+const char* bvh_cache_outcome_name(BvhCacheOutcome o) {
+    switch (o) {
+        case BvhCacheOutcome::Hit:
+            return "hit";
+        case BvhCacheOutcome::Built:
+            return "built";
+        case BvhCacheOutcome::Rebuilt:
+            return "rebuilt";
+        default:
+            return "off";
+    }
+}
+
+std::string default_bvh_cache_dir() {
+    if (const char* env = std::getenv("RTSIM_BVH_CACHE"))
+        return std::string(env) == "off" ? std::string() : std::string(env);
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+        return (fs::path(xdg) / "rtsim" / "bvh").string();
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return (fs::path(home) / ".cache" / "rtsim" / "bvh").string();
+    return {};
+}
+
+uint64_t bvh_cache_key(const Scene& scene, const BvhBuildOptions& o, const BvhLayout& L) {
+    uint64_t h = 1469598103934665603ull;
+    auto mix = [&h](const auto& v) { h = fnv(h, &v, sizeof v); };
+    mix(kFormatVersion);
+    mix(scene.content_hash());
+    mix(uint64_t(scene.vertices.size()));
+    mix(uint64_t(scene.triangles.size()));
+    mix(o.builder);
+    mix(o.node_format);
+    mix(o.restructure_passes);
+    mix(o.width);
+    mix(o.sah_buckets);
+    mix(o.max_leaf_size);
+    mix(o.treelet_bytes);
+    mix(o.traversal_cost);
+    mix(o.intersection_cost);
+    mix(L.node_base_addr);
+    mix(L.node_size_bytes);
+    mix(L.tri_size_bytes);
+    return h;
+}
+
+Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
+                     const BvhLayout& layout_sizes, const std::string& dir,
+                     BvhCacheStatus* status) {
+    const auto t0 = std::chrono::steady_clock::now();
+    BvhCacheStatus local;
+    BvhCacheStatus& st = status ? *status : local;
+    auto seconds = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    };
+    if (dir.empty()) {
+        st.outcome = BvhCacheOutcome::Off;
+        Bvh b = build_bvh(scene, options, layout_sizes);
+        st.seconds = seconds();
+        return b;
+    }
+    const uint64_t key = bvh_cache_key(scene, options, layout_sizes);
+    st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
+    st.outcome = BvhCacheOutcome::Built;
+    std::ifstream in(st.path, std::ios::binary);
+    if (in) {
+        std::stringstream ss;
+        ss << in.rdbuf();
+        try {
+            Bvh b = deserialize(ss.str(), key, options);
+            st.outcome = BvhCacheOutcome::Hit;
+            st.seconds = seconds();
+            b.quality.build_seconds = st.seconds;  // what this run spent to have the tree
+            return b;
+        } catch (const Unusable& u) {
+            st.outcome = BvhCacheOutcome::Rebuilt;
+            st.why = u.why;
+            warn(fmt::format("{}: BVH cache entry unusable ({}); rebuilding it", st.path, u.why));
+        }
+    }
+    Bvh b = build_bvh(scene, options, layout_sizes);
+    store(st.path, serialize(b, key));
+    st.seconds = seconds();
+    return b;
+}
+
+}  // namespace rtsim
