@@ -1,0 +1,46 @@
+// Confidence intervals for figures estimated from a sample of a run's work (sampled simulation,
+// issue 16): a frame's rays are cut into N units of consecutive rays, n of them are simulated in
+// detail, and every figure of the whole run is estimated from them with a confidence interval.
+//
+// The estimators are the survey-sampling ones (Cochran, Sampling Techniques, 1977, ch. 2 and 6):
+// a mean of n units drawn without replacement from N, with the finite-population correction
+// (1 - n/N) on its variance; and a ratio sum(y)/sum(x) (cycles per ray when units hold
+// different numbers of rays, bytes per ray, a hit rate as hits per access), whose variance comes
+// from the residuals y - R x (the delta method). Intervals use Student's t with n - 1 degrees of
+// freedom. SMARTS (Wunderlich et al., ISCA 2003) applies the same estimator to systematic
+// samples of an instruction stream.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace rtsim {
+
+// The p-quantile of Student's t distribution with `df` degrees of freedom (df >= 1, 0 < p < 1).
+double student_t_quantile(double p, double df);
+
+// Its CDF, from the regularised incomplete beta function (exposed for tests).
+double student_t_cdf(double t, double df);
+
+struct Estimate {
+    double value = 0;         // the estimate
+    double half_width = 0;    // of the interval: value +- half_width
+    double confidence = 0;    // nominal coverage, e.g. 0.95
+    uint64_t units = 0;       // n: units measured
+    uint64_t population = 0;  // N: units in the run
+    double lo() const { return value - half_width; }
+    double hi() const { return value + half_width; }
+    // half_width / |value| (0 when the value is 0 and the interval empty; infinite when the
+    // value is 0 and the interval is not).
+    double relative_half_width() const;
+};
+
+// The mean of a unit figure over the population, from the measured units `x` (n >= 2 for an
+// interval; with n == N the interval is empty: everything was measured).
+Estimate mean_estimate(const std::vector<double>& x, uint64_t population, double confidence = 0.95);
+
+// The population ratio sum(y) / sum(x) over all N units, from the measured units' pairs.
+Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>& x,
+                        uint64_t population, double confidence = 0.95);
+
+}  // namespace rtsim

@@ -1,0 +1,134 @@
+// The interval machinery of sampled simulation (sim/sampling.h): Student's t against printed
+// tables, and the intervals' coverage on synthetic populations whose true figures are known.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "sim/sampling.h"
+
+using namespace rtsim;
+
+TEST(Sampling, StudentTMatchesPrintedTables) {
+    // Two-sided 95% and 99% critical values (e.g. NIST/SEMATECH e-Handbook, table 1.3.6.7.2).
+    const struct {
+        double p, df, t;
+    } table[] = {{0.975, 1, 12.706}, {0.975, 2, 4.303},  {0.975, 5, 2.571},
+                 {0.975, 10, 2.228}, {0.975, 30, 2.042}, {0.975, 100, 1.984},
+                 {0.995, 10, 3.169}, {0.995, 30, 2.750}, {0.95, 20, 1.725}};
+    for (const auto& row : table) {
+        EXPECT_NEAR(student_t_quantile(row.p, row.df), row.t, 0.0006) << row.p << " " << row.df;
+        EXPECT_NEAR(student_t_quantile(1.0 - row.p, row.df), -row.t, 0.0006);
+        EXPECT_NEAR(student_t_cdf(row.t, row.df), row.p, 2e-4);
+    }
+    EXPECT_NEAR(student_t_quantile(0.975, 1e7), 1.95996, 1e-4);  // the normal's
+    EXPECT_EQ(student_t_cdf(0.0, 7), 0.5);
+    EXPECT_THROW(student_t_quantile(1.0, 5), std::invalid_argument);
+}
+
+namespace {
+
+// n of the population's indices, without replacement.
+std::vector<size_t> draw(size_t population, size_t n, std::mt19937_64& rng) {
+    std::vector<size_t> idx(population);
+    std::iota(idx.begin(), idx.end(), 0);
+    for (size_t i = 0; i < n; ++i)
+        std::swap(idx[i],
+                  idx[i + std::uniform_int_distribution<size_t>(0, population - 1 - i)(rng)]);
+    idx.resize(n);
+    return idx;
+}
+
+}  // namespace
+
+TEST(Sampling, MeanIntervalsCoverTheTrueMeanAtTheirNominalRate) {
+    std::mt19937_64 rng(5);
+    // A skewed population, like per-unit cycle counts: lognormal.
+    std::lognormal_distribution<double> value(3.0, 0.5);
+    std::vector<double> pop(3000);
+    for (double& v : pop) v = value(rng);
+    const double truth = std::accumulate(pop.begin(), pop.end(), 0.0) / pop.size();
+    for (size_t n : {10, 40, 300}) {
+        int covered = 0;
+        const int trials = 2000;
+        for (int t = 0; t < trials; ++t) {
+            std::vector<double> x;
+            for (size_t i : draw(pop.size(), n, rng)) x.push_back(pop[i]);
+            const Estimate e = mean_estimate(x, pop.size());
+            covered += e.lo() <= truth && truth <= e.hi();
+        }
+        const double coverage = double(covered) / trials;
+        // Binomial noise of 2000 trials at 0.95 is 0.005; skew costs small samples a little.
+        EXPECT_GT(coverage, n == 10 ? 0.90 : 0.93) << "n " << n;
+        EXPECT_LT(coverage, 0.975) << "n " << n;
+    }
+    // Everything measured: the estimate is the truth, with no interval.
+    const Estimate all = mean_estimate(pop, pop.size());
+    EXPECT_NEAR(all.value, truth, 1e-9 * truth);
+    EXPECT_EQ(all.half_width, 0.0);
+}
+
+TEST(Sampling, RatioIntervalsCoverThePopulationRatio) {
+    std::mt19937_64 rng(9);
+    // Units of 50-150 rays whose cycles per ray vary around 12 (cycles = rays x rate + noise).
+    std::vector<double> rays(4000), cycles(4000);
+    std::uniform_int_distribution<int> unit_rays(50, 150);
+    std::normal_distribution<double> rate(12.0, 3.0);
+    for (size_t i = 0; i < rays.size(); ++i) {
+        rays[i] = unit_rays(rng);
+        cycles[i] = rays[i] * std::max(1.0, rate(rng));
+    }
+    const double truth = std::accumulate(cycles.begin(), cycles.end(), 0.0) /
+                         std::accumulate(rays.begin(), rays.end(), 0.0);
+    int covered = 0;
+    double width = 0;
+    const int trials = 2000;
+    for (int t = 0; t < trials; ++t) {
+        std::vector<double> y, x;
+        for (size_t i : draw(rays.size(), 50, rng)) {
+            y.push_back(cycles[i]);
+            x.push_back(rays[i]);
+        }
+        const Estimate e = ratio_estimate(y, x, rays.size());
+        covered += e.lo() <= truth && truth <= e.hi();
+        width += e.relative_half_width();
+    }
+    EXPECT_GT(double(covered) / trials, 0.93);
+    EXPECT_LT(double(covered) / trials, 0.975);
+    // The interval is as wide as the spread says: a rate of sd 3 around 12 per ~100-ray unit,
+    // over 50 units: about 1.96 x 3 / 12 / sqrt(50) = 7%.
+    EXPECT_NEAR(width / trials, 0.069, 0.01);
+}
+
+TEST(Sampling, SystematicSamplesOfAShuffledStreamCoverToo) {
+    // Every k-th unit from a random start, as a sampled run takes them, on a stream whose order
+    // carries no pattern at the sampling period.
+    std::mt19937_64 rng(21);
+    std::gamma_distribution<double> value(2.0, 5.0);
+    std::vector<double> pop(5000);
+    for (double& v : pop) v = value(rng);
+    const double truth = std::accumulate(pop.begin(), pop.end(), 0.0) / pop.size();
+    int covered = 0;
+    const int trials = 1000;
+    for (int t = 0; t < trials; ++t) {
+        std::shuffle(pop.begin(), pop.end(), rng);
+        const size_t k = 100, start = std::uniform_int_distribution<size_t>(0, k - 1)(rng);
+        std::vector<double> x;
+        for (size_t i = start; i < pop.size(); i += k) x.push_back(pop[i]);
+        const Estimate e = mean_estimate(x, pop.size());
+        covered += e.lo() <= truth && truth <= e.hi();
+    }
+    EXPECT_GT(double(covered) / trials, 0.93);
+    EXPECT_LT(double(covered) / trials, 0.975);
+}
+
+TEST(Sampling, DegenerateSamples) {
+    EXPECT_TRUE(std::isinf(mean_estimate({5.0}, 100).half_width));
+    EXPECT_EQ(mean_estimate({5.0}, 1).half_width, 0.0);
+    EXPECT_EQ(mean_estimate({}, 10).units, 0u);
+    EXPECT_TRUE(std::isinf(ratio_estimate({1, 2}, {0, 0}, 10).half_width));
+    EXPECT_EQ(mean_estimate({3, 3, 3}, 100).half_width, 0.0);
+    EXPECT_THROW(ratio_estimate({1}, {1, 2}, 10), std::invalid_argument);
+}
