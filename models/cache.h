@@ -101,6 +101,14 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // Line `line`'s tag check at `at`: a hit updates the replacement state; a miss takes the
     // policy's victim and installs the line (counted as the fast path counts them). True on a hit.
     bool check_tag(uint64_t line, Cycle at) { return tag_fn_(*this, line, at); }
+    // MemoryPort::warm: each line's tag check as check_tag makes it, uncounted, its fill ready
+    // at once; a line missing here is warmed in the next level too.
+    void warm(uint64_t addr, uint32_t size_bytes) override {
+        const auto [first, last] = line_range(addr, size_bytes);
+        for (uint64_t line = first; line <= last; ++line)
+            if (!warm_fn_(*this, line, 0) && next_)
+                next_->warm(line << line_shift_, params_.line_bytes);
+    }
     MemoryPort* next_level() const { return next_; }
     int level() const { return level_; }
     // Whether the line holding `addr` is present (or being filled); changes nothing.
@@ -345,7 +353,8 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         return c.access_in<G, P>(addr, size_bytes, now, bd);
     }
     bool (*tag_fn_)(Cache&, uint64_t, Cycle) = nullptr;
-    template <int G, typename P>
+    bool (*warm_fn_)(Cache&, uint64_t, Cycle) = nullptr;  // tag_entry without counting
+    template <int G, typename P, bool kCount = true>
     static bool tag_entry(Cache& c, uint64_t line, Cycle at);
     template <int G, typename P>
     static bool local_entry(Cache& c, uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,

@@ -16,38 +16,45 @@ void Cache::use_policy(Cache& c) {
             c.access_fn_ = &Cache::access_entry<1, P>;
             c.local_fn_ = &Cache::local_entry<1, P>;
             c.tag_fn_ = &Cache::tag_entry<1, P>;
+            c.warm_fn_ = &Cache::tag_entry<1, P, false>;
             break;
         case 2:
             c.access_fn_ = &Cache::access_entry<2, P>;
             c.local_fn_ = &Cache::local_entry<2, P>;
             c.tag_fn_ = &Cache::tag_entry<2, P>;
+            c.warm_fn_ = &Cache::tag_entry<2, P, false>;
             break;
         case 4:
             c.access_fn_ = &Cache::access_entry<4, P>;
             c.local_fn_ = &Cache::local_entry<4, P>;
             c.tag_fn_ = &Cache::tag_entry<4, P>;
+            c.warm_fn_ = &Cache::tag_entry<4, P, false>;
             break;
         default:
             c.access_fn_ = &Cache::access_entry<0, P>;
             c.local_fn_ = &Cache::local_entry<0, P>;
             c.tag_fn_ = &Cache::tag_entry<0, P>;
+            c.warm_fn_ = &Cache::tag_entry<0, P, false>;
     }
 }
 
-template <int G, typename P>
+template <int G, typename P, bool kCount>
 bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
+    (void)at;  // only counted fills are put in the time series
     const uint64_t set = c.set_of(line);
     const int found = c.find_way<G>(set, line);
     if (found >= 0) {
-        ++c.hits;
+        if constexpr (kCount) ++c.hits;
         P::template hit<G>(c.stamps<G>(set), found, c.repl_);
         return true;
     }
     // The same steps as fill(), in the same order (the random policy draws in victim()).
     const int victim = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
-    ++c.misses;
-    c.fill_bytes += c.params_.line_bytes;
-    if (c.fill_series_) c.fill_series_->add(at, c.params_.line_bytes);
+    if constexpr (kCount) {
+        ++c.misses;
+        c.fill_bytes += c.params_.line_bytes;
+        if (c.fill_series_) c.fill_series_->add(at, c.params_.line_bytes);
+    }
     c.tags<G>(set)[victim] = c.tag_of(line);
     c.fill_ready<G>(set)[victim] = 0;  // the reference keeps fills in flight itself
     P::template filled<G>(c.stamps<G>(set), victim, c.repl_);

@@ -28,6 +28,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     // alone, at the cycle the L2 returns the line.)
     Cycle carry(Cycle returned, uint32_t size_bytes);
     MemoryPort* next_level() const { return next_; }
+    void warm(uint64_t addr, uint32_t size_bytes) override { next_->warm(addr, size_bytes); }
 
     uint64_t transfers = 0;
     uint64_t bytes = 0;

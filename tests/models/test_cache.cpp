@@ -281,6 +281,50 @@ TEST(Cache, BankConflictsSerialiseLookups) {
     EXPECT_EQ(c.bank_conflict_cycles, 1u + (0 + 1 + 0 + 1));  // warm-up: lines 2 and 3 waited too
 }
 
+// Functional warming (sampled simulation): warming a stream of addresses leaves every level with
+// the contents timed accesses of the same stream leave, for every replacement policy, and counts
+// nothing; a timed access to a warmed line is then a plain hit.
+TEST(Cache, WarmingLeavesTheStateTimedAccessesLeave) {
+    for (const char* policy : {"lru", "fifo", "random", "srrip", "tree_plru"}) {
+        CacheParams p1, p2;
+        p1.size_bytes = 4096;
+        p1.ways = 4;
+        p1.replacement = policy;
+        p2.size_bytes = 32768;
+        p2.ways = 8;
+        p2.replacement = policy;
+        test::FixedLatencyMemory mem_a(100), mem_b(100);
+        Cache l2a(sc_core::sc_gen_unique_name("l2"), p2, &mem_a, kLevelL2);
+        Cache l1a(sc_core::sc_gen_unique_name("l1"), p1, &l2a);
+        Cache l2b(sc_core::sc_gen_unique_name("l2"), p2, &mem_b, kLevelL2);
+        Cache l1b(sc_core::sc_gen_unique_name("l1"), p1, &l2b);
+        std::mt19937_64 rng(3);
+        Cycle t = 0;
+        for (int i = 0; i < 20000; ++i) {
+            const uint64_t addr = (rng() % 3 == 0 ? rng() % (1 << 18) : rng() % 16384) & ~63ull;
+            l1a.access(addr, 64, t += 1000);  // fills complete between accesses
+            l1b.warm(addr, 64);
+        }
+        EXPECT_EQ(l1b.accesses + l1b.hits + l1b.misses + l1b.fill_bytes, 0u) << policy;
+        EXPECT_EQ(l2b.accesses + l2b.hits + l2b.misses + l2b.fill_bytes, 0u) << policy;
+        EXPECT_TRUE(mem_b.addrs.empty()) << policy;
+        int present = 0;
+        for (uint64_t line = 0; line < (1 << 18) / 64; ++line) {
+            ASSERT_EQ(l1a.contains(line * 64), l1b.contains(line * 64)) << policy << " " << line;
+            ASSERT_EQ(l2a.contains(line * 64), l2b.contains(line * 64)) << policy << " " << line;
+            present += l1b.contains(line * 64);
+        }
+        EXPECT_EQ(present, 4096 / 64) << policy;  // the L1 is full
+        // A warmed line: an L1 hit at the hit latency, no traffic below.
+        uint64_t warmed = 0;
+        while (!l1b.contains(warmed)) warmed += 64;
+        const uint64_t below = mem_b.addrs.size();
+        EXPECT_EQ(l1b.access(warmed, 64, t), t + p1.hit_latency_cycles) << policy;
+        EXPECT_EQ(l1b.hits, 1u);
+        EXPECT_EQ(mem_b.addrs.size(), below);
+    }
+}
+
 TEST(Cache, FifoAndRandomReplacement) {
     // One set of 2 ways: A, B, then A again, then C. LRU evicts B (A was used last), FIFO evicts A
     // (filled first). Random is deterministic: two caches see the same victims.
