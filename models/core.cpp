@@ -195,7 +195,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             if (beyond(t)) return t;  // the work queue is shared
             Cycle got = t;
             if (!ray_buffer_) {
-                if (!source_->next(s.work)) {
+                if (!source_->next(s.work, t)) {
                     go_idle(i, t, kNeverCycle);
                     continue;
                 }

@@ -33,8 +33,9 @@ namespace rtsim {
 class RayWorkSource {
   public:
     virtual ~RayWorkSource() = default;
-    // Fills `work` with the next ray's steps; false when no ray is left.
-    virtual bool next(RayWork& work) = 0;
+    // Fills `work` with the next ray's steps; false when no ray is left. `now`: the cycle the
+    // ray is taken at (a sampled run times its units by it).
+    virtual bool next(RayWork& work, Cycle now) = 0;
 };
 
 struct CoreParams {

@@ -55,7 +55,7 @@ void RayBuffer::admit(Cycle now) {
         }
         const uint32_t h = free_.back();
         Entry& e = entries_[h];
-        if (!source_->next(e.work)) {
+        if (!source_->next(e.work, now)) {
             source_done_ = true;
             break;
         }

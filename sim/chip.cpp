@@ -123,6 +123,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
         std::array<PipelinedUnit*, kStepKinds> core_units;
         for (int k = 0; k < kStepKinds; ++k)
             core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
+        core_memories.push_back(memories);
         cores.push_back(
             std::make_unique<Core>(indexed("core", i).c_str(), cp, memories, core_units, source));
         cores.back()->set_ray_buffer(ray_buffer.get());

@@ -48,6 +48,8 @@ class Chip {
     std::array<std::vector<std::unique_ptr<PipelinedUnit>>, kStepKinds> units;
     std::unique_ptr<RayBuffer> ray_buffer;  // traversal.mode = treelet
     std::vector<std::unique_ptr<Core>> cores;
+    // Per core, per StepKind, the memory its fetches enter (L1, split L1, treelet cache).
+    std::vector<std::array<MemoryPort*, kStepKinds>> core_memories;
     std::unique_ptr<ChipDriver> driver;  // runs the cores: the fidelity level's process
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
     struct Series {

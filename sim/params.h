@@ -33,6 +33,8 @@ struct SimParams {
     bool ideal_units = false;
     uint64_t window_cycles = 0;  // time series windows; 0: none
     std::string fidelity;        // a registered fidelity level
+    // sim.fidelity = sampled (sim/sampler.h)
+    uint64_t sample_unit_rays = 1024, sample_period_units = 10, sample_warmup_rays = 512;
 };
 
 // Members outside the model structs have no meaningful C++ default: only binding sets them.

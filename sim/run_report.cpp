@@ -143,6 +143,19 @@ void print_run_summary(const json& out, const std::string& stats_path) {
     fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n",
                out["total_cycles"].get<uint64_t>(), out["simulated_seconds"].get<double>() * 1e3,
                out["clock_ghz"].get<double>(), out["rays_per_second"].get<double>() / 1e6);
+    if (out.contains("sampling")) {
+        // The figures above are the detailed part's; the frame's come from the sample.
+        const json& sm = out["sampling"];
+        fmt::print("  sampled  {:.1f}% of rays in detail ({} of {} units measured)",
+                   100 * sm.value("detailed_share", 0.0), sm.value("units_measured", 0),
+                   sm.value("units", 0));
+        if (sm.contains("total_cycles")) {
+            const json& c = sm["total_cycles"];
+            fmt::print("; frame cycles {:.0f} +- {:.1f}% (95%)", c["value"].get<double>(),
+                       c["half_width_pct"].get<double>());
+        }
+        fmt::print("\n");
+    }
     fmt::print("  units    box {:.1f}% busy, triangle {:.1f}% busy\n",
                100 * un["box_unit_total"]["utilization"].get<double>(),
                100 * un["triangle_unit_total"]["utilization"].get<double>());

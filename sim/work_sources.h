@@ -17,6 +17,7 @@
 #include "models/core.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
+#include "sim/sampler.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/packet.h"
@@ -34,21 +35,30 @@ class CountingSource : public RayWorkSource {
   public:
     explicit CountingSource(bool progress) : progress_(progress) {}
 
-    bool next(RayWork& work) override {
+    bool next(RayWork& work, Cycle now) override {
         // SIGINT or SIGTERM: no more rays (the slots finish the ones they hold, then the run
         // reports the interruption and writes nothing).
         if (!failed() && interrupt_signal()) {
             interrupted_by = interrupt_signal();
             failure = "interrupted";
         }
-        uint32_t hit = 0;
-        const bool more = failed() ? false : produce(work, hit);
-        if (!more) return false;
-        rays_by_kind[static_cast<int>(work.kind)] += work.rays;
-        hits_by_kind[static_cast<int>(work.kind)] += hit;
-        steps += work.steps.size();
+        for (;;) {
+            uint32_t hit = 0;
+            const bool more = failed() ? false : produce(work, hit);
+            if (!more) return false;
+            rays_by_kind[static_cast<int>(work.kind)] += work.rays;
+            hits_by_kind[static_cast<int>(work.kind)] += hit;
+            steps += work.steps.size();
+            // A sampled run fast-forwards most rays here: they warm the caches, no core runs them.
+            if (!sampler_ || !sampler_->fast_forward(work)) break;
+        }
+        if (sampler_) sampler_->handed_out(now);
         return true;
     }
+
+    // Sampled simulation: rays pass through `sampler` (sim/sampler.h), which keeps most of them
+    // from the cores.
+    void set_sampler(Sampler* sampler) { sampler_ = sampler; }
 
     void finish_progress() {
         if (progress_ && printed_) std::fprintf(stderr, "\r%70s\r", "");
@@ -67,6 +77,7 @@ class CountingSource : public RayWorkSource {
     bool failed() const { return !failure.empty(); }
 
   protected:
+    Sampler* sampler_ = nullptr;
     // Fills the next work item (a ray, or a packet of work.rays rays); `hits`: how many hit.
     virtual bool produce(RayWork& work, uint32_t& hits) = 0;
 

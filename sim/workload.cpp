@@ -119,6 +119,11 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
 
 void check_config_combination(const Config& cfg, const std::string& trace_path) {
     const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.typed.traversal.mode);
+    if (cfg.typed.sim.fidelity == "sampled" && mode.needs_treelets)
+        throw InputError(fmt::format(
+            "sim.fidelity=sampled: not yet with traversal.mode={} (its ray buffer admits rays "
+            "ahead of the cores, so a unit's hand-out times are not its rays' start)",
+            mode.name));
     if (!mode.replays_traces && !trace_path.empty())
         throw InputError(
             fmt::format("{}: a trace records single-ray traversal; traversal.mode={} needs rays "

@@ -392,7 +392,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         }
         s.start = t;
         if (!rb) {
-            if (!core.source()->next(s.work)) {
+            if (!core.source()->next(s.work, t)) {
                 s.idle_since = t;
                 core.set_slot_idle(i, t, true);
                 return;

@@ -17,4 +17,13 @@ RTSIM_REGISTER(FidelityEntry,
                 {},
                 &make_fast})
 
+// The same cores, fed a systematic sample of the rays (sim/sampler.h, attached by the run).
+RTSIM_REGISTER(FidelityEntry,
+               {"sampled",
+                "the fast model on one unit of rays in sim.sample_period_units, the rest "
+                "fast-forwarded with functional cache warming; totals estimated with 95% "
+                "confidence intervals (stats.json sampling)",
+                {"sample_unit_rays", "sample_period_units", "sample_warmup_rays"},
+                &make_fast})
+
 }  // namespace rtsim

@@ -14,7 +14,7 @@ namespace {
 class SyntheticSource : public RayWorkSource {
   public:
     SyntheticSource(int rays, int steps, StepKind kind) : rays_(rays), steps_(steps), kind_(kind) {}
-    bool next(RayWork& w) override {
+    bool next(RayWork& w, Cycle) override {
         if (given_ == rays_) return false;
         w.ray_id = uint32_t(given_++);
         w.steps.clear();

@@ -15,7 +15,7 @@ namespace {
 class TreeletSource : public RayWorkSource {
   public:
     explicit TreeletSource(std::vector<std::vector<uint32_t>> rays) : rays_(std::move(rays)) {}
-    bool next(RayWork& w) override {
+    bool next(RayWork& w, Cycle) override {
         if (given_ == rays_.size()) return false;
         w.ray_id = uint32_t(given_);
         w.steps.clear();

@@ -61,7 +61,7 @@ TEST(StatsReport, StallSharesAndUnaccountedCycles) {
     test::FixedLatencyMemory mem(0);
     PipelinedUnit box("box", UnitParams{}), tri("tri", UnitParams{});
     struct None : RayWorkSource {
-        bool next(RayWork&) override { return false; }
+        bool next(RayWork&, Cycle) override { return false; }
     } none;
     CoreParams cp;
     cp.ray_slots = 3;

@@ -1,0 +1,136 @@
+#include "sim/sampler.h"
+
+#include <random>
+
+#include "sim/sampling.h"
+
+namespace rtsim {
+
+using nlohmann::json;
+
+Sampler::Sampler(const SamplingParams& params,
+                 std::vector<std::array<MemoryPort*, kStepKinds>> ports,
+                 const StatsRegistry& counters)
+    : params_(params), ports_(std::move(ports)), counters_(counters) {
+    std::mt19937_64 rng(params_.seed ^ 0x5a3b1e5d);
+    first_unit_ = std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
+    deltas_.resize(counters_.entries().size());
+}
+
+bool Sampler::detailed_ray(uint64_t i) const {
+    const uint64_t unit = i / params_.unit_rays;
+    if (measured_unit(unit)) return true;
+    // The ray right after a measured unit: its hand-out closes the unit.
+    if (i % params_.unit_rays == 0 && unit > 0 && measured_unit(unit - 1)) return true;
+    // The warm-up before the next measured unit.
+    const uint64_t next_start = (i / params_.unit_rays + 1) * params_.unit_rays;
+    return measured_unit(unit + 1) && next_start - i <= params_.warmup_rays;
+}
+
+bool Sampler::fast_forward(const RayWork& work) {
+    current_ = index_;
+    index_ += work.rays;
+    current_work_ = work.steps.size() + work.rays;
+    work_total_ += current_work_;
+    if (detailed_ray(current_)) {
+        detailed_ += work.rays;
+        return false;
+    }
+    if (!ports_.empty()) {
+        const auto& mem = ports_[next_core_];
+        next_core_ = (next_core_ + 1) % ports_.size();
+        for (const Step& s : work.steps) mem[size_t(s.kind)]->warm(s.addr, s.size_bytes);
+    }
+    return true;
+}
+
+void Sampler::handed_out(Cycle now) {
+    last_handout_ = now;
+    const uint64_t unit = current_ / params_.unit_rays;
+    const bool first_of_unit = current_ % params_.unit_rays == 0;
+    if (open_ && (unit != open_unit_)) {
+        // The ray after the measured unit: close it.
+        work_.push_back(double(unit_work_));
+        cycles_.push_back(double(now - open_cycle_));
+        const auto& e = counters_.entries();
+        for (size_t c = 0; c < e.size(); ++c)
+            deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
+        open_ = false;
+    }
+    if (first_of_unit && measured_unit(unit)) {
+        open_ = true;
+        open_unit_ = unit;
+        open_cycle_ = now;
+        const auto& e = counters_.entries();
+        open_counts_.resize(e.size());
+        for (size_t c = 0; c < e.size(); ++c) open_counts_[c] = *e[c].value;
+        unit_work_ = 0;
+    }
+    if (open_) unit_work_ += current_work_;
+}
+
+void Sampler::finish() {
+    if (!open_) return;
+    // The frame ended inside a measured unit: it counts up to its last ray's hand-out (the
+    // rays before that one; the drain after it is added separately).
+    const uint64_t start = open_unit_ * params_.unit_rays;
+    if (index_ > start + 1) {
+        work_.push_back(double(unit_work_ - current_work_));
+        cycles_.push_back(double(last_handout_ - open_cycle_));
+        const auto& e = counters_.entries();
+        for (size_t c = 0; c < e.size(); ++c)
+            deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
+    }
+    open_ = false;
+}
+
+namespace {
+json estimate_json(const Estimate& e, double scale, double offset = 0) {
+    const double v = e.value * scale + offset;
+    const double hw = e.half_width * scale;
+    return {{"value", v},
+            {"lo", v - hw},
+            {"hi", v + hw},
+            {"half_width_pct", v != 0 ? 100.0 * hw / std::abs(v) : 0.0}};
+}
+}  // namespace
+
+json Sampler::report(Cycle end_cycle) {
+    finish();
+    const uint64_t units = (index_ + params_.unit_rays - 1) / params_.unit_rays;
+    json out = {{"unit_rays", params_.unit_rays},
+                {"period_units", params_.period_units},
+                {"warmup_rays", params_.warmup_rays},
+                {"first_unit", first_unit_},
+                {"units", units},
+                {"units_measured", cycles_.size()},
+                {"work", work_total_},
+                {"rays", index_},
+                {"rays_detailed", detailed_},
+                {"detailed_share", index_ ? double(detailed_) / double(index_) : 0.0},
+                {"simulated_cycles", end_cycle},
+                {"drain_cycles", end_cycle - last_handout_}};
+    if (cycles_.size() < 2) {
+        out["note"] =
+            "fewer than 2 measured units: no estimates (a frame shorter than two "
+            "sampling periods; lower sim.sample_period_units or sample_unit_rays)";
+        return out;
+    }
+    // The work the hand-out times span: all but the last ray's (whose hand-out ends the span;
+    // the drain after it is measured).
+    const double work = double(work_total_ - current_work_);
+    const Estimate cyc = ratio_estimate(cycles_, work_, units);
+    out["total_cycles"] = estimate_json(cyc, work, double(end_cycle - last_handout_));
+    json counters = json::object();
+    const auto& e = counters_.entries();
+    for (size_t c = 0; c < e.size(); ++c) {
+        double sum = 0;
+        for (double d : deltas_[c]) sum += d;
+        if (sum == 0) continue;  // a counter that never moved in a measured unit
+        counters[e[c].name] = estimate_json(ratio_estimate(deltas_[c], work_, units), work);
+    }
+    out["counters"] = counters;
+    return out;
+}
+
+}  // namespace rtsim

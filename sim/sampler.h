@@ -1,0 +1,93 @@
+// Sampled simulation (sim.fidelity = sampled; issue 16): systematic sampling of the ray stream
+// with functional warming, as SMARTS (Wunderlich et al., ISCA 2003) samples instruction streams.
+//
+// The stream of rays, in the order the work source hands them out, is cut into units of
+// sample_unit_rays. One unit in sample_period_units is measured, from a start unit drawn from
+// the workload seed; the sample_warmup_rays before it run in detail unmeasured (they fill the
+// cores' slots, MSHRs and queues), and so does the ray after it (its hand-out ends the unit).
+// Every other ray is fast-forwarded: its fetches warm the caches it would have reached
+// (MemoryPort::warm: tags and replacement order, no time, no counts) and it never reaches a
+// core. A measured unit contributes, between the hand-out of its first ray and of the ray after
+// it, the cycles that passed and the change of every registered counter. Each total is then
+// estimated as a ratio with a 95% confidence interval (sim/sampling.h), over the units' work:
+// total = (sum over units of the change) / (their work) x (the frame's work), and the cycles also
+// get the drain the sampled run measured after its last hand-out. Work is a ray's steps plus one
+// (its setup), known for every ray because the functional tracer runs them all: units of
+// background pixels and units of dense geometry differ in cycles many times over, but far less
+// in cycles per step, so the ratio to work has a far narrower interval than a ratio to rays
+// (on a 96x96 bunny frame, 13 measured units: +-42% over rays).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "models/stats.h"
+#include "models/timing.h"
+#include "workloads/step.h"
+
+namespace rtsim {
+
+struct SamplingParams {
+    uint64_t unit_rays = 1024;
+    uint64_t period_units = 10;  // one unit measured in this many
+    uint64_t warmup_rays = 512;  // detailed, unmeasured, before each measured unit
+    uint64_t seed = 1;           // picks the first measured unit
+};
+
+class Sampler {
+  public:
+    // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
+    // turn, core by core, as the cores would have taken the rays). `counters`: what is measured.
+    Sampler(const SamplingParams& params, std::vector<std::array<MemoryPort*, kStepKinds>> ports,
+            const StatsRegistry& counters);
+
+    // The next ray of the stream (work.rays of them: a packet counts its rays): true if it is
+    // fast-forwarded (its fetches have warmed the caches and no core is to run it).
+    bool fast_forward(const RayWork& work);
+    // The ray just judged detailed is handed out at `now`.
+    void handed_out(Cycle now);
+
+    // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
+    // its interval. `end_cycle`: the sampled run's last cycle.
+    nlohmann::json report(Cycle end_cycle);
+    // Closes a measured unit the frame ended in: its rays up to the last hand-out count, and
+    // the cycles to it (called by report).
+    void finish();
+
+    uint64_t rays_seen() const { return index_; }
+    uint64_t rays_detailed() const { return detailed_; }
+    uint64_t units_measured() const { return cycles_.size(); }
+    uint64_t work_total() const { return work_total_; }
+
+  private:
+    bool measured_unit(uint64_t unit) const { return unit % params_.period_units == first_unit_; }
+    // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
+    // ray right after one.
+    bool detailed_ray(uint64_t i) const;
+
+    SamplingParams params_;
+    std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
+    const StatsRegistry& counters_;
+    uint64_t first_unit_ = 0;
+    uint64_t index_ = 0;     // rays judged so far
+    uint64_t detailed_ = 0;  // of them, run in detail
+    size_t next_core_ = 0;   // whose memories the next fast-forwarded ray warms
+    uint64_t current_ = 0;   // index of the ray just judged
+    // The measured unit in progress: its start cycle and counters.
+    bool open_ = false;
+    uint64_t open_unit_ = 0;
+    Cycle open_cycle_ = 0;
+    std::vector<uint64_t> open_counts_;
+    Cycle last_handout_ = 0;
+    uint64_t work_total_ = 0;    // steps + rays of every ray judged
+    uint64_t current_work_ = 0;  // of the ray just judged
+    uint64_t unit_work_ = 0;     // of the open unit's rays handed out so far
+    // Per measured unit: its work, cycles, and each counter's change.
+    std::vector<double> work_, cycles_;
+    std::vector<std::vector<double>> deltas_;  // [counter][unit]
+};
+
+}  // namespace rtsim
