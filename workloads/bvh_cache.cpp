@@ -85,16 +85,18 @@ uint64_t fnv(uint64_t h, const void* data, size_t n) {
     return h;
 }
 
-void write_nodes(Writer& w, const Bvh& b) {
-    switch (b.width()) {
+// Calls f with the node array of the tree's width (nodes2, nodes4 or nodes8).
+template <class B, class F>
+void with_nodes(B& b, int width, F&& f) {
+    switch (width) {
         case 2:
-            w.vec(b.nodes2);
+            f(b.nodes2);
             break;
         case 4:
-            w.vec(b.nodes4);
+            f(b.nodes4);
             break;
         default:
-            w.vec(b.nodes8);
+            f(b.nodes8);
             break;
     }
 }
@@ -144,7 +146,7 @@ std::string serialize(const Bvh& b, uint64_t key) {
     w.vec(L.treelet_tri_start);
     w.pod(b.quality);
     w.pod(b.bounds_box);
-    write_nodes(w, b);
+    with_nodes(b, b.width(), [&](const auto& nodes) { w.vec(nodes); });
     w.vec(b.prim_order);
     w.vec(b.tri_verts);
     w.vec(b.tri4);
@@ -186,40 +188,19 @@ Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& w
     r.vec(L.treelet_tri_start);
     b.quality = r.pod<BvhQuality>();
     b.bounds_box = r.pod<AABB>();
-    switch (want.width) {
-        case 2:
-            r.vec(b.nodes2);
-            break;
-        case 4:
-            r.vec(b.nodes4);
-            break;
-        default:
-            r.vec(b.nodes8);
-            break;
-    }
+    with_nodes(b, want.width, [&](auto& nodes) { r.vec(nodes); });
     r.vec(b.prim_order);
     r.vec(b.tri_verts);
     r.vec(b.tri4);
     r.vec(b.leaf_block);
     if (!r.done()) throw Unusable{"trailing bytes"};
-    const size_t nodes = want.width == 2   ? b.nodes2.size()
-                         : want.width == 4 ? b.nodes4.size()
-                                           : b.nodes8.size();
+    size_t nodes = 0;
+    with_nodes(b, want.width, [&](const auto& v) { nodes = v.size(); });
     if (nodes != L.inner_node_count || b.prim_order.size() != L.triangle_count ||
         b.tri_verts.size() != L.triangle_count || b.leaf_block.size() != L.triangle_count ||
         nodes == 0 || !L.index_treelets())
         throw Unusable{"inconsistent record counts"};
-    switch (want.width) {
-        case 2:
-            check_nodes(b.nodes2, b);
-            break;
-        case 4:
-            check_nodes(b.nodes4, b);
-            break;
-        default:
-            check_nodes(b.nodes8, b);
-            break;
-    }
+    with_nodes(b, want.width, [&](const auto& v) { check_nodes(v, b); });
     return b;
 }
 
