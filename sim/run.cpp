@@ -157,8 +157,18 @@ int run_command(const RunOptions& opt) {
             const double seconds = cycles / (cfg.typed.clock_ghz * 1e9);
             out["total_cycles"] = uint64_t(std::llround(cycles));
             out["simulated_seconds"] = seconds;
-            out["rays_per_second"] =
-                seconds > 0 ? double(out["rays"]["total"].get<uint64_t>()) / seconds : 0.0;
+            const double rays = double(out["rays"]["total"].get<uint64_t>());
+            out["rays_per_second"] = seconds > 0 ? rays / seconds : 0.0;
+            // Its interval is the cycles' one, inverted.
+            const json& c = out["sampling"]["total_cycles"];
+            const double hz = cfg.typed.clock_ghz * 1e9;
+            const double lo = rays * hz / c["hi"].get<double>(),
+                         hi = c["lo"].get<double>() > 0 ? rays * hz / c["lo"].get<double>() : 0.0;
+            out["sampling"]["figures"]["rays_per_second"] = {
+                {"value", out["rays_per_second"]},
+                {"lo", lo},
+                {"hi", hi},
+                {"half_width_pct", 100.0 * (hi - lo) / 2.0 / out["rays_per_second"].get<double>()}};
         }
     }
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));

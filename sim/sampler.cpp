@@ -130,6 +130,73 @@ json Sampler::report(Cycle end_cycle) {
         counters[e[c].name] = estimate_json(ratio_estimate(deltas_[c], work_, units), work);
     }
     out["counters"] = counters;
+    out["figures"] = figures(units);
+    return out;
+}
+
+// Per measured unit, the change of the counters named `prefix`...`suffix` (l1[*].hits: "l1[",
+// ".hits"; an exact name: the name and "").
+namespace {
+bool matches(const std::string& n, const std::string& prefix, const std::string& suffix) {
+    return n.size() >= prefix.size() + suffix.size() && n.compare(0, prefix.size(), prefix) == 0 &&
+           n.compare(n.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+}  // namespace
+
+std::vector<double> Sampler::unit_sums(const std::string& prefix, const std::string& suffix,
+                                       size_t* blocks) const {
+    std::vector<double> out(cycles_.size(), 0.0);
+    const auto& e = counters_.entries();
+    if (blocks) *blocks = 0;
+    for (size_t c = 0; c < e.size(); ++c) {
+        if (!matches(e[c].name, prefix, suffix)) continue;
+        if (blocks) ++*blocks;
+        for (size_t u = 0; u < out.size(); ++u) out[u] += deltas_[c][u];
+    }
+    return out;
+}
+
+json Sampler::figures(uint64_t units) const {
+    // Derived figures as ratios of two per-unit changes, each with its interval: a hit rate is
+    // hits over accesses in the same units, a utilisation busy cycles over the cycles x blocks.
+    json out = json::object();
+    auto ratio = [&](const char* name, const std::vector<double>& y, const std::vector<double>& x,
+                     double scale = 1.0) {
+        double sx = 0;
+        for (double v : x) sx += v;
+        if (sx > 0) out[name] = estimate_json(ratio_estimate(y, x, units), scale);
+    };
+    ratio("l1_hit_rate", unit_sums("l1[", ".hits"), unit_sums("l1[", ".accesses"));
+    ratio("l2_hit_rate", unit_sums("l2.hits", ""), unit_sums("l2.accesses", ""));
+    ratio("dram_bytes_per_cycle", unit_sums("dram.bytes", ""), cycles_);
+    for (const char* unit : {"box_unit", "triangle_unit"}) {
+        size_t blocks = 0;
+        const std::vector<double> busy =
+            unit_sums(std::string(unit) + "[", ".busy_cycles", &blocks);
+        if (blocks)
+            ratio((std::string(unit) + "_utilization").c_str(), busy, cycles_,
+                  1.0 / double(blocks));
+    }
+    // Stall shares: each cause's slot cycles over all of them (causes and no work).
+    static const char* const kCauses[] = {
+        "issue", "l1", "l2", "dram", "crossbar", "box_unit", "triangle_unit", "ray_buffer"};
+    std::vector<double> slots = unit_sums("core[", ".no_work_cycles");
+    std::vector<std::vector<double>> by_cause;
+    for (const char* cause : kCauses) {
+        by_cause.push_back(unit_sums("core[", std::string(".stall_") + cause + "_cycles"));
+        for (size_t u = 0; u < slots.size(); ++u) slots[u] += by_cause.back()[u];
+    }
+    json shares = json::object();
+    for (size_t k = 0; k < by_cause.size(); ++k) {
+        double sy = 0, sx = 0;
+        for (size_t u = 0; u < slots.size(); ++u) {
+            sy += by_cause[k][u];
+            sx += slots[u];
+        }
+        if (sy > 0 && sx > 0)
+            shares[kCauses[k]] = estimate_json(ratio_estimate(by_cause[k], slots, units), 1.0);
+    }
+    out["stall_shares"] = shares;
     return out;
 }
 

@@ -63,6 +63,12 @@ class Sampler {
     uint64_t work_total() const { return work_total_; }
 
   private:
+    // Per measured unit, the summed change of the counters named prefix...suffix ("l1[" and
+    // ".hits": every L1's hits); `blocks` gets how many counters matched.
+    std::vector<double> unit_sums(const std::string& prefix, const std::string& suffix,
+                                  size_t* blocks = nullptr) const;
+    // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
+    nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return unit % params_.period_units == first_unit_; }
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.

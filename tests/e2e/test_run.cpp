@@ -316,6 +316,19 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
         << sm["counters"]["dram.bytes"];
     EXPECT_EQ(sa["total_cycles"].get<double>(),
               std::llround(sm["total_cycles"]["value"].get<double>()));
+    // Derived figures carry intervals too: the full run's L1 and L2 hit rates and box-unit
+    // utilisation fall in them here.
+    const json& fig = sm["figures"];
+    EXPECT_TRUE(holds(fig["l1_hit_rate"], f["caches"]["l1_total"]["hit_rate"].get<double>()))
+        << fig["l1_hit_rate"];
+    EXPECT_TRUE(holds(fig["l2_hit_rate"], f["caches"]["l2"]["hit_rate"].get<double>()))
+        << fig["l2_hit_rate"];
+    EXPECT_TRUE(holds(fig["box_unit_utilization"],
+                      f["units"]["box_unit_total"]["utilization"].get<double>()))
+        << fig["box_unit_utilization"];
+    EXPECT_TRUE(holds(fig["rays_per_second"], f["rays_per_second"].get<double>()))
+        << fig["rays_per_second"];
+    EXPECT_TRUE(fig["stall_shares"].contains("l1"));
 }
 
 TEST(Sampled, TreeletModeIsRefusedForNow) {
