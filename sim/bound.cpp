@@ -15,31 +15,30 @@ namespace rtsim {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-json run_bound(const RunOptions& opt) {
+json run_child(const RunOptions& opt, const std::vector<std::string>& extra, const char* what) {
     std::vector<std::string> args = {"/proc/self/exe"};
     for (size_t i = 1; i < opt.argv.size(); ++i) {
         const std::string& a = opt.argv[i];
         if (a == "--bound" || a == "--quiet" || a == "-q") continue;
-        if (a == "--out" || a == "-o") {
+        if (a == "--out" || a == "-o" || a == "--target-error") {
             ++i;  // and its value
             continue;
         }
-        if (a.rfind("--out=", 0) == 0) continue;
+        if (a.rfind("--out=", 0) == 0 || a.rfind("--target-error=", 0) == 0) continue;
         args.push_back(a);
     }
-    char tmpl[] = "/tmp/rtsim-bound-XXXXXX";
+    char tmpl[] = "/tmp/rtsim-child-XXXXXX";
     const char* dir = mkdtemp(tmpl);
-    if (!dir) throw std::runtime_error("--bound: cannot create a temporary folder");
-    for (const char* extra :
-         {"--set", "sim.ideal_memory=true", "--set", "sim.ideal_units=true", "--quiet", "--out"})
-        args.push_back(extra);
+    if (!dir) throw std::runtime_error(std::string(what) + ": cannot create a temporary folder");
+    args.insert(args.end(), extra.begin(), extra.end());
+    for (const char* a : {"--quiet", "--out"}) args.push_back(a);
     args.push_back(dir);
     std::vector<char*> cargv;
     for (std::string& a : args) cargv.push_back(a.data());
     cargv.push_back(nullptr);
     pid_t pid;
     if (posix_spawn(&pid, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0)
-        throw std::runtime_error("--bound: cannot start the ideal run");
+        throw std::runtime_error(std::string(what) + ": cannot start the run");
     int status = 0;
     waitpid(pid, &status, 0);
     const std::string path = (fs::path(dir) / "stats.json").string();
@@ -48,8 +47,13 @@ json run_bound(const RunOptions& opt) {
     std::error_code ec;
     fs::remove_all(dir, ec);
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded())
-        throw std::runtime_error("--bound: the ideal run failed");
+        throw std::runtime_error(std::string(what) + ": the run failed");
     return b;
+}
+
+json run_bound(const RunOptions& opt) {
+    return run_child(opt, {"--set", "sim.ideal_memory=true", "--set", "sim.ideal_units=true"},
+                     "--bound");
 }
 
 json bound_section(const json& run, const json& ideal) {

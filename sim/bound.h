@@ -2,6 +2,8 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
 
 #include "sim/run.h"
 
@@ -11,6 +13,12 @@ namespace rtsim {
 // SystemC kernel runs once per process) and returns the child's stats.json. Throws
 // std::runtime_error if it fails.
 nlohmann::json run_bound(const RunOptions& opt);
+
+// The command in `opt` again in a child process, without --bound, --target-error, --out and
+// --quiet, with `extra` arguments added; returns its stats.json. `what` names the option that
+// needed it in errors. Throws std::runtime_error if it fails.
+nlohmann::json run_child(const RunOptions& opt, const std::vector<std::string>& extra,
+                         const char* what);
 
 // stats.json's "bound" section from the run's stats and the ideal run's.
 nlohmann::json bound_section(const nlohmann::json& run, const nlohmann::json& ideal);

@@ -31,6 +31,11 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
     rtsim::add_bvh_cache_option(run_cmd, run.bvh_cache);
+    run_cmd
+        ->add_option("--target-error", run.target_error_pct,
+                     "With sim.fidelity=sampled: the 95% interval wanted on the frame's cycles "
+                     "and DRAM bytes, in percent; a pilot sample sizes the rest")
+        ->check(CLI::Range(0.01, 100.0));
     run_cmd->add_flag(
         "--bound", run.bound,
         "Also simulate the same rays with ideal memory and unlimited units, and report "

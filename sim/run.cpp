@@ -93,12 +93,60 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     return w;
 }
 
+// --target-error P (Stein's two-stage procedure): a pilot, the same frame sampled at the configured
+// period in a child process, measures how wide the intervals of the frame's cycles and DRAM
+// bytes are with n units; the run then measures the n (h / P)^2 units a half-width of P needs,
+// by choosing its period (one unit in N / that many). The pilot covers the whole frame, so its
+// spread is the frame's, start-up transients included.
+json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
+    const json pilot = run_child(opt, {}, "--target-error");
+    const json& sm = pilot["sampling"];
+    if (!sm.contains("total_cycles")) {
+        // Too short a frame to sample at this period: measure every unit.
+        sp.period_units = 1;
+        return {{"pilot_period_units", sm.value("period_units", 0)},
+                {"note", "the pilot measured fewer than 2 units: every unit is measured"},
+                {"period_units", 1}};
+    }
+    double worst = sm["total_cycles"]["half_width_pct"].get<double>();
+    if (sm["counters"].contains("dram.bytes"))
+        worst = std::max(worst, sm["counters"]["dram.bytes"]["half_width_pct"].get<double>());
+    const double n_pilot = sm["units_measured"].get<double>();
+    const double units = sm["units"].get<double>();
+    const double ratio = worst / opt.target_error_pct;
+    // The finite-population correction makes the pilot's n look better than it is near N; n
+    // (h / P)^2 with h measured at n is then an overestimate, which only errs towards detail.
+    const double needed = std::min(units, std::ceil(n_pilot * ratio * ratio));
+    sp.period_units = std::max<uint64_t>(1, uint64_t(units / std::max(2.0, needed)));
+    return {{"target_error_pct", opt.target_error_pct},
+            {"pilot_period_units", sm["period_units"]},
+            {"pilot_units_measured", n_pilot},
+            {"pilot_half_width_pct", worst},
+            {"units_needed", needed},
+            {"period_units", sp.period_units},
+            {"pilot_host_s", pilot["host"]["run_time_s"]}};
+}
+
+// Whether the frame's cycles and DRAM bytes came within the target.
+bool target_met(const json& sampling, double target_pct) {
+    if (!sampling.contains("total_cycles")) return false;
+    if (sampling["total_cycles"]["half_width_pct"].get<double>() > target_pct) return false;
+    const json& c = sampling["counters"];
+    return !c.contains("dram.bytes") ||
+           c["dram.bytes"]["half_width_pct"].get<double>() <= target_pct;
+}
+
 }  // namespace
 
 int run_command(const RunOptions& opt) {
     const auto host_start = Clock::now();
     const Config cfg = load_config(opt.config_path, opt.sets);
     check_config_combination(cfg, opt.trace_path);
+    if (opt.target_error_pct > 0 && cfg.typed.sim.fidelity != "sampled")
+        throw InputError(fmt::format(
+            "--target-error: needs sim.fidelity=sampled (this config runs {}); add --set "
+            "sim.fidelity=sampled",
+            cfg.typed.sim.fidelity));
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
     const auto t_prepare = Clock::now();
@@ -112,12 +160,14 @@ int run_command(const RunOptions& opt) {
 
     Chip chip(cfg.typed, &source, w.layout());
     std::unique_ptr<Sampler> sampler;
+    json plan;  // --target-error: the pilot and the period it chose
     if (cfg.typed.sim.fidelity == "sampled") {
         SamplingParams sp;
         sp.unit_rays = cfg.typed.sim.sample_unit_rays;
         sp.period_units = cfg.typed.sim.sample_period_units;
         sp.warmup_rays = cfg.typed.sim.sample_warmup_rays;
         sp.seed = opt.workload.gen.seed;
+        if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
         source.set_sampler(sampler.get());
     }
@@ -152,6 +202,10 @@ int run_command(const RunOptions& opt) {
         // The frame's cycles and rate are the sample's estimates (their intervals are in
         // "sampling"); the blocks' sections stay what the detailed part measured.
         out["sampling"] = sampler->report(chip.total_cycles());
+        if (!plan.is_null()) {
+            plan["met"] = target_met(out["sampling"], opt.target_error_pct);
+            out["sampling"]["target"] = plan;
+        }
         if (out["sampling"].contains("total_cycles")) {
             const double cycles = out["sampling"]["total_cycles"]["value"].get<double>();
             const double seconds = cycles / (cfg.typed.clock_ghz * 1e9);

@@ -19,9 +19,10 @@ struct RunOptions {
     std::string config_path;  // empty: schema defaults
     std::vector<std::string> sets;
     WorkloadOptions workload;
-    std::string trace_path;  // replay this trace instead of generating rays
-    std::string out_dir;     // empty: a fresh folder under out/
-    std::string bvh_cache;   // --bvh-cache: "off", a folder, or empty for the default
+    std::string trace_path;       // replay this trace instead of generating rays
+    std::string out_dir;          // empty: a fresh folder under out/
+    std::string bvh_cache;        // --bvh-cache: "off", a folder, or empty for the default
+    double target_error_pct = 0;  // --target-error (sim.fidelity = sampled)
     bool quiet = false;
     // Also run the same rays with ideal memory and unlimited units (a child rtsim process) and
     // report achieved / bound. `argv` is this process's command line, to repeat it.

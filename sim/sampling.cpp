@@ -138,4 +138,54 @@ Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>&
     return e;
 }
 
+Estimate combined_ratio_estimate(const std::vector<RatioStratum>& strata, double confidence) {
+    Estimate e;
+    e.confidence = confidence;
+    double ny = 0, nx = 0;  // N_h-weighted sums of the strata's means
+    uint64_t df = 0;
+    for (const RatioStratum& s : strata) {
+        if (s.y.size() != s.x.size())
+            throw std::invalid_argument("combined_ratio_estimate: y and x differ in size");
+        e.units += s.y.size();
+        e.population += s.population;
+        if (s.y.empty()) continue;
+        double sy = 0, sx = 0;
+        for (size_t i = 0; i < s.y.size(); ++i) {
+            sy += s.y[i];
+            sx += s.x[i];
+        }
+        const double n = double(s.y.size());
+        ny += double(s.population) * sy / n;
+        nx += double(s.population) * sx / n;
+        if (s.y.size() >= 2) df += s.y.size() - 1;
+    }
+    if (nx == 0.0) {
+        e.half_width = std::numeric_limits<double>::infinity();
+        return e;
+    }
+    e.value = ny / nx;
+    if (df == 0) {
+        e.half_width = e.units == e.population ? 0.0 : std::numeric_limits<double>::infinity();
+        return e;
+    }
+    double variance = 0;  // of sum_h N_h mean(y_h - R x_h), then divided by X^2
+    for (const RatioStratum& s : strata) {
+        if (s.y.size() < 2) continue;
+        const double n = double(s.y.size());
+        double ss = 0, mean_d = 0;
+        for (size_t i = 0; i < s.y.size(); ++i) mean_d += s.y[i] - e.value * s.x[i];
+        mean_d /= n;
+        for (size_t i = 0; i < s.y.size(); ++i) {
+            const double d = s.y[i] - e.value * s.x[i] - mean_d;
+            ss += d * d;
+        }
+        const double N = double(s.population);
+        const double fpc = N > 0 ? std::max(0.0, 1.0 - n / N) : 1.0;
+        variance += N * N * fpc * ss / (n - 1.0) / n;
+    }
+    variance /= nx * nx;
+    e.half_width = student_t_quantile(0.5 + confidence / 2.0, double(df)) * std::sqrt(variance);
+    return e;
+}
+
 }  // namespace rtsim

@@ -43,4 +43,17 @@ Estimate mean_estimate(const std::vector<double>& x, uint64_t population, double
 Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>& x,
                         uint64_t population, double confidence = 0.95);
 
+// A stratum of a stratified sample: its measured units' pairs and how many units it has.
+struct RatioStratum {
+    std::vector<double> y, x;
+    uint64_t population = 0;
+};
+
+// The combined ratio estimator over strata sampled at different rates (Cochran 1977, 6.11):
+// R = sum_h N_h mean(y_h) / sum_h N_h mean(x_h), its variance from each stratum's residuals
+// y - R x with that stratum's finite-population correction, t with sum(n_h - 1) degrees of
+// freedom. With one stratum it is ratio_estimate. A stratum with fewer than 2 measured units
+// borrows nothing and adds no variance: its units count at the ratio of the others.
+Estimate combined_ratio_estimate(const std::vector<RatioStratum>& strata, double confidence = 0.95);
+
 }  // namespace rtsim

@@ -119,10 +119,10 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
 
 void check_config_combination(const Config& cfg, const std::string& trace_path) {
     const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.typed.traversal.mode);
-    if (cfg.typed.sim.fidelity == "sampled" && mode.needs_treelets)
+    if (cfg.typed.sim.fidelity == "sampled" && (mode.needs_treelets || mode.packets))
         throw InputError(fmt::format(
-            "sim.fidelity=sampled: not yet with traversal.mode={} (its ray buffer admits rays "
-            "ahead of the cores, so a unit's hand-out times are not its rays' start)",
+            "sim.fidelity=sampled: not yet with traversal.mode={} (a treelet ray buffer admits "
+            "rays ahead of the cores, a packet spans unit boundaries)",
             mode.name));
     if (!mode.replays_traces && !trace_path.empty())
         throw InputError(

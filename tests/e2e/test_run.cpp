@@ -331,6 +331,28 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     EXPECT_TRUE(fig["stall_shares"].contains("l1"));
 }
 
+// --target-error: a pilot of the whole frame sizes the sample; the intervals of the frame's
+// cycles and DRAM bytes then come within the target, and a looser target measures less.
+TEST(Sampled, TargetErrorIsHonoured) {
+    const std::string common = "run --scene " RTSIM_BUNNY_OBJ
+                               " --rays primary,ao --res 96x96 --set sim.fidelity=sampled "
+                               "--set sim.sample_unit_rays=128 --set sim.sample_period_units=8 ";
+    const fs::path loose = work_dir() / "loose", tight = work_dir() / "tight";
+    ASSERT_EQ(run_rtsim(common + "--target-error 40 -o '" + loose.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(common + "--target-error 10 -o '" + tight.string() + "'").status, 0);
+    const json l = stats_of(loose)["sampling"], t = stats_of(tight)["sampling"];
+    for (const json* s : {&l, &t}) {
+        const double target = (*s)["target"]["target_error_pct"].get<double>();
+        EXPECT_TRUE((*s)["target"]["met"].get<bool>()) << (*s)["target"];
+        EXPECT_LE((*s)["total_cycles"]["half_width_pct"].get<double>(), target);
+        EXPECT_LE((*s)["counters"]["dram.bytes"]["half_width_pct"].get<double>(), target);
+    }
+    EXPECT_GT(l["target"]["period_units"].get<int>(), t["target"]["period_units"].get<int>());
+    EXPECT_LT(l["detailed_share"].get<double>(), t["detailed_share"].get<double>());
+    expect_one_line_error(run_rtsim("run --res 16x16 --target-error 5"),
+                          "--target-error: needs sim.fidelity=sampled");
+}
+
 TEST(Sampled, TreeletModeIsRefusedForNow) {
     expect_one_line_error(run_rtsim("run --config '" + std::string(RTSIM_SOURCE_DIR) +
                                     "/configs/treelet.json' --set sim.fidelity=sampled"),

@@ -132,3 +132,52 @@ TEST(Sampling, DegenerateSamples) {
     EXPECT_EQ(mean_estimate({3, 3, 3}, 100).half_width, 0.0);
     EXPECT_THROW(ratio_estimate({1}, {1, 2}, 10), std::invalid_argument);
 }
+
+// Two strata sampled at different rates (a dense one and a sparse one, as a sample sized in two
+// stages is): the combined ratio estimator covers the population ratio, where pooling the units
+// as if equally likely would not.
+TEST(Sampling, CombinedRatioOverStrataSampledAtDifferentRates) {
+    std::mt19937_64 rng(33);
+    // Stratum A: cheap units (rate ~8); stratum B: dear units (rate ~20).
+    const size_t na = 1000, nb = 3000;
+    std::vector<double> ya(na), xa(na), yb(nb), xb(nb);
+    std::uniform_int_distribution<int> work(50, 150);
+    std::normal_distribution<double> ra(8.0, 2.0), rb(20.0, 4.0);
+    for (size_t i = 0; i < na; ++i) ya[i] = (xa[i] = work(rng)) * std::max(1.0, ra(rng));
+    for (size_t i = 0; i < nb; ++i) yb[i] = (xb[i] = work(rng)) * std::max(1.0, rb(rng));
+    const double truth =
+        (std::accumulate(ya.begin(), ya.end(), 0.0) + std::accumulate(yb.begin(), yb.end(), 0.0)) /
+        (std::accumulate(xa.begin(), xa.end(), 0.0) + std::accumulate(xb.begin(), xb.end(), 0.0));
+    int covered = 0, pooled_covered = 0;
+    const int trials = 1000;
+    for (int t = 0; t < trials; ++t) {
+        std::vector<RatioStratum> strata(2);
+        strata[0].population = na;
+        strata[1].population = nb;
+        for (size_t i : draw(na, 100, rng)) {  // 1 in 10
+            strata[0].y.push_back(ya[i]);
+            strata[0].x.push_back(xa[i]);
+        }
+        for (size_t i : draw(nb, 30, rng)) {  // 1 in 100
+            strata[1].y.push_back(yb[i]);
+            strata[1].x.push_back(xb[i]);
+        }
+        const Estimate e = combined_ratio_estimate(strata);
+        covered += e.lo() <= truth && truth <= e.hi();
+        std::vector<double> y = strata[0].y, x = strata[0].x;
+        y.insert(y.end(), strata[1].y.begin(), strata[1].y.end());
+        x.insert(x.end(), strata[1].x.begin(), strata[1].x.end());
+        const Estimate pooled = ratio_estimate(y, x, na + nb);
+        pooled_covered += pooled.lo() <= truth && truth <= pooled.hi();
+    }
+    EXPECT_GT(double(covered) / trials, 0.93);
+    EXPECT_LT(double(covered) / trials, 0.975);
+    EXPECT_LT(double(pooled_covered) / trials, 0.5);  // the dense stratum drags it off
+    // One stratum: the plain ratio estimator.
+    std::vector<RatioStratum> one(1);
+    one[0] = {{10, 22, 29}, {1, 2, 3}, 50};
+    const Estimate a = combined_ratio_estimate(one),
+                   b = ratio_estimate({10, 22, 29}, {1, 2, 3}, 50);
+    EXPECT_DOUBLE_EQ(a.value, b.value);
+    EXPECT_NEAR(a.half_width, b.half_width, 1e-12);
+}
