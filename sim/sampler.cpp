@@ -45,13 +45,15 @@ bool Sampler::fast_forward(const RayWork& work) {
 }
 
 void Sampler::handed_out(Cycle now) {
-    last_handout_ = now;
+    last_handout_ = std::max(last_handout_, now);
     const uint64_t unit = current_ / params_.unit_rays;
     const bool first_of_unit = current_ % params_.unit_rays == 0;
     if (open_ && (unit != open_unit_)) {
         // The ray after the measured unit: close it.
         work_.push_back(double(unit_work_));
-        cycles_.push_back(double(now - open_cycle_));
+        // Signed: cores take work within a horizon of each other, so hand-out cycles are not
+        // strictly in order (differences telescope over the frame).
+        cycles_.push_back(double(now) - double(open_cycle_));
         const auto& e = counters_.entries();
         for (size_t c = 0; c < e.size(); ++c)
             deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
@@ -76,7 +78,7 @@ void Sampler::finish() {
     const uint64_t start = open_unit_ * params_.unit_rays;
     if (index_ > start + 1) {
         work_.push_back(double(unit_work_ - current_work_));
-        cycles_.push_back(double(last_handout_ - open_cycle_));
+        cycles_.push_back(double(last_handout_) - double(open_cycle_));
         const auto& e = counters_.entries();
         for (size_t c = 0; c < e.size(); ++c)
             deltas_[c].push_back(double(*e[c].value - open_counts_[c]));

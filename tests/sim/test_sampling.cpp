@@ -7,6 +7,7 @@
 #include <numeric>
 #include <random>
 
+#include "sim/sampler.h"
 #include "sim/sampling.h"
 
 using namespace rtsim;
@@ -180,4 +181,48 @@ TEST(Sampling, CombinedRatioOverStrataSampledAtDifferentRates) {
                    b = ratio_estimate({10, 22, 29}, {1, 2, 3}, 50);
     EXPECT_DOUBLE_EQ(a.value, b.value);
     EXPECT_NEAR(a.half_width, b.half_width, 1e-12);
+}
+
+// The sampler's bookkeeping, without a chip: which rays it keeps from the cores, and units
+// timed by hand-out cycles that are not strictly in order (cores take work within a horizon of
+// each other; bench_sampled once found a unit "lasting" 2^64 cycles from such a pair).
+TEST(Sampling, SamplerKeepsUnitsAndTimesThemByHandOut) {
+    StatsRegistry reg;
+    uint64_t bytes = 0;
+    reg.add("dram", "bytes", &bytes, "test counter");
+    SamplingParams sp;
+    sp.unit_rays = 4;
+    sp.period_units = 1;  // every unit measured: nothing fast-forwarded
+    sp.warmup_rays = 0;
+    Sampler all(sp, {}, reg);
+    RayWork w;
+    w.steps.resize(3);  // 4 units of work per ray with its setup
+    for (int i = 0; i < 40; ++i) {
+        ASSERT_FALSE(all.fast_forward(w));
+        bytes += 64;
+        // Ray 8 opens a unit at a cycle after the one ray 12 closes it at.
+        all.handed_out(Cycle(i == 8 ? 125 : 10 * i));
+    }
+    const nlohmann::json r = all.report(400);
+    // 39 rays' work spans 390 cycles of hand-outs, plus the 10-cycle drain.
+    EXPECT_NEAR(r["total_cycles"]["value"].get<double>(), 400.0, 1e-6);
+    EXPECT_NEAR(r["counters"]["dram.bytes"]["value"].get<double>(), 39 * 64.0, 1e-6);
+    EXPECT_EQ(r["units_measured"], 10);
+    // One unit in 2 measured, one ray of warm-up: rays of the other units never reach a core,
+    // but every ray is counted.
+    sp.period_units = 2;
+    sp.warmup_rays = 1;
+    Sampler half(sp, {}, reg);
+    int kept = 0;
+    for (int i = 0; i < 40; ++i) {
+        if (half.fast_forward(w)) continue;
+        ++kept;
+        half.handed_out(Cycle(10 * i));
+    }
+    EXPECT_EQ(half.rays_seen(), 40u);
+    EXPECT_EQ(uint64_t(kept), half.rays_detailed());
+    // 5 measured units of 4, each with a warm-up ray before and the ray after (which is the
+    // next unit's warm-up ray or its first), within 40 rays.
+    EXPECT_GE(kept, 20);
+    EXPECT_LE(kept, 30);
 }
