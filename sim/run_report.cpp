@@ -155,6 +155,15 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                        c["half_width_pct"].get<double>());
         }
         fmt::print("\n");
+        if (sm.contains("target")) {
+            const json& t = sm["target"];
+            fmt::print(
+                "  target   {}% ({}): a pilot at 1 unit in {} gave {:.1f}%, so 1 unit in {} was "
+                "measured\n",
+                t.value("target_error_pct", 0.0), t.value("met", false) ? "met" : "NOT met",
+                t.value("pilot_period_units", 0), t.value("pilot_half_width_pct", 0.0),
+                t.value("period_units", 0));
+        }
     }
     fmt::print("  units    box {:.1f}% busy, triangle {:.1f}% busy\n",
                100 * un["box_unit_total"]["utilization"].get<double>(),
