@@ -24,7 +24,6 @@ bench/results/reduced_precision.{md,json} and prints the summary.
 import argparse
 import concurrent.futures
 import itertools
-import json
 import os
 import re
 import statistics
@@ -34,7 +33,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rtsim_run import SCENES, run_stats  # noqa: E402
+from rtsim_run import SCENES, run_stats, write_results  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PRECISION_SCENES = "cornell,bunny,armadillo,elephant,homer,turbine"
@@ -181,11 +180,8 @@ def main():
             f"{c['dram_bytes_per_ray']:.1f} ({c['dram_bytes_per_ray_pct']:+.1f}%) | "
             f"{c['cycles']} ({c['cycles_pct']:+.1f}%) | {c['hit_mismatches']} |")
     text = "\n".join(lines) + "\n"
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "reduced_precision.md"), "w") as f:
-        f.write(text)
-    with open(os.path.join(args.out, "reduced_precision.json"), "w") as f:
-        json.dump({"res": args.res, "width": args.width, "cells": cells}, f, indent=1)
+    write_results(args.out, "reduced_precision", text,
+                  {"res": args.res, "width": args.width, "cells": cells})
     print("\n".join(lines[:lines.index("## Every cell")]))
     if any(c["hit_mismatches"] != 0 for c in cells):
         sys.exit("bench_precision: some reduced-precision run changed a hit")

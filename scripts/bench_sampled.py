@@ -18,14 +18,13 @@ Writes bench/results/sampled.{md,json} and prints the summary.
 """
 import argparse
 import concurrent.futures
-import json
 import os
 import statistics
 import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rtsim_run import ROOT, SCENES, run_stats  # noqa: E402
+from rtsim_run import ROOT, SCENES, run_stats, write_results  # noqa: E402
 
 
 def main():
@@ -126,12 +125,8 @@ def main():
             f"{dr['max_abs_error_pct']:.2f}% | {dr['mean_half_width_pct']:.2f}% | "
             f"{100 * dr['coverage']:.0f}% | {c['run_ratio']:.2f} | {c['sim_ratio']:.2f} |")
     text = "\n".join(lines) + "\n"
-    os.makedirs(args.out, exist_ok=True)
-    with open(os.path.join(args.out, "sampled.md"), "w") as f:
-        f.write(text)
-    with open(os.path.join(args.out, "sampled.json"), "w") as f:
-        json.dump({"res": args.res, "rays": args.rays, "unit_rays": args.unit_rays,
-                   "cells": cells}, f, indent=1)
+    write_results(args.out, "sampled", text, {"res": args.res, "rays": args.rays,
+                                              "unit_rays": args.unit_rays, "cells": cells})
     print(text)
 
 

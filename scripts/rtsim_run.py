@@ -23,3 +23,12 @@ def run_stats(rtsim, args, out, who, prefix=()):
         sys.exit(f"{who}: {' '.join(cmd)} failed: {r.stderr.strip()}")
     with open(os.path.join(out, "stats.json")) as f:
         return json.load(f)
+
+
+def write_results(out_dir, name, text, data):
+    """Writes a benchmark's summary to OUT_DIR/NAME.md and its cells to OUT_DIR/NAME.json."""
+    os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, name + ".md"), "w") as f:
+        f.write(text)
+    with open(os.path.join(out_dir, name + ".json"), "w") as f:
+        json.dump(data, f, indent=1)
