@@ -36,6 +36,8 @@ def main():
     ap.add_argument("--periods", default="5,10,20")
     ap.add_argument("--unit-rays", type=int, default=1024)
     ap.add_argument("--seeds", type=int, default=30)
+    ap.add_argument("--set", action="append", default=[],
+                    help="KEY=VALUE config override for the sampled runs (repeatable)")
     ap.add_argument("-j", type=int, default=2)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     args = ap.parse_args()
@@ -58,7 +60,8 @@ def main():
         scene, period, seed = job
         return run_stats(args.rtsim, frame(scene, seed) + [
             "--set", "sim.fidelity=sampled", "--set", f"sim.sample_period_units={period}",
-            "--set", f"sim.sample_unit_rays={args.unit_rays}"],
+            "--set", f"sim.sample_unit_rays={args.unit_rays}"] +
+            [a for kv in args.set for a in ("--set", kv)],
             os.path.join(tmp, f"s-{scene}-{period}-{seed}"), "bench_sampled")
 
     seeds = range(1, args.seeds + 1)

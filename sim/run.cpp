@@ -169,6 +169,11 @@ int run_command(const RunOptions& opt) {
         sp.seed = opt.workload.gen.seed;
         if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
+        const BvhLayout& L = w.layout();
+        sampler->set_line_range(std::min(L.node_base_addr, L.tri_base_addr),
+                                std::max(L.node_base_addr + L.node_bytes_total(),
+                                         L.tri_base_addr + L.tri_bytes_total()),
+                                uint32_t(cfg.typed.l1.line_bytes));
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

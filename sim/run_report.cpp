@@ -155,6 +155,11 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                        c["half_width_pct"].get<double>());
         }
         fmt::print("\n");
+        if (sm.value("units_measured", 0) < 30)
+            fmt::print(
+                "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "
+                "nominal 95% in bench/results/sampled.md): lower sim.sample_period_units or "
+                "sim.sample_unit_rays\n");
         if (sm.contains("target")) {
             const json& t = sm["target"];
             fmt::print(

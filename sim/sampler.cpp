@@ -1,5 +1,6 @@
 #include "sim/sampler.h"
 
+#include <algorithm>
 #include <random>
 
 #include "sim/sampling.h"
@@ -27,11 +28,31 @@ bool Sampler::detailed_ray(uint64_t i) const {
     return measured_unit(unit + 1) && next_start - i <= params_.warmup_rays;
 }
 
+void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
+    line_shift_ = uint64_t(__builtin_ctz(line_bytes));
+    first_line_ = base >> line_shift_;
+    const uint64_t lines = end > base ? ((end - 1) >> line_shift_) - first_line_ + 1 : 0;
+    touched_.assign((lines + 63) / 64, 0);
+}
+
 bool Sampler::fast_forward(const RayWork& work) {
     current_ = index_;
     index_ += work.rays;
     current_work_ = work.steps.size() + work.rays;
     work_total_ += current_work_;
+    current_new_ = 0;
+    if (!touched_.empty())
+        for (const Step& s : work.steps) {
+            const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_;
+            for (uint64_t line = s.addr >> line_shift_; line <= last; ++line) {
+                const uint64_t k = line - first_line_;
+                if (line < first_line_ || k / 64 >= touched_.size()) continue;
+                const uint64_t bit = uint64_t(1) << (k % 64);
+                current_new_ += (touched_[k / 64] & bit) == 0;
+                touched_[k / 64] |= bit;
+            }
+        }
+    new_total_ += current_new_;
     if (detailed_ray(current_)) {
         detailed_ += work.rays;
         return false;
@@ -51,6 +72,7 @@ void Sampler::handed_out(Cycle now) {
     if (open_ && (unit != open_unit_)) {
         // The ray after the measured unit: close it.
         work_.push_back(double(unit_work_));
+        new_.push_back(double(unit_new_));
         // Signed: cores take work within a horizon of each other, so hand-out cycles are not
         // strictly in order (differences telescope over the frame).
         cycles_.push_back(double(now) - double(open_cycle_));
@@ -67,8 +89,12 @@ void Sampler::handed_out(Cycle now) {
         open_counts_.resize(e.size());
         for (size_t c = 0; c < e.size(); ++c) open_counts_[c] = *e[c].value;
         unit_work_ = 0;
+        unit_new_ = 0;
     }
-    if (open_) unit_work_ += current_work_;
+    if (open_) {
+        unit_work_ += current_work_;
+        unit_new_ += current_new_;
+    }
 }
 
 void Sampler::finish() {
@@ -78,6 +104,7 @@ void Sampler::finish() {
     const uint64_t start = open_unit_ * params_.unit_rays;
     if (index_ > start + 1) {
         work_.push_back(double(unit_work_ - current_work_));
+        new_.push_back(double(unit_new_ - current_new_));
         cycles_.push_back(double(last_handout_) - double(open_cycle_));
         const auto& e = counters_.entries();
         for (size_t c = 0; c < e.size(); ++c)
@@ -121,15 +148,20 @@ json Sampler::report(Cycle end_cycle) {
     // The work the hand-out times span: all but the last ray's (whose hand-out ends the span;
     // the drain after it is measured).
     const double work = double(work_total_ - current_work_);
-    const Estimate cyc = ratio_estimate(cycles_, work_, units);
-    out["total_cycles"] = estimate_json(cyc, work, double(end_cycle - last_handout_));
+    const double fresh = double(new_total_ - current_new_);
+    out["new_lines"] = new_total_;
+    // Totals by regression on both auxiliaries (the ratio to work when no lines are counted).
+    auto total = [&](const std::vector<double>& y) {
+        return regression_total(y, work_, new_, work, fresh, units);
+    };
+    out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
     json counters = json::object();
     const auto& e = counters_.entries();
     for (size_t c = 0; c < e.size(); ++c) {
         double sum = 0;
         for (double d : deltas_[c]) sum += d;
         if (sum == 0) continue;  // a counter that never moved in a measured unit
-        counters[e[c].name] = estimate_json(ratio_estimate(deltas_[c], work_, units), work);
+        counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
     }
     out["counters"] = counters;
     out["figures"] = figures(units);

@@ -49,6 +49,10 @@ class Sampler {
     bool fast_forward(const RayWork& work);
     // The ray just judged detailed is handed out at `now`.
     void handed_out(Cycle now);
+    // The addresses rays fetch from ([base, end), in lines of line_bytes): every ray's first
+    // touches of lines are then counted, a second auxiliary figure (DRAM traffic follows new
+    // lines far more than work: compulsory misses).
+    void set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes);
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
@@ -88,9 +92,15 @@ class Sampler {
     Cycle open_cycle_ = 0;
     std::vector<uint64_t> open_counts_;
     Cycle last_handout_ = 0;
-    uint64_t work_total_ = 0;    // steps + rays of every ray judged
-    uint64_t current_work_ = 0;  // of the ray just judged
-    uint64_t unit_work_ = 0;     // of the open unit's rays handed out so far
+    uint64_t first_line_ = 0, line_shift_ = 6;
+    std::vector<uint64_t> touched_;  // a bit per line of the range: fetched before
+    uint64_t new_total_ = 0;         // lines first touched by every ray judged
+    uint64_t current_new_ = 0;       // by the ray just judged
+    uint64_t unit_new_ = 0;          // by the open unit's rays handed out so far
+    std::vector<double> new_;        // per measured unit
+    uint64_t work_total_ = 0;        // steps + rays of every ray judged
+    uint64_t current_work_ = 0;      // of the ray just judged
+    uint64_t unit_work_ = 0;         // of the open unit's rays handed out so far
     // Per measured unit: its work, cycles, and each counter's change.
     std::vector<double> work_, cycles_;
     std::vector<std::vector<double>> deltas_;  // [counter][unit]

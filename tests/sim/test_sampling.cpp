@@ -226,3 +226,46 @@ TEST(Sampling, SamplerKeepsUnitsAndTimesThemByHandOut) {
     EXPECT_GE(kept, 20);
     EXPECT_LE(kept, 30);
 }
+
+// The regression estimator of a total on two auxiliaries with known totals (work and first
+// touches, in a sampled run): it covers, and where y follows the second auxiliary (DRAM bytes
+// follow first touches, not work) its interval is far narrower than the ratio estimator's.
+TEST(Sampling, RegressionOnTwoAuxiliariesCoversAndNarrows) {
+    std::mt19937_64 rng(44);
+    const size_t N = 3000;
+    std::vector<double> y(N), x1(N), x2(N);
+    std::uniform_int_distribution<int> work(50, 150);
+    std::exponential_distribution<double> first(1.0 / 5.0);  // heavy-ish tail, as new lines
+    std::normal_distribution<double> noise(0.0, 20.0);
+    for (size_t i = 0; i < N; ++i) {
+        x1[i] = work(rng);
+        x2[i] = std::floor(first(rng));
+        y[i] = std::max(0.0, 0.5 * x1[i] + 64.0 * x2[i] + noise(rng));
+    }
+    const double X1 = std::accumulate(x1.begin(), x1.end(), 0.0);
+    const double X2 = std::accumulate(x2.begin(), x2.end(), 0.0);
+    const double truth = std::accumulate(y.begin(), y.end(), 0.0);
+    int covered = 0;
+    double reg_width = 0, ratio_width = 0;
+    const int trials = 1500;
+    for (int t = 0; t < trials; ++t) {
+        std::vector<double> ys, a, b;
+        for (size_t i : draw(N, 60, rng)) {
+            ys.push_back(y[i]);
+            a.push_back(x1[i]);
+            b.push_back(x2[i]);
+        }
+        const Estimate e = regression_total(ys, a, b, X1, X2, N);
+        covered += e.lo() <= truth && truth <= e.hi();
+        reg_width += e.relative_half_width();
+        ratio_width += ratio_estimate(ys, a, N).relative_half_width();
+    }
+    EXPECT_GT(double(covered) / trials, 0.93);
+    EXPECT_LT(double(covered) / trials, 0.975);
+    EXPECT_LT(reg_width, 0.3 * ratio_width);
+    // With a second auxiliary of zeros it is the ratio estimator's total.
+    const std::vector<double> ys = {10, 22, 29, 41}, a = {1, 2, 3, 4}, zero(4, 0.0);
+    const Estimate r = regression_total(ys, a, zero, 100.0, 0.0, 50);
+    const Estimate q = ratio_estimate(ys, a, 50);
+    EXPECT_NEAR(r.value, q.value * 100.0, 1e-9);
+}
