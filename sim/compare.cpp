@@ -90,10 +90,11 @@ Comparison compare_runs(std::vector<ComparedRun> runs) {
         if (differs) c.differences.emplace_back(key, std::move(values));
     }
     for (const FigureDef& m : figure_list()) {
-        Comparison::Row row{m.name, m.relative, m.percent, {}};
+        Comparison::Row row{m.name, m.relative, m.percent, {}, {}};
         bool any = false;
         for (const auto& run : c.runs) {
             row.values.push_back(m.value(run.stats));
+            row.interval_pct.push_back(interval_pct(m, run.stats));
             any = any || !std::isnan(row.values.back());
         }
         if (any) c.rows.push_back(std::move(row));
@@ -127,7 +128,13 @@ std::string format_comparison(const Comparison& c) {
     table.push_back(head);
     for (const auto& row : c.rows) {
         std::vector<std::string> cells{row.name};
-        for (double v : row.values) cells.push_back(format_figure(v, row.percent));
+        for (size_t r = 0; r < row.values.size(); ++r) {
+            std::string cell = format_figure(row.values[r], row.percent);
+            // A sampled run's estimate carries its interval.
+            if (!std::isnan(row.interval_pct[r]))
+                cell += fmt::format(" +-{:.1f}%", row.interval_pct[r]);
+            cells.push_back(std::move(cell));
+        }
         for (size_t r = 1; r < row.values.size(); ++r)
             cells.push_back(format_relative(row.values[0], row.values[r], row));
         table.push_back(std::move(cells));
@@ -135,7 +142,8 @@ std::string format_comparison(const Comparison& c) {
     out += "\n" + format_table(table, true);
     out +=
         "\nvs: ratio to the first run, or the difference in percentage points (pts).\n"
-        "host: wall-clock timing of the machine that ran the run, not a simulated result.\n";
+        "host: wall-clock timing of the machine that ran the run, not a simulated result.\n"
+        "+-: a sampled run's estimate and the half-width of its 95% interval (relative).\n";
     return out;
 }
 

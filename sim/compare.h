@@ -30,8 +30,9 @@ struct Comparison {
     struct Row {
         std::string name;
         Relative relative = Relative::Ratio;
-        bool percent = false;        // a fraction shown as a percentage
-        std::vector<double> values;  // per run; NaN where the run has no such figure
+        bool percent = false;              // a fraction shown as a percentage
+        std::vector<double> values;        // per run; NaN where the run has no such figure
+        std::vector<double> interval_pct;  // per run: a sampled run's 95% half-width; else NaN
     };
     std::vector<ComparedRun> runs;
     // Settings that differ between runs: "config: l1.size_kib" -> its value in each run.

@@ -49,29 +49,68 @@ std::vector<FigureDef> make_figures() {
         const std::string p = "/stalls/total/share/" + cause;
         return [p](const json& j) { return number_at(j, p.c_str()); };
     };
+    // A sampled run's estimate where it has one, else the run's own figure.
+    auto estimate_or = [](std::string sampled, std::function<double(const json&)> plain,
+                          double scale = 1.0) {
+        return [sampled, plain, scale](const json& j) {
+            const double v = number_at(j, (sampled + "/value").c_str());
+            return std::isnan(v) ? plain(j) : v * scale;
+        };
+    };
     std::vector<FigureDef> list = {
-        {"cycles", R::Ratio, false, at("/total_cycles"), true},
+        {"cycles", R::Ratio, false, at("/total_cycles"), true, "/sampling/total_cycles"},
         {"simulated Mrays/s", R::Ratio, false,
-         [](const json& j) { return number_at(j, "/rays_per_second") / 1e6; }, true},
+         [](const json& j) { return number_at(j, "/rays_per_second") / 1e6; }, true,
+         "/sampling/figures/rays_per_second"},
         {"rays", R::Ratio, false, at("/rays/total")},
         {"steps per ray", R::Ratio, false, [](const json& j) { return per_ray(j, "/rays/steps"); }},
-        {"L1 hit rate", R::Points, true, at("/caches/l1_total/hit_rate"), true},
-        {"L2 hit rate", R::Points, true, at("/caches/l2/hit_rate"), true},
+        {"L1 hit rate", R::Points, true,
+         estimate_or("/sampling/figures/l1_hit_rate", at("/caches/l1_total/hit_rate")), true,
+         "/sampling/figures/l1_hit_rate"},
+        {"L2 hit rate", R::Points, true,
+         estimate_or("/sampling/figures/l2_hit_rate", at("/caches/l2/hit_rate")), true,
+         "/sampling/figures/l2_hit_rate"},
         {"L2->L1 bytes per ray", R::Ratio, false,
-         [](const json& j) { return per_ray(j, "/bandwidth/l2/bytes"); }, true},
+         [](const json& j) {
+             const double est = number_at(j, "/sampling/counters/l2.bytes_requested/value");
+             const double rays = number_at(j, "/rays/total");
+             return std::isnan(est) ? per_ray(j, "/bandwidth/l2/bytes") : est / rays;
+         },
+         true, "/sampling/counters/l2.bytes_requested"},
         {"DRAM bytes per ray", R::Ratio, false,
-         [](const json& j) { return per_ray(j, "/bandwidth/dram/bytes"); }, true},
-        {"DRAM GB/s", R::Ratio, false, at("/bandwidth/dram/gbps")},
+         [](const json& j) {
+             const double est = number_at(j, "/sampling/counters/dram.bytes/value");
+             const double rays = number_at(j, "/rays/total");
+             return std::isnan(est) ? per_ray(j, "/bandwidth/dram/bytes") : est / rays;
+         },
+         true, "/sampling/counters/dram.bytes"},
+        {"DRAM GB/s", R::Ratio, false,
+         [](const json& j) {
+             // bytes per cycle x GHz = GB/s
+             const double est = number_at(j, "/sampling/figures/dram_bytes_per_cycle/value");
+             return std::isnan(est) ? number_at(j, "/bandwidth/dram/gbps")
+                                    : est * number_at(j, "/clock_ghz");
+         },
+         false, "/sampling/figures/dram_bytes_per_cycle"},
         {"DRAM utilisation", R::Points, true, at("/bandwidth/dram/utilization")},
         {"DRAM row hit rate", R::Points, true, at("/bandwidth/dram/row_hit_rate")},
         {"crossbar utilisation", R::Points, true, at("/bandwidth/crossbar/utilization")},
         {"box unit utilisation", R::Points, true,
-         [](const json& j) { return mean_over(j, "units", "box_unit[", "utilization"); }},
+         estimate_or(
+             "/sampling/figures/box_unit_utilization",
+             [](const json& j) { return mean_over(j, "units", "box_unit[", "utilization"); }),
+         false, "/sampling/figures/box_unit_utilization"},
         {"triangle unit utilisation", R::Points, true,
-         [](const json& j) { return mean_over(j, "units", "triangle_unit[", "utilization"); }},
+         estimate_or(
+             "/sampling/figures/triangle_unit_utilization",
+             [](const json& j) { return mean_over(j, "units", "triangle_unit[", "utilization"); }),
+         false, "/sampling/figures/triangle_unit_utilization"},
     };
-    for (const std::string& cause : stall_causes())
-        list.push_back({"stall: " + stall_cause_label(cause), R::Points, true, share(cause)});
+    for (const std::string& cause : stall_causes()) {
+        const std::string sampled = "/sampling/figures/stall_shares/" + cause;
+        list.push_back({"stall: " + stall_cause_label(cause), R::Points, true,
+                        estimate_or(sampled, share(cause)), false, sampled});
+    }
     list.insert(
         list.end(),
         {
@@ -90,6 +129,11 @@ std::vector<FigureDef> make_figures() {
 }
 
 }  // namespace
+
+double interval_pct(const FigureDef& f, const json& stats) {
+    if (f.sampled.empty()) return kNone;
+    return number_at(stats, (f.sampled + "/half_width_pct").c_str());
+}
 
 const std::vector<FigureDef>& figure_list() {
     static const std::vector<FigureDef> list = make_figures();

@@ -18,7 +18,14 @@ struct FigureDef {
     // The figure in one stats.json; NaN where the run has none (a mode's figures).
     std::function<double(const nlohmann::json&)> value;
     bool sweep_table = false;  // one of the columns of a sweep's printed table
+    // A sampled run's estimate of the figure (its "sampling" section), if it has one: the
+    // JSON pointer of the estimate object ({value, lo, hi, half_width_pct}); empty: none.
+    std::string sampled = {};
 };
+
+// The half-width of a sampled run's 95% interval on figure `f`, in percent; NaN when the run is
+// not sampled or the figure has no interval.
+double interval_pct(const FigureDef& f, const nlohmann::json& stats);
 
 // Every figure, in table order.
 const std::vector<FigureDef>& figure_list();

@@ -329,6 +329,17 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     EXPECT_TRUE(holds(fig["rays_per_second"], f["rays_per_second"].get<double>()))
         << fig["rays_per_second"];
     EXPECT_TRUE(fig["stall_shares"].contains("l1"));
+    // compare shows a sampled run's estimates with their intervals.
+    const Result cmp = run_rtsim("compare '" + full.string() + "' '" + a.string() + "'");
+    ASSERT_EQ(cmp.status, 0) << cmp.err;
+    const size_t row = cmp.out.find("\ncycles ");
+    ASSERT_NE(row, std::string::npos) << cmp.out;
+    const std::string line = cmp.out.substr(row + 1, cmp.out.find('\n', row + 1) - row - 1);
+    EXPECT_NE(
+        line.find(fmt::format("+-{:.1f}%", sm["total_cycles"]["half_width_pct"].get<double>())),
+        std::string::npos)
+        << line;
+    EXPECT_NE(cmp.out.find("95% interval"), std::string::npos);
 }
 
 // --target-error: a pilot of the whole frame sizes the sample; the intervals of the frame's
