@@ -57,6 +57,15 @@ std::vector<FigureDef> make_figures() {
             return std::isnan(v) ? plain(j) : v * scale;
         };
     };
+    // Bytes per ray through a level: a sampled run's estimate of `counter`, else the run's
+    // bandwidth section for `level`.
+    auto bytes_per_ray = [](std::string counter, std::string level) {
+        return [counter, level](const json& j) {
+            const double est = number_at(j, ("/sampling/counters/" + counter + "/value").c_str());
+            return std::isnan(est) ? per_ray(j, ("/bandwidth/" + level + "/bytes").c_str())
+                                   : est / number_at(j, "/rays/total");
+        };
+    };
     std::vector<FigureDef> list = {
         {"cycles", R::Ratio, false, at("/total_cycles"), true, "/sampling/total_cycles"},
         {"simulated Mrays/s", R::Ratio, false,
@@ -70,20 +79,10 @@ std::vector<FigureDef> make_figures() {
         {"L2 hit rate", R::Points, true,
          estimate_or("/sampling/figures/l2_hit_rate", at("/caches/l2/hit_rate")), true,
          "/sampling/figures/l2_hit_rate"},
-        {"L2->L1 bytes per ray", R::Ratio, false,
-         [](const json& j) {
-             const double est = number_at(j, "/sampling/counters/l2.bytes_requested/value");
-             const double rays = number_at(j, "/rays/total");
-             return std::isnan(est) ? per_ray(j, "/bandwidth/l2/bytes") : est / rays;
-         },
-         true, "/sampling/counters/l2.bytes_requested"},
-        {"DRAM bytes per ray", R::Ratio, false,
-         [](const json& j) {
-             const double est = number_at(j, "/sampling/counters/dram.bytes/value");
-             const double rays = number_at(j, "/rays/total");
-             return std::isnan(est) ? per_ray(j, "/bandwidth/dram/bytes") : est / rays;
-         },
-         true, "/sampling/counters/dram.bytes"},
+        {"L2->L1 bytes per ray", R::Ratio, false, bytes_per_ray("l2.bytes_requested", "l2"), true,
+         "/sampling/counters/l2.bytes_requested"},
+        {"DRAM bytes per ray", R::Ratio, false, bytes_per_ray("dram.bytes", "dram"), true,
+         "/sampling/counters/dram.bytes"},
         {"DRAM GB/s", R::Ratio, false,
          [](const json& j) {
              // bytes per cycle x GHz = GB/s
