@@ -85,6 +85,22 @@ uint64_t fnv(uint64_t h, const void* data, size_t n) {
     return h;
 }
 
+// Calls f with every BvhBuildOptions field the build reads, in one order: the key hashes them,
+// an entry stores them and a load compares them, so a new build setting is added here once. (The
+// box datapath fields are not among them: they do not change the tree.)
+template <class F>
+void for_each_build_setting(const BvhBuildOptions& o, F&& f) {
+    f(o.builder);
+    f(o.node_format);
+    f(o.restructure_passes);
+    f(o.width);
+    f(o.sah_buckets);
+    f(o.max_leaf_size);
+    f(o.treelet_bytes);
+    f(o.traversal_cost);
+    f(o.intersection_cost);
+}
+
 // Calls f with the node array of the tree's width (nodes2, nodes4 or nodes8).
 template <class B, class F>
 void with_nodes(B& b, int width, F&& f) {
@@ -125,15 +141,7 @@ std::string serialize(const Bvh& b, uint64_t key) {
     w.bytes().append(kMagic, sizeof kMagic);
     w.pod(kFormatVersion);
     w.pod(key);
-    w.pod(b.options.builder);
-    w.pod(b.options.node_format);
-    w.pod(b.options.restructure_passes);
-    w.pod(b.options.width);
-    w.pod(b.options.sah_buckets);
-    w.pod(b.options.max_leaf_size);
-    w.pod(b.options.treelet_bytes);
-    w.pod(b.options.traversal_cost);
-    w.pod(b.options.intersection_cost);
+    for_each_build_setting(b.options, [&](const auto& v) { w.pod(v); });
     const BvhLayout& L = b.layout;
     w.pod(L.node_base_addr);
     w.pod(L.node_size_bytes);
@@ -169,12 +177,9 @@ Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& w
     Bvh b;
     b.options = want;
     // The stored settings must be the ones asked for (the key says so; this catches a collision).
-    const bool same =
-        r.pod<BvhBuilder>() == want.builder && r.pod<NodeFormat>() == want.node_format &&
-        r.pod<int>() == want.restructure_passes && r.pod<int>() == want.width &&
-        r.pod<int>() == want.sah_buckets && r.pod<int>() == want.max_leaf_size &&
-        r.pod<uint32_t>() == want.treelet_bytes && r.pod<float>() == want.traversal_cost &&
-        r.pod<float>() == want.intersection_cost;
+    bool same = true;
+    for_each_build_setting(
+        want, [&](const auto& v) { same = r.pod<std::decay_t<decltype(v)>>() == v && same; });
     if (!same) throw Unusable{"its build settings are not this build's"};
     BvhLayout& L = b.layout;
     L.node_base_addr = r.pod<uint64_t>();
@@ -258,15 +263,7 @@ uint64_t bvh_cache_key(const Scene& scene, const BvhBuildOptions& o, const BvhLa
     mix(scene.content_hash());
     mix(uint64_t(scene.vertices.size()));
     mix(uint64_t(scene.triangles.size()));
-    mix(o.builder);
-    mix(o.node_format);
-    mix(o.restructure_passes);
-    mix(o.width);
-    mix(o.sah_buckets);
-    mix(o.max_leaf_size);
-    mix(o.treelet_bytes);
-    mix(o.traversal_cost);
-    mix(o.intersection_cost);
+    for_each_build_setting(o, mix);
     mix(L.node_base_addr);
     mix(L.node_size_bytes);
     mix(L.tri_size_bytes);
