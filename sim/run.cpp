@@ -138,6 +138,35 @@ bool target_met(const json& sampling, double target_pct) {
            c["dram.bytes"]["half_width_pct"].get<double>() <= target_pct;
 }
 
+// stats.json's "sampling" section (with the --target-error plan, if any), and the frame's cycles
+// and rate replaced by the sample's estimates (their intervals are in "sampling"); the blocks'
+// sections stay what the detailed part measured.
+void add_sampling(json& out, json sampling, json plan, double target_pct, double hz) {
+    if (!plan.is_null()) {
+        plan["met"] = target_met(sampling, target_pct);
+        sampling["target"] = std::move(plan);
+    }
+    if (sampling.contains("total_cycles")) {
+        const json& c = sampling["total_cycles"];
+        const double cycles = c["value"].get<double>();
+        const double rays = double(out["rays"]["total"].get<uint64_t>());
+        const double seconds = cycles / hz;
+        const double rate = seconds > 0 ? rays / seconds : 0.0;
+        out["total_cycles"] = uint64_t(std::llround(cycles));
+        out["simulated_seconds"] = seconds;
+        out["rays_per_second"] = rate;
+        // Its interval is the cycles' one, inverted.
+        const double lo = rays * hz / c["hi"].get<double>(),
+                     hi = c["lo"].get<double>() > 0 ? rays * hz / c["lo"].get<double>() : 0.0;
+        sampling["figures"]["rays_per_second"] = {
+            {"value", rate},
+            {"lo", lo},
+            {"hi", hi},
+            {"half_width_pct", 100.0 * (hi - lo) / 2.0 / rate}};
+    }
+    out["sampling"] = std::move(sampling);
+}
+
 }  // namespace
 
 int run_command(const RunOptions& opt) {
@@ -205,33 +234,9 @@ int run_command(const RunOptions& opt) {
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
-    if (sampler) {
-        // The frame's cycles and rate are the sample's estimates (their intervals are in
-        // "sampling"); the blocks' sections stay what the detailed part measured.
-        out["sampling"] = sampler->report(chip.total_cycles());
-        if (!plan.is_null()) {
-            plan["met"] = target_met(out["sampling"], opt.target_error_pct);
-            out["sampling"]["target"] = plan;
-        }
-        if (out["sampling"].contains("total_cycles")) {
-            const double cycles = out["sampling"]["total_cycles"]["value"].get<double>();
-            const double seconds = cycles / (cfg.typed.clock_ghz * 1e9);
-            out["total_cycles"] = uint64_t(std::llround(cycles));
-            out["simulated_seconds"] = seconds;
-            const double rays = double(out["rays"]["total"].get<uint64_t>());
-            out["rays_per_second"] = seconds > 0 ? rays / seconds : 0.0;
-            // Its interval is the cycles' one, inverted.
-            const json& c = out["sampling"]["total_cycles"];
-            const double hz = cfg.typed.clock_ghz * 1e9;
-            const double lo = rays * hz / c["hi"].get<double>(),
-                         hi = c["lo"].get<double>() > 0 ? rays * hz / c["lo"].get<double>() : 0.0;
-            out["sampling"]["figures"]["rays_per_second"] = {
-                {"value", out["rays_per_second"]},
-                {"lo", lo},
-                {"hi", hi},
-                {"half_width_pct", 100.0 * (hi - lo) / 2.0 / out["rays_per_second"].get<double>()}};
-        }
-    }
+    if (sampler)
+        add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
+                     opt.target_error_pct, cfg.typed.clock_ghz * 1e9);
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));
 
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();

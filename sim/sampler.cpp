@@ -4,6 +4,7 @@
 #include <random>
 
 #include "sim/sampling.h"
+#include "sim/stats_report.h"
 
 namespace rtsim {
 
@@ -69,18 +70,8 @@ void Sampler::handed_out(Cycle now) {
     last_handout_ = std::max(last_handout_, now);
     const uint64_t unit = current_ / params_.unit_rays;
     const bool first_of_unit = current_ % params_.unit_rays == 0;
-    if (open_ && (unit != open_unit_)) {
-        // The ray after the measured unit: close it.
-        work_.push_back(double(unit_work_));
-        new_.push_back(double(unit_new_));
-        // Signed: cores take work within a horizon of each other, so hand-out cycles are not
-        // strictly in order (differences telescope over the frame).
-        cycles_.push_back(double(now) - double(open_cycle_));
-        const auto& e = counters_.entries();
-        for (size_t c = 0; c < e.size(); ++c)
-            deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
-        open_ = false;
-    }
+    // The ray after the measured unit closes it.
+    if (open_ && (unit != open_unit_)) close_unit(unit_work_, unit_new_, now);
     if (first_of_unit && measured_unit(unit)) {
         open_ = true;
         open_unit_ = unit;
@@ -102,14 +93,20 @@ void Sampler::finish() {
     // The frame ended inside a measured unit: it counts up to its last ray's hand-out (the
     // rays before that one; the drain after it is added separately).
     const uint64_t start = open_unit_ * params_.unit_rays;
-    if (index_ > start + 1) {
-        work_.push_back(double(unit_work_ - current_work_));
-        new_.push_back(double(unit_new_ - current_new_));
-        cycles_.push_back(double(last_handout_) - double(open_cycle_));
-        const auto& e = counters_.entries();
-        for (size_t c = 0; c < e.size(); ++c)
-            deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
-    }
+    if (index_ > start + 1)
+        close_unit(unit_work_ - current_work_, unit_new_ - current_new_, last_handout_);
+    open_ = false;
+}
+
+void Sampler::close_unit(uint64_t work, uint64_t fresh, Cycle end) {
+    work_.push_back(double(work));
+    new_.push_back(double(fresh));
+    // Signed: cores take work within a horizon of each other, so hand-out cycles are not
+    // strictly in order (differences telescope over the frame).
+    cycles_.push_back(double(end) - double(open_cycle_));
+    const auto& e = counters_.entries();
+    for (size_t c = 0; c < e.size(); ++c)
+        deltas_[c].push_back(double(*e[c].value - open_counts_[c]));
     open_ = false;
 }
 
@@ -194,42 +191,37 @@ json Sampler::figures(uint64_t units) const {
     // Derived figures as ratios of two per-unit changes, each with its interval: a hit rate is
     // hits over accesses in the same units, a utilisation busy cycles over the cycles x blocks.
     json out = json::object();
-    auto ratio = [&](const char* name, const std::vector<double>& y, const std::vector<double>& x,
-                     double scale = 1.0) {
+    auto ratio = [&](json& to, const std::string& name, const std::vector<double>& y,
+                     const std::vector<double>& x, double scale = 1.0) {
         double sx = 0;
         for (double v : x) sx += v;
-        if (sx > 0) out[name] = estimate_json(ratio_estimate(y, x, units), scale);
+        if (sx > 0) to[name] = estimate_json(ratio_estimate(y, x, units), scale);
     };
-    ratio("l1_hit_rate", unit_sums("l1[", ".hits"), unit_sums("l1[", ".accesses"));
-    ratio("l2_hit_rate", unit_sums("l2.hits", ""), unit_sums("l2.accesses", ""));
-    ratio("dram_bytes_per_cycle", unit_sums("dram.bytes", ""), cycles_);
+    ratio(out, "l1_hit_rate", unit_sums("l1[", ".hits"), unit_sums("l1[", ".accesses"));
+    ratio(out, "l2_hit_rate", unit_sums("l2.hits", ""), unit_sums("l2.accesses", ""));
+    ratio(out, "dram_bytes_per_cycle", unit_sums("dram.bytes", ""), cycles_);
     for (const char* unit : {"box_unit", "triangle_unit"}) {
         size_t blocks = 0;
         const std::vector<double> busy =
             unit_sums(std::string(unit) + "[", ".busy_cycles", &blocks);
         if (blocks)
-            ratio((std::string(unit) + "_utilization").c_str(), busy, cycles_,
-                  1.0 / double(blocks));
+            ratio(out, std::string(unit) + "_utilization", busy, cycles_, 1.0 / double(blocks));
     }
-    // Stall shares: each cause's slot cycles over all of them (causes and no work).
-    static const char* const kCauses[] = {
-        "issue", "l1", "l2", "dram", "crossbar", "box_unit", "triangle_unit", "ray_buffer"};
-    std::vector<double> slots = unit_sums("core[", ".no_work_cycles");
-    std::vector<std::vector<double>> by_cause;
-    for (const char* cause : kCauses) {
-        by_cause.push_back(unit_sums("core[", std::string(".stall_") + cause + "_cycles"));
-        for (size_t u = 0; u < slots.size(); ++u) slots[u] += by_cause.back()[u];
+    // Stall shares: each cause's slot cycles over all of them (the causes and no work, which
+    // is in the denominator only, as it was not a stall).
+    std::vector<double> slots(cycles_.size(), 0.0);
+    std::vector<std::pair<std::string, std::vector<double>>> by_cause;
+    for (const std::string& cause : stall_causes()) {
+        const bool no_work = cause == "no_work";
+        const std::vector<double> c =
+            unit_sums("core[", no_work ? ".no_work_cycles" : ".stall_" + cause + "_cycles");
+        for (size_t u = 0; u < slots.size(); ++u) slots[u] += c[u];
+        if (!no_work) by_cause.emplace_back(cause, c);
     }
     json shares = json::object();
-    for (size_t k = 0; k < by_cause.size(); ++k) {
-        double sy = 0, sx = 0;
-        for (size_t u = 0; u < slots.size(); ++u) {
-            sy += by_cause[k][u];
-            sx += slots[u];
-        }
-        if (sy > 0 && sx > 0)
-            shares[kCauses[k]] = estimate_json(ratio_estimate(by_cause[k], slots, units), 1.0);
-    }
+    for (const auto& [cause, c] : by_cause)
+        if (std::any_of(c.begin(), c.end(), [](double v) { return v != 0; }))
+            ratio(shares, cause, c, slots);
     out["stall_shares"] = shares;
     return out;
 }

@@ -63,14 +63,15 @@ class Sampler {
 
     uint64_t rays_seen() const { return index_; }
     uint64_t rays_detailed() const { return detailed_; }
-    uint64_t units_measured() const { return cycles_.size(); }
-    uint64_t work_total() const { return work_total_; }
 
   private:
     // Per measured unit, the summed change of the counters named prefix...suffix ("l1[" and
     // ".hits": every L1's hits); `blocks` gets how many counters matched.
     std::vector<double> unit_sums(const std::string& prefix, const std::string& suffix,
                                   size_t* blocks = nullptr) const;
+    // Records the open unit as measured: its work and first touches, and the cycles and counter
+    // changes from its start to `end`.
+    void close_unit(uint64_t work, uint64_t fresh, Cycle end);
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return unit % params_.period_units == first_unit_; }
