@@ -135,33 +135,6 @@ inline Scene axis_aligned_grid_box(int n) {
 
 namespace detail {
 // A mesh's bounds' centre and diagonal (the size rays are placed by).
-// Whether the ray meets the plane of triangle (v0, v1, v2) at a point inside the closed
-// triangle, in double precision (the float test must then report a hit: watertightness).
-inline bool crosses_inside(const Ray& r, Vec3 v0, Vec3 v1, Vec3 v2) {
-    auto d3 = [](Vec3 v) { return std::array<double, 3>{v.x, v.y, v.z}; };
-    const auto a = d3(v0), b = d3(v1), c = d3(v2), o = d3(r.org), d = d3(r.dir);
-    auto sub = [](const std::array<double, 3>& x, const std::array<double, 3>& y) {
-        return std::array<double, 3>{x[0] - y[0], x[1] - y[1], x[2] - y[2]};
-    };
-    auto cross3 = [](const std::array<double, 3>& x, const std::array<double, 3>& y) {
-        return std::array<double, 3>{x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2],
-                                     x[0] * y[1] - x[1] * y[0]};
-    };
-    auto dot3 = [](const std::array<double, 3>& x, const std::array<double, 3>& y) {
-        return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
-    };
-    const auto nrm = cross3(sub(b, a), sub(c, a));
-    const double denom = dot3(nrm, d);
-    if (denom == 0.0) return false;
-    const double t = dot3(nrm, sub(a, o)) / denom;
-    if (!(t > 0.0)) return false;
-    const std::array<double, 3> q = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
-    // q is inside when it lies on the inner side of every edge (same sign as the normal).
-    return dot3(cross3(sub(b, a), sub(q, a)), nrm) >= 0.0 &&
-           dot3(cross3(sub(c, b), sub(q, b)), nrm) >= 0.0 &&
-           dot3(cross3(sub(a, c), sub(q, c)), nrm) >= 0.0;
-}
-
 inline std::pair<Vec3, float> centre_and_size(const AABB& b) {
     return {(b.lo + b.hi) * 0.5f, length(b.hi - b.lo)};
 }
@@ -176,36 +149,36 @@ inline void must_hit_both(const Bvh& bvh, const Ray& r, StressTally& t) {
 inline double dot_d(const double* a, const double* b) {
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
 }
-// Nearest hit distance of the ray with any triangle in double precision (Moller-Trumbore, edges
-// included); infinity if none.
+// Where the ray meets triangle (v0, v1, v2), in double precision (Moller-Trumbore, edges
+// included to within `tol` in barycentrics), from r.tmin on; infinity if it does not.
+inline double triangle_hit_double(const Ray& r, Vec3 v0, Vec3 v1, Vec3 v2, double tol) {
+    const double o[3] = {r.org.x, r.org.y, r.org.z}, d[3] = {r.dir.x, r.dir.y, r.dir.z};
+    double e1[3], e2[3], pv[3], tv[3], qv[3];
+    for (int a = 0; a < 3; ++a) {
+        e1[a] = double(v1[a]) - v0[a];
+        e2[a] = double(v2[a]) - v0[a];
+        tv[a] = o[a] - v0[a];
+    }
+    pv[0] = d[1] * e2[2] - d[2] * e2[1];
+    pv[1] = d[2] * e2[0] - d[0] * e2[2];
+    pv[2] = d[0] * e2[1] - d[1] * e2[0];
+    const double det = dot_d(e1, pv);
+    const double inf = std::numeric_limits<double>::infinity();
+    if (det == 0) return inf;
+    const double u = dot_d(tv, pv) / det;
+    qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
+    qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
+    qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    const double w = dot_d(d, qv) / det;
+    const double t = dot_d(e2, qv) / det;
+    if (u < -tol || w < -tol || u + w > 1 + tol || t < r.tmin) return inf;
+    return t;
+}
+// Nearest hit distance of the ray with any triangle in double precision; infinity if none.
 inline double nearest_hit_double(const Scene& s, const Ray& r) {
     double best = std::numeric_limits<double>::infinity();
-    const double o[3] = {r.org.x, r.org.y, r.org.z}, d[3] = {r.dir.x, r.dir.y, r.dir.z};
-    for (uint32_t p = 0; p < s.triangle_count(); ++p) {
-        double v[3][3];
-        for (int c = 0; c < 3; ++c)
-            for (int a = 0; a < 3; ++a) v[c][a] = s.v(p, c)[a];
-        double e1[3], e2[3], pv[3], tv[3], qv[3];
-        for (int a = 0; a < 3; ++a) {
-            e1[a] = v[1][a] - v[0][a];
-            e2[a] = v[2][a] - v[0][a];
-            tv[a] = o[a] - v[0][a];
-        }
-        pv[0] = d[1] * e2[2] - d[2] * e2[1];
-        pv[1] = d[2] * e2[0] - d[0] * e2[2];
-        pv[2] = d[0] * e2[1] - d[1] * e2[0];
-        const double det = dot_d(e1, pv);
-        if (det == 0) continue;
-        const double u = dot_d(tv, pv) / det;
-        qv[0] = tv[1] * e1[2] - tv[2] * e1[1];
-        qv[1] = tv[2] * e1[0] - tv[0] * e1[2];
-        qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
-        const double w = dot_d(d, qv) / det;
-        const double t = dot_d(e2, qv) / det;
-        const double tol = 1e-9;
-        if (u < -tol || w < -tol || u + w > 1 + tol || t < r.tmin) continue;
-        best = std::min(best, t);
-    }
+    for (uint32_t p = 0; p < s.triangle_count(); ++p)
+        best = std::min(best, triangle_hit_double(r, s.v(p, 0), s.v(p, 1), s.v(p, 2), 1e-9));
     return best;
 }
 inline Vec3 unit_vector(std::mt19937_64& rng) {
@@ -434,8 +407,8 @@ inline StressTally secondary(const Scene& s, const Bvh& bvh, uint64_t rays, uint
         // Leaving the surface, it may meet another part of the mesh, but never its own triangle.
         t.self_hits += again.valid() && again.prim == h.prim;
         // Turned back into the surface: against the normal, tilted up to ~17 degrees. It is a
-        // must-hit ray only where it crosses the triangle's own plane inside the triangle
-        // (checked in double): from a point within offset x tan(17 deg) of a convex edge it
+        // must-hit ray only where it crosses its own triangle (checked in double, edges
+        // included): from a point within offset x tan(17 deg) of a convex edge it
         // crosses beyond the edge and may leave the solid without meeting any triangle (three
         // such rays on cheese.off's cube edges were once counted as escapes; a double-precision
         // brute force found no triangle on their path either). Aimed at p itself instead, a
@@ -446,7 +419,7 @@ inline StressTally secondary(const Scene& s, const Bvh& bvh, uint64_t rays, uint
         back.org = out.org;
         back.dir = normalize(-n + (length(side) > 0 ? normalize(side) * 0.3f : side));
         ++t.rays;
-        if (!detail::crosses_inside(back, v0, v1, v2)) continue;
+        if (!std::isfinite(detail::triangle_hit_double(back, v0, v1, v2, 0.0))) continue;
         ++t.must_hit;
         t.escapes += !trace_ray(bvh, back, HitQuery::Closest).valid();
     }
