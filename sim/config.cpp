@@ -223,6 +223,12 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
             "l1.split to false or the treelet cache to 0",
             where));
+    if (c["sim"]["sample_first_unit"].get<int64_t>() >=
+        c["sim"]["sample_period_units"].get<int64_t>())
+        throw InputError(fmt::format(
+            "{}: sim.sample_first_unit: expected -1 or below sim.sample_period_units ({}), got {}",
+            where, c["sim"]["sample_period_units"].get<int64_t>(),
+            c["sim"]["sample_first_unit"].get<int64_t>()));
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(
             "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,

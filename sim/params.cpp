@@ -166,6 +166,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_unit_rays", M(sim.sample_unit_rays)),
         field("sim.sample_period_units", M(sim.sample_period_units)),
         field("sim.sample_warmup_rays", M(sim.sample_warmup_rays)),
+        field("sim.sample_first_unit", M(sim.sample_first_unit)),
     };
     t.insert(t.end(), rest.begin(), rest.end());
     return t;

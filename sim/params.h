@@ -35,6 +35,7 @@ struct SimParams {
     std::string fidelity;        // a registered fidelity level
     // sim.fidelity = sampled (sim/sampler.h)
     uint64_t sample_unit_rays = 1024, sample_period_units = 10, sample_warmup_rays = 512;
+    int64_t sample_first_unit = -1;  // -1: drawn from the seed
 };
 
 // Members outside the model structs have no meaningful C++ default: only binding sets them.

@@ -198,6 +198,7 @@ int run_command(const RunOptions& opt) {
         sp.period_units = cfg.typed.sim.sample_period_units;
         sp.warmup_rays = cfg.typed.sim.sample_warmup_rays;
         sp.seed = opt.workload.gen.seed;
+        sp.first_unit = cfg.typed.sim.sample_first_unit;
         if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
         const BvhLayout& L = w.layout();

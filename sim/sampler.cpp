@@ -15,7 +15,9 @@ Sampler::Sampler(const SamplingParams& params,
                  const StatsRegistry& counters)
     : params_(params), ports_(std::move(ports)), counters_(counters) {
     std::mt19937_64 rng(params_.seed ^ 0x5a3b1e5d);
-    first_unit_ = std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
+    first_unit_ = params_.first_unit >= 0
+                      ? uint64_t(params_.first_unit) % params_.period_units
+                      : std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
     deltas_.resize(counters_.entries().size());
 }
 

@@ -35,6 +35,7 @@ struct SamplingParams {
     uint64_t period_units = 10;  // one unit measured in this many
     uint64_t warmup_rays = 512;  // detailed, unmeasured, before each measured unit
     uint64_t seed = 1;           // picks the first measured unit
+    int64_t first_unit = -1;     // or this one, if 0 or more
 };
 
 class Sampler {
