@@ -1,0 +1,452 @@
+#include "models/dram_command.h"
+
+#include <algorithm>
+#include <limits>
+
+#include <fmt/format.h>
+
+namespace rtsim {
+
+namespace {
+
+bool power_of_two(int64_t v) {
+    return v > 0 && (v & (v - 1)) == 0;
+}
+int log2i(int64_t v) {
+    int n = 0;
+    while ((int64_t(1) << n) < v) ++n;
+    return n;
+}
+
+}  // namespace
+
+const char* dram_command_name(DramCommand c) {
+    switch (c) {
+        case DramCommand::Act:
+            return "ACT";
+        case DramCommand::Rd:
+            return "RD";
+        case DramCommand::Wr:
+            return "WR";
+        case DramCommand::Pre:
+            return "PRE";
+        case DramCommand::Ref:
+            return "REF";
+    }
+    return "?";
+}
+
+uint64_t DramDeviceSpec::capacity_bytes() const {
+    return uint64_t(channels) * uint64_t(ranks) * uint64_t(banks_per_rank()) * uint64_t(rows) *
+           uint64_t(columns) * uint64_t(bus_width_bits / 8);
+}
+
+std::string DramDeviceSpec::check() const {
+    const std::pair<const char*, int64_t> pow2[] = {{"channels", channels},
+                                                    {"ranks", ranks},
+                                                    {"bankgroups", bankgroups},
+                                                    {"banks_per_group", banks_per_group},
+                                                    {"rows", rows},
+                                                    {"columns", columns},
+                                                    {"burst_length", burst_length}};
+    for (const auto& [field, v] : pow2)
+        if (!power_of_two(v)) return fmt::format("{}: expected a power of two, got {}", field, v);
+    if (device_width_bits <= 0 || bus_width_bits <= 0 || bus_width_bits % device_width_bits != 0)
+        return fmt::format("bus_width_bits ({}) must be a multiple of device_width_bits ({})",
+                           bus_width_bits, device_width_bits);
+    if (!power_of_two(bus_width_bits / 8 * burst_length))
+        return fmt::format(
+            "a burst of {} bytes (bus_width_bits / 8 x burst_length) is not a power "
+            "of two",
+            bus_width_bits / 8 * burst_length);
+    if (columns < burst_length)
+        return fmt::format("columns ({}) must be at least burst_length ({})", columns,
+                           burst_length);
+    if (burst_cycles < 1)
+        return fmt::format("burst_cycles: expected 1 or more, got {}", burst_cycles);
+    if (!(tck_ns > 0)) return fmt::format("tck_ns: expected a positive period, got {}", tck_ns);
+    const std::pair<const char*, int> timing[] = {
+        {"cl", cl},           {"cwl", cwl},         {"t_rcd", t_rcd},     {"t_rp", t_rp},
+        {"t_ras", t_ras},     {"t_rtp", t_rtp},     {"t_wr", t_wr},       {"t_wtr_s", t_wtr_s},
+        {"t_wtr_l", t_wtr_l}, {"t_ccd_s", t_ccd_s}, {"t_ccd_l", t_ccd_l}, {"t_rrd_s", t_rrd_s},
+        {"t_rrd_l", t_rrd_l}, {"t_faw", t_faw},     {"t_rtrs", t_rtrs},   {"t_refi", t_refi},
+        {"t_rfc", t_rfc}};
+    for (const auto& [field, v] : timing)
+        if (v < 0) return fmt::format("{}: expected 0 or more cycles, got {}", field, v);
+    if (refresh && t_refi <= t_rfc)
+        return fmt::format("t_refi ({}) must exceed t_rfc ({})", t_refi, t_rfc);
+    if (read_queue < 1 || write_queue < 1)
+        return "read_queue and write_queue need at least one entry each";
+    if (write_low < 0 || write_high > write_queue || write_low >= write_high)
+        return fmt::format("expected 0 <= write_low < write_high <= write_queue, got {} {} {}",
+                           write_low, write_high, write_queue);
+    // The mapping: six two-letter fields, each once.
+    if (address_mapping.size() != 12)
+        return fmt::format(
+            "address_mapping '{}': expected six two-letter fields (ro ch ra bg ba "
+            "co in some order)",
+            address_mapping);
+    for (const char* f : {"ro", "ch", "ra", "bg", "ba", "co"}) {
+        int seen = 0;
+        for (size_t i = 0; i < 12; i += 2) seen += address_mapping.compare(i, 2, f) == 0;
+        if (seen != 1)
+            return fmt::format("address_mapping '{}': field '{}' appears {} times, expected once",
+                               address_mapping, f, seen);
+    }
+    return "";
+}
+
+DramAddressMap::DramAddressMap(const DramDeviceSpec& s) {
+    shift_ = log2i(int64_t(s.burst_bytes()));
+    auto width = [&](const std::string& f) {
+        if (f == "ch") return log2i(s.channels);
+        if (f == "ra") return log2i(s.ranks);
+        if (f == "bg") return log2i(s.bankgroups);
+        if (f == "ba") return log2i(s.banks_per_group);
+        if (f == "ro") return log2i(s.rows);
+        return log2i(s.columns) - log2i(s.burst_length);  // co: bursts within a row
+    };
+    int pos = 0;
+    // The mapping names fields from the most significant down: assign from its end.
+    for (int i = 10; i >= 0; i -= 2) {
+        const std::string f = s.address_mapping.substr(size_t(i), 2);
+        const int w = width(f);
+        Field field{pos, (uint64_t(1) << w) - 1};
+        if (f == "ch")
+            ch_ = field;
+        else if (f == "ra")
+            ra_ = field;
+        else if (f == "bg")
+            bg_ = field;
+        else if (f == "ba")
+            ba_ = field;
+        else if (f == "ro")
+            ro_ = field;
+        else
+            co_ = field;
+        pos += w;
+    }
+}
+
+DramAddress DramAddressMap::map(uint64_t addr) const {
+    const uint64_t a = addr >> shift_;
+    auto get = [a](const Field& f) { return (a >> f.pos) & f.mask; };
+    DramAddress d;
+    d.channel = int(get(ch_));
+    d.rank = int(get(ra_));
+    d.bankgroup = int(get(bg_));
+    d.bank = int(get(ba_));
+    d.row = uint32_t(get(ro_));
+    d.column = uint32_t(get(co_));
+    return d;
+}
+
+DramController::DramController(const DramDeviceSpec& spec)
+    : spec_(spec), map_(spec), channels_(size_t(spec.channels)) {
+    for (Channel& c : channels_) {
+        c.banks.resize(size_t(spec_.ranks * spec_.banks_per_rank()));
+        c.ranks.resize(size_t(spec_.ranks));
+        // Ranks refresh staggered across the interval.
+        for (int r = 0; r < spec_.ranks; ++r)
+            c.ranks[size_t(r)].next_ref_due =
+                uint64_t(spec_.t_refi) * uint64_t(r + 1) / uint64_t(spec_.ranks);
+    }
+    // DRAMPower's increments as DRAMsim3 applies them: mA x V x ns = pJ, for every device of a
+    // rank (a command reaches them all).
+    const double k = spec_.vdd * spec_.tck_ns * spec_.devices_per_rank();
+    const int t_rc = spec_.t_ras + spec_.t_rp;
+    e_act_ = k * (spec_.idd0 * t_rc - (spec_.idd3n * spec_.t_ras + spec_.idd2n * spec_.t_rp));
+    e_rd_ = k * (spec_.idd4r - spec_.idd3n) * spec_.burst_cycles;
+    e_wr_ = k * (spec_.idd4w - spec_.idd3n) * spec_.burst_cycles;
+    e_ref_ = k * (spec_.idd5ab - spec_.idd3n) * spec_.t_rfc;
+    e_act_stby_ = k * spec_.idd3n;
+    e_pre_stby_ = k * spec_.idd2n;
+}
+
+uint64_t DramController::pending() const {
+    uint64_t n = 0;
+    for (const Channel& c : channels_) n += c.reads.size() + c.writes.size();
+    return n;
+}
+
+bool DramController::enqueue(uint64_t id, uint64_t addr, bool write, uint64_t cycle) {
+    if (cycle > now_) run_until(cycle - 1);
+    const DramAddress a = map_.map(addr);
+    Channel& c = channels_[size_t(a.channel)];
+    const uint64_t at = std::max(cycle, now_);
+    if (write) {
+        if (int(c.writes.size()) >= spec_.write_queue) return false;
+        c.writes.push_back({id, at, a, true});
+        return true;
+    }
+    if (int(c.reads.size()) >= spec_.read_queue) return false;
+    // A read of data still waiting in the write queue is served from it.
+    for (const Request& w : c.writes)
+        if (w.a.rank == a.rank && w.a.bankgroup == a.bankgroup && w.a.bank == a.bank &&
+            w.a.row == a.row && w.a.column == a.column) {
+            done_.push_back({id, at + 1, false});
+            ++counters_.reads;
+            counters_.read_latency_sum += 1;
+            counters_.read_latency_max = std::max<uint64_t>(counters_.read_latency_max, 1);
+            return true;
+        }
+    c.reads.push_back({id, at, a, false});
+    return true;
+}
+
+void DramController::run_until(uint64_t cycle) {
+    while (now_ <= cycle) {
+        // Nothing queued: jump to the next refresh, or to the end.
+        if (pending() == 0) {
+            uint64_t next = cycle + 1;
+            if (spec_.refresh)
+                for (const Channel& c : channels_)
+                    for (const Rank& r : c.ranks)
+                        next = std::min(next, r.refresh_pending ? now_ : r.next_ref_due);
+            if (next > now_) {
+                now_ = std::min(next, cycle + 1);
+                continue;
+            }
+        }
+        for (size_t ch = 0; ch < channels_.size(); ++ch) step(channels_[ch], int(ch), now_);
+        ++now_;
+    }
+}
+
+uint64_t DramController::drain() {
+    while (pending() > 0) run_until(now_);
+    return now_ == 0 ? 0 : now_ - 1;
+}
+
+void DramController::settle_background() {
+    for (Channel& c : channels_)
+        for (Rank& r : c.ranks) account_background(r, now_);
+}
+
+void DramController::account_background(Rank& r, uint64_t until) {
+    if (until <= r.bg_since) return;
+    counters_.background_pj +=
+        double(until - r.bg_since) * (r.open_banks > 0 ? e_act_stby_ : e_pre_stby_);
+    r.bg_since = until;
+}
+
+void DramController::log(uint64_t t, DramCommand cmd, int ch, int ra, int bg, int ba,
+                         uint32_t row) {
+    if (record_) log_.push_back({t, cmd, ch, ra, bg, ba, row});
+}
+
+void DramController::step(Channel& c, int channel, uint64_t t) {
+    // Refresh owed by a rank comes first.
+    if (spec_.refresh)
+        for (Rank& r : c.ranks)
+            if (!r.refresh_pending && t >= r.next_ref_due) r.refresh_pending = true;
+    if (try_refresh(c, channel, t)) return;
+    // Writes drain between watermarks, or whenever no read waits.
+    if (!c.draining &&
+        (int(c.writes.size()) >= spec_.write_high || (c.reads.empty() && !c.writes.empty()))) {
+        c.draining = true;
+        ++counters_.write_drains;
+    } else if (c.draining && (c.writes.empty() ||
+                              (!c.reads.empty() && int(c.writes.size()) <= spec_.write_low))) {
+        c.draining = false;
+    }
+    std::deque<Request>& q = c.draining ? c.writes : c.reads;
+    if (q.empty()) return;
+    // FR-FCFS: the oldest ready column command to an open row, else the oldest row command.
+    if (try_column(c, channel, q, t, true)) return;
+    try_row(c, channel, q, t);
+}
+
+bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
+    for (int ri = 0; ri < spec_.ranks; ++ri) {
+        Rank& r = c.ranks[size_t(ri)];
+        if (!r.refresh_pending) continue;
+        // Close every open bank first, then REF once all may take it.
+        bool ready = t >= r.busy_until;
+        for (int bg = 0; bg < spec_.bankgroups; ++bg)
+            for (int ba = 0; ba < spec_.banks_per_group; ++ba) {
+                Bank& b =
+                    c.banks[size_t((ri * spec_.bankgroups + bg) * spec_.banks_per_group + ba)];
+                if (b.open) {
+                    if (t >= b.next_pre) {
+                        issue_pre(c, channel, ri, b, bg, ba, t);
+                        return true;
+                    }
+                    ready = false;
+                } else if (t < b.next_act) {
+                    ready = false;  // tRP (or an auto-precharge) still running
+                }
+            }
+        if (!ready) continue;
+        account_background(r, t);
+        const uint64_t end = t + uint64_t(spec_.t_rfc);
+        for (int k = 0; k < spec_.banks_per_rank(); ++k) {
+            Bank& b = c.banks[size_t(ri * spec_.banks_per_rank() + k)];
+            b.next_act = std::max(b.next_act, end);
+        }
+        r.busy_until = end;
+        r.refresh_pending = false;
+        r.next_ref_due += uint64_t(spec_.t_refi);
+        ++counters_.refs;
+        counters_.refresh_pj += e_ref_;
+        log(t, DramCommand::Ref, channel, ri, -1, -1, 0);
+        return true;
+    }
+    return false;
+}
+
+bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t, bool) {
+    for (auto it = q.begin(); it != q.end(); ++it) {
+        Bank& b = bank(c, it->a);
+        if (!b.open || b.row != it->a.row) continue;
+        if (c.ranks[size_t(it->a.rank)].refresh_pending) continue;  // its banks are closing
+        if (t < (it->write ? b.next_wr : b.next_rd)) continue;
+        // The data bus: one burst at a time, with a switch gap between ranks.
+        const uint64_t data_start = t + uint64_t(it->write ? spec_.cwl : spec_.cl);
+        const uint64_t gap =
+            c.last_data_rank >= 0 && c.last_data_rank != it->a.rank ? uint64_t(spec_.t_rtrs) : 0;
+        if (data_start < c.data_free + gap) continue;
+        issue_column(c, channel, *it, t);
+        q.erase(it);
+        return true;
+    }
+    return false;
+}
+
+bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
+    for (Request& r : q) {
+        Rank& rank = c.ranks[size_t(r.a.rank)];
+        Bank& b = bank(c, r.a);
+        if (b.open && b.row == r.a.row) continue;  // waits for its column command
+        if (rank.refresh_pending) continue;        // no new rows while a refresh is owed
+        if (b.open) {
+            // A conflict: close the row, unless a queued request still wants it.
+            const bool wanted = std::any_of(q.begin(), q.end(), [&](const Request& o) {
+                return o.a.rank == r.a.rank && o.a.bankgroup == r.a.bankgroup &&
+                       o.a.bank == r.a.bank && o.a.row == b.row;
+            });
+            if (wanted || t < b.next_pre) continue;
+            r.conflict = true;
+            issue_pre(c, channel, r.a.rank, b, r.a.bankgroup, r.a.bank, t);
+            return true;
+        }
+        if (t < b.next_act) continue;
+        // tRRD (per bank group) and tFAW (four activates per window) across the rank.
+        if (rank.act_count > 0) {
+            // The rank's activate constraints are folded into each bank's next_act at issue;
+            // tFAW needs the fourth-last activate.
+            if (rank.act_count >= 4 && t < rank.acts[0] + uint64_t(spec_.t_faw)) continue;
+        }
+        r.caused_act = true;
+        issue_act(c, channel, r.a, t);
+        return true;
+    }
+    return false;
+}
+
+void DramController::issue_act(Channel& c, int channel, const DramAddress& a, uint64_t t) {
+    Rank& rank = c.ranks[size_t(a.rank)];
+    account_background(rank, t);
+    Bank& b = bank(c, a);
+    b.open = true;
+    b.row = a.row;
+    ++rank.open_banks;
+    b.next_rd = std::max(b.next_rd, t + uint64_t(spec_.t_rcd));
+    b.next_wr = std::max(b.next_wr, t + uint64_t(spec_.t_rcd));
+    b.next_pre = std::max(b.next_pre, t + uint64_t(spec_.t_ras));
+    b.next_act = std::max(b.next_act, t + uint64_t(spec_.t_ras + spec_.t_rp));  // tRC
+    // tRRD: the same bank group waits longer than the others.
+    for (int bg = 0; bg < spec_.bankgroups; ++bg)
+        for (int ba = 0; ba < spec_.banks_per_group; ++ba) {
+            Bank& o =
+                c.banks[size_t((a.rank * spec_.bankgroups + bg) * spec_.banks_per_group + ba)];
+            o.next_act = std::max(o.next_act,
+                                  t + uint64_t(bg == a.bankgroup ? spec_.t_rrd_l : spec_.t_rrd_s));
+        }
+    // The last four activates, oldest first.
+    if (rank.act_count < 4) {
+        rank.acts[size_t(rank.act_count++)] = t;
+    } else {
+        std::rotate(rank.acts.begin(), rank.acts.begin() + 1, rank.acts.end());
+        rank.acts[3] = t;
+    }
+    ++counters_.acts;
+    counters_.act_pj += e_act_;
+    log(t, DramCommand::Act, channel, a.rank, a.bankgroup, a.bank, a.row);
+}
+
+void DramController::issue_pre(Channel& c, int channel, int rank_index, Bank& b, int bg, int ba,
+                               uint64_t t) {
+    Rank& rank = c.ranks[size_t(rank_index)];
+    account_background(rank, t);
+    b.open = false;
+    --rank.open_banks;
+    b.next_act = std::max(b.next_act, t + uint64_t(spec_.t_rp));
+    ++counters_.pres;
+    log(t, DramCommand::Pre, channel, rank_index, bg, ba, b.row);
+}
+
+void DramController::issue_column(Channel& c, int channel, Request& r, uint64_t t) {
+    const auto burst = uint64_t(spec_.burst_cycles);
+    const uint64_t latency = uint64_t(r.write ? spec_.cwl : spec_.cl);
+    const uint64_t data_end = t + latency + burst;
+    c.data_free = data_end;
+    c.last_data_rank = r.a.rank;
+    Bank& b = bank(c, r.a);
+    // Column-to-column constraints within the rank (other ranks are kept apart by the data
+    // bus and tRTRS).
+    const auto ccd_l = uint64_t(std::max(spec_.t_ccd_l, spec_.burst_cycles));
+    const auto ccd_s = uint64_t(std::max(spec_.t_ccd_s, spec_.burst_cycles));
+    for (int bg = 0; bg < spec_.bankgroups; ++bg) {
+        const bool same_bg = bg == r.a.bankgroup;
+        for (int ba = 0; ba < spec_.banks_per_group; ++ba) {
+            Bank& o =
+                c.banks[size_t((r.a.rank * spec_.bankgroups + bg) * spec_.banks_per_group + ba)];
+            const uint64_t ccd = same_bg ? ccd_l : ccd_s;
+            if (r.write) {
+                o.next_wr = std::max(o.next_wr, t + ccd);
+                // Write to read: tWTR after the write's last data.
+                o.next_rd = std::max(o.next_rd,
+                                     data_end + uint64_t(same_bg ? spec_.t_wtr_l : spec_.t_wtr_s));
+            } else {
+                o.next_rd = std::max(o.next_rd, t + ccd);
+                // Read to write: the write's data follows the read's on the bus, with a gap.
+                const uint64_t rtw = uint64_t(spec_.cl) + burst + uint64_t(spec_.t_rtrs);
+                o.next_wr = std::max(
+                    o.next_wr, t + (rtw > uint64_t(spec_.cwl) ? rtw - uint64_t(spec_.cwl) : 0));
+            }
+        }
+    }
+    // Precharge after the column command: read to precharge tRTP, write recovery tWR.
+    const uint64_t pre_ok = r.write ? data_end + uint64_t(spec_.t_wr) : t + uint64_t(spec_.t_rtp);
+    b.next_pre = std::max(b.next_pre, pre_ok);
+    if (r.write) {
+        ++counters_.writes;
+        counters_.write_pj += e_wr_;
+    } else {
+        ++counters_.reads;
+        counters_.read_pj += e_rd_;
+        const uint64_t latency_cycles = data_end - r.arrival;
+        counters_.read_latency_sum += latency_cycles;
+        counters_.read_latency_max = std::max(counters_.read_latency_max, latency_cycles);
+    }
+    if (r.caused_act)
+        ++(r.conflict ? counters_.row_conflicts : counters_.row_misses);
+    else
+        ++counters_.row_hits;
+    done_.push_back({r.id, data_end, r.write});
+    log(t, r.write ? DramCommand::Wr : DramCommand::Rd, channel, r.a.rank, r.a.bankgroup, r.a.bank,
+        r.a.row);
+    if (!spec_.open_page) {
+        // Auto-precharge: the bank closes once the precharge may start, and is ready tRP later.
+        Rank& rank = c.ranks[size_t(r.a.rank)];
+        const uint64_t pre_at = std::max(b.next_pre, pre_ok);
+        account_background(rank, t);
+        b.open = false;
+        --rank.open_banks;
+        b.next_act = std::max(b.next_act, pre_at + uint64_t(spec_.t_rp));
+        ++counters_.pres;
+    }
+}
+
+}  // namespace rtsim

@@ -1,0 +1,250 @@
+// The command-level DRAM controller against timelines computed by hand from the DDR4-3200
+// timings (tRCD = CL = 22, CWL = 16, burst 4 cycles, tCCD_S/L = 4/8, tRRD_S/L = 4/8,
+// tFAW = 34, tRAS = 52, tRP = 22, tRTP = 12, tWTR_S/L = 4/12, tREFI = 12480, tRFC = 560).
+#include <gtest/gtest.h>
+
+#include <map>
+
+#include "models/dram_command.h"
+
+using namespace rtsim;
+
+namespace {
+
+DramDeviceSpec ddr4(const char* mapping = "rochrababgco", bool refresh = false) {
+    DramDeviceSpec s;
+    s.address_mapping = mapping;
+    s.refresh = refresh;
+    return s;
+}
+
+// Offers n reads of consecutive bursts from address 0, all arriving at cycle 0 (each waits
+// for queue room), and runs to the end; returns the last data cycle.
+uint64_t stream_reads(DramController& d, uint64_t n, uint64_t stride_bytes = 64) {
+    uint64_t t = 0;
+    for (uint64_t i = 0; i < n; ++i)
+        while (!d.enqueue(i, i * stride_bytes, false, t)) t = d.now() + 1;
+    d.drain();
+    uint64_t last = 0;
+    for (const auto& c : d.completions()) last = std::max(last, c.cycle);
+    return last;
+}
+
+std::vector<DramCommandRecord> of_kind(const DramController& d, DramCommand k) {
+    std::vector<DramCommandRecord> out;
+    for (const auto& c : d.commands())
+        if (c.cmd == k) out.push_back(c);
+    return out;
+}
+
+}  // namespace
+
+TEST(DramCommand, AddressMappingSplitsFieldsFromTheLowBitsUp) {
+    // rochrababgco, 64-byte bursts: 6 offset bits, 7 column bits (1024 columns / BL 8), 2 bank
+    // group bits, 2 bank bits, 16 row bits. 0x12345678 >> 6 = 0x48D159: column 0x59, then
+    // 0x91A2: bank group 2, then 0x2468: bank 0, row 0x91A.
+    const DramAddress a = DramAddressMap(ddr4()).map(0x12345678);
+    EXPECT_EQ(a.column, 0x59u);
+    EXPECT_EQ(a.bankgroup, 2);
+    EXPECT_EQ(a.bank, 0);
+    EXPECT_EQ(a.row, 0x91Au);
+    EXPECT_EQ(a.channel, 0);
+    EXPECT_EQ(a.rank, 0);
+}
+
+TEST(DramCommand, IdleReadIsActivateThenReadAfterTrcd) {
+    DramController d(ddr4());
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(7, 0x1000, false, 100));
+    d.drain();
+    ASSERT_EQ(d.completions().size(), 1u);
+    // ACT at 100, RD at 100 + tRCD, last data CL + burst later.
+    EXPECT_EQ(d.completions()[0].cycle, 100u + 22 + 22 + 4);
+    ASSERT_EQ(d.commands().size(), 2u);
+    EXPECT_EQ(d.commands()[0].cmd, DramCommand::Act);
+    EXPECT_EQ(d.commands()[0].cycle, 100u);
+    EXPECT_EQ(d.commands()[1].cmd, DramCommand::Rd);
+    EXPECT_EQ(d.commands()[1].cycle, 122u);
+    EXPECT_EQ(d.counters().row_misses, 1u);
+    EXPECT_EQ(d.counters().read_latency_sum, 48u);
+}
+
+TEST(DramCommand, StreamAcrossBankGroupsRunsAtPeakBandwidth) {
+    // Bank group in the lowest bits: consecutive bursts alternate groups, so reads issue every
+    // tCCD_S = burst = 4 cycles. N reads (over several rows, opened ahead while streaming) end
+    // at tRCD + CL + 4 N: the pipeline of latency tRCD + CL + burst and interval 4.
+    DramController d(ddr4("rorabachcobg"));
+    const uint64_t n = 4096;  // 8 rows of 512 bursts
+    EXPECT_EQ(stream_reads(d, n), 22u + 22u + 4u * n);
+    EXPECT_EQ(d.counters().reads, n);
+    EXPECT_EQ(d.counters().acts, 8u * 4u);  // each row once per bank group
+    EXPECT_EQ(d.counters().row_hits, n - 32);
+}
+
+TEST(DramCommand, StreamWithinOneBankGroupIsLimitedByTccdL) {
+    // Column in the lowest bits: one bank, reads every tCCD_L = 8 cycles: half the peak.
+    DramController d(ddr4("rochrababgco"));
+    const uint64_t n = 128;  // one row
+    EXPECT_EQ(stream_reads(d, n), 22u + 8u * (n - 1) + 22u + 4u);
+}
+
+TEST(DramCommand, FourActivatesPerTfawWindow) {
+    // Eight reads to eight banks, two per bank group, all closed. Activates: 0, 4, 8, 12
+    // (tRRD_S between groups), then the fifth waits for tFAW after the first: 34, 38, 42, 46.
+    // tRCD is raised so no read competes for the command bus meanwhile.
+    DramDeviceSpec s = ddr4("rochrababgco");
+    s.t_rcd = 100;
+    DramController d(s);
+    d.record_commands(true);
+    const uint64_t bank_group_bytes = 64 * 128, bank_bytes = bank_group_bytes * 4;
+    int id = 0;
+    for (int ba = 0; ba < 2; ++ba)
+        for (int bg = 0; bg < 4; ++bg)
+            ASSERT_TRUE(d.enqueue(uint64_t(id++),
+                                  uint64_t(ba) * bank_bytes + uint64_t(bg) * bank_group_bytes,
+                                  false, 0));
+    d.drain();
+    const auto acts = of_kind(d, DramCommand::Act);
+    ASSERT_EQ(acts.size(), 8u);
+    const uint64_t expected[] = {0, 4, 8, 12, 34, 38, 42, 46};
+    for (size_t i = 0; i < 8; ++i) EXPECT_EQ(acts[i].cycle, expected[i]) << i;
+}
+
+TEST(DramCommand, RefreshCostsAboutTrfcOverTrefi) {
+    // A long peak-rate stream loses the refresh's share of time: tRFC / tREFI = 4.5%, plus the
+    // precharge and re-activation around each refresh.
+    const uint64_t n = 60000;  // 240,000 cycles: 19 refreshes
+    DramController without(ddr4("rorabachcobg", false)), with(ddr4("rorabachcobg", true));
+    const double t0 = double(stream_reads(without, n)), t1 = double(stream_reads(with, n));
+    const double overhead = t1 / t0 - 1.0, share = 560.0 / 12480.0;
+    EXPECT_GT(overhead, share);
+    EXPECT_LT(overhead, share + (22.0 + 22.0 + 52.0) / 12480.0);  // + tRP + tRCD + tRAS
+    // One refresh per tREFI, each rank's first one tREFI in.
+    EXPECT_NEAR(double(with.counters().refs), t1 / 12480.0, 1.0);
+    EXPECT_EQ(without.counters().refs, 0u);
+}
+
+TEST(DramCommand, WriteToReadTurnaroundIsTwtrAfterTheWriteData) {
+    // A write to bank group 0 (ACT at 0, WR at tRCD = 22, its data ends at 22 + CWL 16 + 4 =
+    // 42); a read arriving after it waits tWTR after that: tWTR_L = 12 in the same group (54),
+    // tWTR_S = 4 in another (46; its own ACT at 23 would allow 45).
+    for (const bool same_group : {true, false}) {
+        DramController d(ddr4("rochrababgco"));
+        d.record_commands(true);
+        ASSERT_TRUE(d.enqueue(1, 0, true, 0));
+        d.run_until(22);
+        ASSERT_EQ(of_kind(d, DramCommand::Wr).size(), 1u);
+        const uint64_t read_addr = same_group ? 64 : 64 * 128;  // next column, or bank group 1
+        ASSERT_TRUE(d.enqueue(2, read_addr, false, 23));
+        d.drain();
+        const auto rd = of_kind(d, DramCommand::Rd);
+        ASSERT_EQ(rd.size(), 1u);
+        EXPECT_EQ(rd[0].cycle, same_group ? 54u : 46u);
+    }
+}
+
+TEST(DramCommand, ReadToWriteLeavesTheBusTurnaround) {
+    // A read at 22 (data 44..48) then a write to the open row: its data may start tRTRS after
+    // the read's, so WR >= 22 + CL + burst + tRTRS - CWL = 33.
+    DramController d(ddr4("rochrababgco"));
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    d.run_until(22);
+    ASSERT_TRUE(d.enqueue(2, 64, true, 23));
+    d.drain();
+    const auto wr = of_kind(d, DramCommand::Wr);
+    ASSERT_EQ(wr.size(), 1u);
+    EXPECT_EQ(wr[0].cycle, 33u);
+}
+
+TEST(DramCommand, ClosedPageActivatesForEveryAccess) {
+    // Two reads of one row: auto-precharge closes it after the first (at tRAS = 52, later than
+    // RD + tRTP = 34), so the second activates again at 52 + tRP = 74 (= tRC), reads at 96.
+    DramDeviceSpec s = ddr4("rochrababgco");
+    s.open_page = false;
+    DramController d(s);
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(d.enqueue(2, 64, false, 0));
+    d.drain();
+    const auto acts = of_kind(d, DramCommand::Act), rds = of_kind(d, DramCommand::Rd);
+    ASSERT_EQ(acts.size(), 2u);
+    EXPECT_EQ(acts[1].cycle, 74u);
+    EXPECT_EQ(rds[1].cycle, 96u);
+    EXPECT_EQ(d.counters().row_hits, 0u);
+    // Open page: the second read is a row hit at 22 + tCCD_L.
+    DramController o(ddr4("rochrababgco"));
+    o.record_commands(true);
+    ASSERT_TRUE(o.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(o.enqueue(2, 64, false, 0));
+    o.drain();
+    EXPECT_EQ(of_kind(o, DramCommand::Rd)[1].cycle, 30u);
+    EXPECT_EQ(o.counters().row_hits, 1u);
+}
+
+TEST(DramCommand, FrFcfsServesAYoungerRowHitBeforeAnOlderConflict) {
+    // Row A is open (read at 0). At 30 a read of row B arrives, then one of row A: the hit
+    // reads at 30; the conflict precharges at tRAS = 52, activates at 74, reads at 96.
+    DramController d(ddr4("rochrababgco"));
+    d.record_commands(true);
+    const uint64_t row_bytes = 64 * 128 * 16;  // a row spans columns, bank groups and banks
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(d.enqueue(2, row_bytes, false, 30));  // row B, same bank
+    ASSERT_TRUE(d.enqueue(3, 128, false, 30));        // row A
+    d.drain();
+    std::map<uint64_t, uint64_t> done;
+    for (const auto& c : d.completions()) done[c.id] = c.cycle;
+    EXPECT_EQ(done[3], 30u + 22 + 4);
+    EXPECT_EQ(done[2], 96u + 22 + 4);
+    EXPECT_EQ(of_kind(d, DramCommand::Pre).at(0).cycle, 52u);
+    EXPECT_EQ(d.counters().row_misses, 1u);
+    EXPECT_EQ(d.counters().row_hits, 1u);
+    EXPECT_EQ(d.counters().row_conflicts, 1u);
+}
+
+TEST(DramCommand, WritesDrainAtTheHighWatermark) {
+    // Writes wait while reads flow; at 24 queued they drain down to 8.
+    DramController d(ddr4("rorabachcobg"));
+    uint64_t id = 0;
+    for (int i = 0; i < 24; ++i) ASSERT_TRUE(d.enqueue(id++, 1 << 20 | uint64_t(i) * 64, true, 0));
+    EXPECT_EQ(d.counters().write_drains, 0u);
+    d.run_until(0);
+    EXPECT_EQ(d.counters().write_drains, 1u);
+    d.drain();
+    EXPECT_EQ(d.counters().writes, 24u);
+}
+
+TEST(DramCommand, ReadOfAQueuedWriteIsServedFromTheQueue) {
+    DramController d(ddr4());
+    ASSERT_TRUE(d.enqueue(1, 4096, true, 0));
+    ASSERT_TRUE(d.enqueue(2, 4096, false, 0));
+    ASSERT_EQ(d.completions().size(), 1u);
+    EXPECT_EQ(d.completions()[0].id, 2u);
+    EXPECT_EQ(d.completions()[0].cycle, 1u);
+}
+
+TEST(DramCommand, EnergyPerCommandFollowsTheCurrents) {
+    // DDR4-3200 x8, 8 devices a rank, 1.2 V, 0.625 ns: an activate-precharge pair costs
+    // VDD (IDD0 tRC - IDD3N tRAS - IDD2N tRP) tCK x 8 = 6 (57*74 - 52*52 - 37*22) = 4200 pJ;
+    // a read burst 6 (IDD4R - IDD3N) 4 = 2784 pJ; background until cycle 1000 is active
+    // standby while the row is open: 6 x 52 = 312 pJ a cycle, precharged 6 x 37 = 222.
+    DramController d(ddr4());
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    d.run_until(999);
+    d.settle_background();
+    EXPECT_NEAR(d.counters().act_pj, 4200.0, 1e-6);
+    EXPECT_NEAR(d.counters().read_pj, 2784.0, 1e-6);
+    EXPECT_NEAR(d.counters().background_pj, 1000 * 312.0, 1e-6);  // the row stays open
+}
+
+TEST(DramCommand, InconsistentSpecsAreNamed) {
+    DramDeviceSpec s = ddr4();
+    EXPECT_EQ(s.check(), "");
+    s.rows = 1000;
+    EXPECT_NE(s.check().find("rows: expected a power of two"), std::string::npos);
+    s = ddr4("rochrababgch");
+    EXPECT_NE(s.check().find("field 'ch' appears 2 times"), std::string::npos);
+    s = ddr4();
+    s.write_low = 30;
+    EXPECT_NE(s.check().find("write_low < write_high"), std::string::npos);
+}
