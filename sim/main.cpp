@@ -6,6 +6,7 @@
 
 #include "sim/compare.h"
 #include "sim/config.h"
+#include "sim/dram_cmd.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/list_cmd.h"
@@ -108,6 +109,23 @@ int main_impl(int argc, char** argv) {
     cfg_cmd->add_option("--set", cfg_sets, "Override a field, KEY=VALUE; repeatable");
     cfg_cmd->add_flag("--doc", cfg_doc, "Print the reference of every field (Markdown)");
 
+    rtsim::DramTraceOptions dram;
+    CLI::App* dram_cmd = app.add_subcommand(
+        "dram",
+        "Run a memory trace (DRAMsim3 format: 0x<address> READ|WRITE <cycle>) through the "
+        "command-level DRAM model alone; report bandwidth, read latency, row hits and energy");
+    dram_cmd->add_option("trace", dram.trace_path, "Memory trace file")->required();
+    dram_cmd
+        ->add_option("--device", dram.device,
+                     "A device preset (rtsim list dram_device), a .json device file, or a "
+                     "DRAMsim3 .ini device config")
+        ->capture_default_str();
+    dram_cmd->add_option(
+        "--set", dram.sets,
+        "Override a device field, FIELD=VALUE (e.g. t_rcd=20, open_page=false); repeatable");
+    dram_cmd->add_option("-o,--out", dram.out_dir, "Also write stats.json to this folder");
+    dram_cmd->add_flag("-q,--quiet", dram.quiet, "No summary");
+
     std::string list_kind;
     bool list_json = false;
     CLI::App* list_cmd = app.add_subcommand(
@@ -138,6 +156,7 @@ int main_impl(int argc, char** argv) {
         if (*compare_cmd) return rtsim::compare_command(compare);
         if (*sweep_cmd) return rtsim::sweep_command(sweep);
         if (*list_cmd) return rtsim::list_command(list_kind, list_json);
+        if (*dram_cmd) return rtsim::dram_command(dram);
         if (*cfg_cmd) {
             if (cfg_doc) {
                 fmt::print("{}", rtsim::config_reference_markdown());

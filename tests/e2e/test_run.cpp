@@ -8,36 +8,18 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
-#include "support/scratch_dir.h"
+#include "support/run_rtsim.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
 
-struct Result {
-    int status;
-    std::string out, err;
-};
-
-const fs::path& work_dir() {
-    return rtsim::test::scratch_dir();
-}
-
-std::string slurp(const fs::path& p) {
-    std::ifstream in(p);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
-Result run_rtsim(const std::string& args) {
-    const fs::path out = work_dir() / "stdout.txt", err = work_dir() / "stderr.txt";
-    const std::string cmd = fmt::format("'{}' {} >'{}' 2>'{}' </dev/null", RTSIM_BINARY, args,
-                                        out.string(), err.string());
-    const int raw = std::system(cmd.c_str());
-    return {WIFEXITED(raw) ? WEXITSTATUS(raw) : -1, slurp(out), slurp(err)};
-}
+using rtsim::test::expect_one_line_error;
+using rtsim::test::Result;
+using rtsim::test::run_rtsim;
+using rtsim::test::slurp;
+using rtsim::test::work_dir;
 
 // Every run's stats; each must show that no block was asked about a cycle behind its time floor
 // (the cores' promise that lets calendars forget the past).
@@ -58,12 +40,6 @@ json stats_of(const fs::path& dir) {
         EXPECT_EQ(s["out_of_order"]["l1_mshr_requests"].get<uint64_t>(), 0u) << dir;
     }
     return s;
-}
-
-void expect_one_line_error(const Result& r, const std::string& fragment) {
-    EXPECT_EQ(r.status, 2) << r.err;
-    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
-    EXPECT_NE(r.err.find(fragment), std::string::npos) << r.err;
 }
 
 // The fields item 7 of the foundation issue promises.

@@ -1,0 +1,31 @@
+// DRAM devices as data (issue 17): presets in configs/dram/*.json, embedded at build time and
+// registered by name (`rtsim list dram_device`), read into a DramDeviceSpec field by field.
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "models/dram_command.h"
+#include "models/registry.h"
+
+namespace rtsim {
+
+struct DramDeviceEntry {
+    static constexpr const char* kKind = "dram_device";
+    std::string name, description;
+    std::vector<std::string> params;
+    const char* json = nullptr;  // the preset file's text
+};
+using DramDeviceRegistry = Registry<DramDeviceEntry>;
+
+// A device spec from a preset's JSON: every key must be a DramDeviceSpec field (or name,
+// description, source), with a value of its type; the result must pass DramDeviceSpec::check.
+// Throws std::invalid_argument naming the field and what is wrong.
+DramDeviceSpec dram_device_from_json(const nlohmann::json& j);
+// The spec as JSON (the same keys), for stats.json and round trips.
+nlohmann::json dram_device_to_json(const DramDeviceSpec& s);
+// Sets one field from text ("t_rcd", "20"), as --set does; throws std::invalid_argument.
+void set_dram_device_field(DramDeviceSpec& s, const std::string& key, const std::string& value);
+
+}  // namespace rtsim
