@@ -32,6 +32,13 @@ struct DramParams {
     uint32_t burst_bytes = 64;  // reads are whole bursts
     Cycle t_rcd_cycles = 14, t_cas_cycles = 14, t_rp_cycles = 14;
     Cycle t_ccd_cycles = 4;  // column command to column command in one bank (reads pipeline)
+    // The command-level model (dram.model = command): a device preset, its controller policy,
+    // and the chip's clock (its cycles convert to the device's).
+    std::string device = "DDR4_8Gb_x8_3200";
+    std::string page_policy = "open";
+    std::string address_mapping;  // empty: the device's
+    bool refresh = true;
+    double chip_clock_ghz = 0;  // set by chip assembly from clock_ghz
 };
 
 // A request moving through a DRAM model stage by stage (DramModel::advance): what the model

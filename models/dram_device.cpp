@@ -133,6 +133,18 @@ json dram_device_to_json(const DramDeviceSpec& s) {
     return j;
 }
 
+DramDeviceSpec command_dram_spec(const DramParams& p) {
+    const DramDeviceEntry* e = DramDeviceRegistry::find(p.device);
+    if (!e) throw std::invalid_argument(fmt::format("dram.device: unknown device '{}'", p.device));
+    DramDeviceSpec s = dram_device_from_json(json::parse(e->json));
+    s.open_page = p.page_policy != "closed";
+    s.refresh = p.refresh;
+    if (!p.address_mapping.empty()) s.address_mapping = p.address_mapping;
+    const std::string why = s.check();
+    if (!why.empty()) throw std::invalid_argument("dram: " + why);
+    return s;
+}
+
 void set_dram_device_field(DramDeviceSpec& s, const std::string& key, const std::string& text) {
     const FieldRow* r = find_row(key);
     if (!r)

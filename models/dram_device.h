@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "models/dram.h"
 #include "models/dram_command.h"
 #include "models/registry.h"
 
@@ -27,5 +28,9 @@ DramDeviceSpec dram_device_from_json(const nlohmann::json& j);
 nlohmann::json dram_device_to_json(const DramDeviceSpec& s);
 // Sets one field from text ("t_rcd", "20"), as --set does; throws std::invalid_argument.
 void set_dram_device_field(DramDeviceSpec& s, const std::string& key, const std::string& value);
+
+// The device dram.model = command simulates: the preset dram.device with the config's controller
+// policy (page policy, address mapping, refresh). Throws std::invalid_argument naming the field.
+DramDeviceSpec command_dram_spec(const DramParams& p);
 
 }  // namespace rtsim

@@ -44,7 +44,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
         for (auto* p :
              {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes, &series.rays})
             *p = std::make_unique<TimeSeries>(P.sim.window_cycles);
-    dram = DramModelRegistry::at(P.dram_model).make("dram", P.dram);
+    DramParams dram_params = P.dram;
+    dram_params.chip_clock_ghz = P.clock_ghz;
+    dram = DramModelRegistry::at(P.dram_model).make("dram", dram_params);
     dram->register_stats(stats);
     dram->set_series(series.dram_bytes.get());
     CacheParams l2p = P.l2;

@@ -1,5 +1,7 @@
 #include "sim/config.h"
 
+#include "models/dram_device.h"
+
 #include <fmt/format.h>
 #include <cmath>
 #include <filesystem>
@@ -223,6 +225,18 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
             "l1.split to false or the treelet cache to 0",
             where));
+    if (c["dram"]["model"] == "command") {
+        DramParams p;
+        p.device = c["dram"]["device"];
+        p.page_policy = c["dram"]["page_policy"];
+        p.address_mapping = c["dram"]["address_mapping"];
+        p.refresh = c["dram"]["refresh"];
+        try {
+            command_dram_spec(p);
+        } catch (const std::invalid_argument& e) {
+            throw InputError(fmt::format("{}: {}", where, e.what()));
+        }
+    }
     if (c["sim"]["sample_first_unit"].get<int64_t>() >=
         c["sim"]["sample_period_units"].get<int64_t>())
         throw InputError(fmt::format(

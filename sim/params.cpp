@@ -127,6 +127,10 @@ std::vector<FieldBinding> make_bindings() {
         field("dram.t_cas_cycles", M(dram.t_cas_cycles)),
         field("dram.t_ccd_cycles", M(dram.t_ccd_cycles)),
         field("dram.t_rp_cycles", M(dram.t_rp_cycles)),
+        field("dram.device", M(dram.device)),
+        field("dram.page_policy", M(dram.page_policy)),
+        field("dram.address_mapping", M(dram.address_mapping)),
+        field("dram.refresh", M(dram.refresh)),
         custom(
             "bvh.builder",
             [](Params& p, const json& v) {

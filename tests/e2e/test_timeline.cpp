@@ -184,3 +184,33 @@ TEST(Timeline, OneMshrQueuesMissesByHand) {
         EXPECT_EQ(s["bandwidth"]["dram"]["row_empty"].get<uint64_t>(), 1u);
     }
 }
+
+// The same ray on the command-level DRAM model (DDR4-3200: tRCD = CL = 22, a burst in 4
+// device cycles), with the chip clocked at the device's 1.6 GHz so a chip cycle is a device
+// cycle, and no refresh:
+//   0    ray setup -> 1
+//   1    node step: fetch at 2; L1 miss at 6; L2 miss at 36; DRAM: ACT at 36, RD at 58, last
+//        data beat 58 + 22 + 4 = 84, +150 -> 234; box test 8 -> 242
+//   242  triangle step: fetch 243; L1 miss 247; L2 miss 277; DRAM: the row is open (the
+//        triangle is the next burst of it), RD at 277, data 303, +150 -> 453; triangle 18 -> 471
+TEST(Timeline, OneRayOnTheCommandLevelDramByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "one_ray_cmd.rtt", 1);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s = run_trace(trace,
+                                 " --set core.ray_slots=1 --set dram.model=command"
+                                 " --set dram.device=DDR4_8Gb_x8_3200 --set dram.refresh=false"
+                                 " --set clock_ghz=1.6",
+                                 "one_ray_cmd", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 471u);
+        EXPECT_EQ(s["stalls"]["total"]["dram"].get<uint64_t>(), (234u - 36) + (453 - 277));
+        const json& d = s["bandwidth"]["dram"];
+        EXPECT_EQ(d["row_hits"].get<uint64_t>(), 1u);
+        EXPECT_EQ(d["row_empty"].get<uint64_t>(), 1u);
+        EXPECT_EQ(d["commands"]["act"].get<uint64_t>(), 1u);
+        // Energy by hand: one activate-precharge pair 4200 pJ, two read bursts 2 x 2784 pJ.
+        EXPECT_NEAR(d["energy_pj"]["activate"].get<double>(), 4200.0, 1e-6);
+        EXPECT_NEAR(d["energy_pj"]["read"].get<double>(), 2 * 2784.0, 1e-6);
+        EXPECT_EQ(s["out_of_order"]["dram_requests"].get<uint64_t>(), 0u);
+    }
+}

@@ -1,0 +1,229 @@
+// dram.model = command: the command-level controller (models/dram_command.h) as the chip's
+// main memory. The chip's cycles convert to the device's clock and back; dram.latency_cycles
+// covers the path to the controller and back (chip cycles).
+//
+// A request's completion is needed when it is made (the fast model) or at its next stage (the
+// time-ordered reference), but under FR-FCFS it depends on what arrives later. So the
+// controller runs up to each arrival, takes the request, and a copy of it runs on alone until
+// the request's data is back: that is the completion the requester sees. In the reference
+// (advance), the request then polls the real controller at that cycle and finishes when the
+// real controller, having seen every later arrival in time order, has served it. In the fast
+// model, requests that reach it behind the controller's time enter late (counted).
+#include <algorithm>
+#include <cmath>
+#include <unordered_map>
+
+#include "models/dram.h"
+#include "models/dram_device.h"
+
+namespace rtsim {
+
+namespace {
+
+class CommandDram final : public sc_core::sc_module, public DramModel {
+  public:
+    CommandDram(sc_core::sc_module_name name, const DramParams& p)
+        : sc_core::sc_module(name),
+          params_(p),
+          spec_(command_dram_spec(p)),
+          ctrl_(spec_),
+          chip_ns_(p.chip_clock_ghz > 0 ? 1.0 / p.chip_clock_ghz : 1.0) {}
+
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
+                 AccessBreakdown* bd = nullptr) override {
+        DramRequest r;
+        r.addr = addr;
+        r.size_bytes = size_bytes;
+        const Cycle done = arrive(r, now);
+        ctrl_.completions().clear();  // the fast model uses the prediction only
+        if (bd) bd->cycles[kLevelDram] += done - now;
+        return done;
+    }
+
+    Cycle advance(DramRequest& r, Cycle now, bool& done) override {
+        if (r.stage == 0) {
+            done = false;
+            return arrive(r, now);
+        }
+        // Poll: run the real controller up to (not through) now, since requests may still arrive
+        // at now, and see whether every burst is back (a burst's completion is known from its
+        // column command, which precedes its data by CL).
+        const uint64_t t = to_device(now);
+        if (t > 0) ctrl_.run_until(t - 1);
+        collect();
+        const uint64_t first = r.state[0], count = r.state[1];
+        uint64_t last = 0;
+        for (uint64_t id = first; id < first + count; ++id) {
+            auto it = finished_.find(id);
+            if (it == finished_.end()) {
+                done = false;
+                return std::max(now + 1, predict(first, count));
+            }
+            last = std::max(last, it->second);
+        }
+        for (uint64_t id = first; id < first + count; ++id) finished_.erase(id);
+        done = true;
+        return std::max(now, to_chip(last) + params_.latency_cycles);
+    }
+
+    void register_stats(StatsRegistry& reg) override {
+        const std::string block = name();
+        reg.add(block, "reads", &reads_, "read bursts");
+        reg.add(block, "bytes", &bytes_, "bytes read");
+        reg.add(block, "row_hits", &row_hits_, "column commands to an already open row");
+        reg.add(block, "row_empty", &row_empty_, "column commands that needed an activate");
+        reg.add(block, "row_conflicts", &row_conflicts_,
+                "column commands that needed a precharge and an activate");
+        reg.add(block, "activates", &acts_, "ACT commands");
+        reg.add(block, "refreshes", &refs_, "REF commands");
+        reg.add(block, "late_requests", &late_,
+                "requests that arrived behind one later in simulated time (fast model)");
+        reg.add(block, "queue_full_waits", &queue_full_waits_,
+                "device cycles requests waited for room in a full controller queue");
+    }
+
+    nlohmann::json report(const ReportContext& ctx) const override {
+        // Refresh and background energy run to the frame's end.
+        ctrl_.run_until(to_device(ctx.total_cycles));
+        ctrl_.settle_background();
+        sync_counters();
+        const DramCounters& k = ctrl_.counters();
+        const double device_cycles = double(std::max<uint64_t>(1, ctrl_.now()));
+        const double ns = device_cycles * spec_.tck_ns;
+        using R = ReportContext;
+        return {
+            {"bytes", bytes_},
+            {"gbps", ctx.gbps(bytes_)},
+            {"device", spec_.name},
+            {"row_hits", k.row_hits},
+            {"row_empty", k.row_misses},
+            {"row_conflicts", k.row_conflicts},
+            {"row_hit_rate", R::ratio(double(k.row_hits), double(k.reads + k.writes))},
+            {"commands", {{"act", k.acts}, {"pre", k.pres}, {"ref", k.refs}}},
+            {"read_latency_device_cycles", R::ratio(double(k.read_latency_sum), double(k.reads))},
+            {"utilization", R::ratio(double(k.reads + k.writes) * spec_.burst_cycles,
+                                     device_cycles * spec_.channels)},
+            {"energy_pj",
+             {{"activate", k.act_pj},
+              {"read", k.read_pj},
+              {"write", k.write_pj},
+              {"refresh", k.refresh_pj},
+              {"background", k.background_pj},
+              {"total", k.total_pj()}}},
+            {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
+    }
+
+    uint64_t out_of_order_requests() const override { return late_; }
+    void set_series(TimeSeries* bytes) override { series_ = bytes; }
+    void follow(const TimeFloor*) override {}
+
+  private:
+    uint64_t to_device(Cycle chip) const {
+        return uint64_t(std::ceil(double(chip) * chip_ns_ / spec_.tck_ns - 1e-9));
+    }
+    Cycle to_chip(uint64_t device) const {
+        return Cycle(std::ceil(double(device) * spec_.tck_ns / chip_ns_ - 1e-9));
+    }
+
+    // Enqueues the request's bursts at `now` and returns when a copy of the controller, run on
+    // alone, has its data back (plus the path latency).
+    Cycle arrive(DramRequest& r, Cycle now) {
+        r.arrived = now;
+        const uint64_t t = to_device(now);
+        // Out of time order: behind a request that arrived later in simulated time (the fast
+        // model's cores run ahead of each other within a horizon). A full queue also makes a
+        // request enter after its time; that is the queue's back-pressure, counted apart.
+        late_ += t < latest_arrival_;
+        latest_arrival_ = std::max(latest_arrival_, t);
+        const uint32_t burst = spec_.burst_bytes();
+        const uint64_t count = std::max<uint64_t>(1, (r.size_bytes + burst - 1) / burst);
+        const uint64_t first = next_id_;
+        const uint64_t base = r.addr / burst * burst;
+        for (uint64_t k = 0; k < count; ++k) {
+            uint64_t at = std::max(t, ctrl_.now());
+            while (!ctrl_.enqueue(next_id_, base + k * burst, false, at)) {
+                at = ctrl_.now() + 1;
+                ++queue_full_waits_;
+            }
+            ++next_id_;
+        }
+        r.state[0] = first;
+        r.state[1] = count;
+        r.stage = 1;
+        reads_ += count;
+        bytes_ += count * burst;
+        if (series_) series_->add(now, count * burst);
+        sync_counters();
+        return std::max(now + 1, predict(first, count));
+    }
+
+    // The chip cycle the bursts [first, first + count) are back, if nothing else arrives.
+    Cycle predict(uint64_t first, uint64_t count) {
+        DramController copy = ctrl_;
+        copy.completions().clear();
+        uint64_t last = 0, seen = 0;
+        // Already finished in the real controller?
+        for (uint64_t id = first; id < first + count; ++id) {
+            auto it = finished_.find(id);
+            if (it != finished_.end()) {
+                last = std::max(last, it->second);
+                ++seen;
+            }
+        }
+        for (const auto& c : ctrl_.completions())
+            if (c.id >= first && c.id < first + count) {
+                last = std::max(last, c.cycle);
+                ++seen;
+            }
+        while (seen < count && copy.pending() > 0) {
+            copy.run_until(copy.now());
+            for (const auto& c : copy.completions())
+                if (c.id >= first && c.id < first + count) {
+                    last = std::max(last, c.cycle);
+                    ++seen;
+                }
+            copy.completions().clear();
+        }
+        return to_chip(last) + params_.latency_cycles;
+    }
+
+    void collect() {
+        for (const auto& c : ctrl_.completions()) finished_[c.id] = c.cycle;
+        ctrl_.completions().clear();
+    }
+
+    void sync_counters() const {
+        const DramCounters& k = ctrl_.counters();
+        row_hits_ = k.row_hits;
+        row_empty_ = k.row_misses;
+        row_conflicts_ = k.row_conflicts;
+        acts_ = k.acts;
+        refs_ = k.refs;
+    }
+
+    DramParams params_;
+    DramDeviceSpec spec_;
+    mutable DramController ctrl_;  // report() runs it to the frame's end
+    double chip_ns_;
+    uint64_t next_id_ = 0;
+    std::unordered_map<uint64_t, uint64_t> finished_;  // burst id -> device cycle (reference)
+    TimeSeries* series_ = nullptr;
+    uint64_t reads_ = 0, bytes_ = 0, late_ = 0, queue_full_waits_ = 0;
+    uint64_t latest_arrival_ = 0;  // device cycle
+    mutable uint64_t row_hits_ = 0, row_empty_ = 0, row_conflicts_ = 0, acts_ = 0, refs_ = 0;
+};
+
+std::unique_ptr<DramModel> make_command(const char* module_name, const DramParams& p) {
+    return std::make_unique<CommandDram>(module_name, p);
+}
+
+}  // namespace
+
+RTSIM_REGISTER(DramModelEntry,
+               {"command",
+                "command-level controller: ACT/RD/WR/PRE/REF under JEDEC timings, bank groups, "
+                "ranks, FR-FCFS queues, refresh, energy from device currents (configs/dram)",
+                {"latency_cycles", "device", "page_policy", "address_mapping", "refresh"},
+                &make_command})
+
+}  // namespace rtsim
