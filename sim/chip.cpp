@@ -39,7 +39,8 @@ std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
     return spans;
 }
 
-Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
+Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
+           std::function<std::unique_ptr<DramModel>(DramModel&)> make_front) {
     if (P.sim.window_cycles > 0)
         for (auto* p :
              {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes, &series.rays})
@@ -49,9 +50,10 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout) {
     dram = DramModelRegistry::at(P.dram_model).make("dram", dram_params);
     dram->register_stats(stats);
     dram->set_series(series.dram_bytes.get());
+    if (make_front) dram_front = make_front(*dram);
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
-    l2 = std::make_unique<Cache>("l2", l2p, dram.get(), kLevelL2);
+    l2 = std::make_unique<Cache>("l2", l2p, dram_front ? dram_front.get() : dram.get(), kLevelL2);
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();

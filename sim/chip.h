@@ -2,6 +2,8 @@
 // cores -> L1 -> shared L2 -> DRAM, registering every block's counters in one registry.
 #pragma once
 
+#include <functional>
+
 #include <array>
 #include <memory>
 #include <string>
@@ -22,7 +24,10 @@ namespace rtsim {
 class Chip {
   public:
     // `layout`: where the treelets are (treelet mode loads them); the chip sees only addresses.
-    Chip(const Params& params, RayWorkSource* source, const BvhLayout& layout);
+    // `dram_front`: when given, made around the DRAM model and placed in front of it (what the
+    // L2 sees), e.g. a recorder of the requests that reach memory.
+    Chip(const Params& params, RayWorkSource* source, const BvhLayout& layout,
+         std::function<std::unique_ptr<DramModel>(DramModel&)> dram_front = {});
     // Cycle the last ray finished (valid after the simulation ran).
     Cycle total_cycles() const;
     // stats.json's sections "units", "caches", "bandwidth", "stalls", and "ray_buffer" and
@@ -38,6 +43,7 @@ class Chip {
 
     StatsRegistry stats;
     std::unique_ptr<DramModel> dram;
+    std::unique_ptr<DramModel> dram_front;  // in front of dram, when asked for
     std::unique_ptr<Cache> l2;
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;

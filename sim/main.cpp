@@ -31,6 +31,11 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
     run_cmd->add_option("--out,-o", run.out_dir,
                         "Output folder for stats.json (default: a fresh folder under out/)");
     run_cmd->add_flag("--quiet,-q", run.quiet, "No summary or progress");
+    run_cmd->add_option("--mem-trace", run.mem_trace_path,
+                        "Also write the requests that reach DRAM, in DRAMsim3's trace format "
+                        "(0x<address> READ <cycle>, a line per burst; cycles of dram.device's "
+                        "clock with dram.model=command, else chip cycles), for rtsim dram, "
+                        "DRAMsim3 or Ramulator");
     rtsim::add_bvh_cache_option(run_cmd, run.bvh_cache);
     run_cmd
         ->add_option("--target-error", run.target_error_pct,

@@ -17,6 +17,8 @@
 #include "sim/chip.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
+#include "sim/mem_trace.h"
+#include "models/dram_device.h"
 #include "sim/run_report.h"
 #include "sim/work_sources.h"
 #include "workloads/error.h"
@@ -189,7 +191,15 @@ int run_command(const RunOptions& opt) {
     host.prepare_s = seconds_since(t_prepare);
     CountingSource& source = *w.source;
 
-    Chip chip(cfg.typed, &source, w.layout());
+    MemTraceRecorder* recorder = nullptr;
+    std::function<std::unique_ptr<DramModel>(DramModel&)> front;
+    if (!opt.mem_trace_path.empty())
+        front = [&recorder](DramModel& inner) {
+            auto r = std::make_unique<MemTraceRecorder>(inner);
+            recorder = r.get();
+            return r;
+        };
+    Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
     json plan;  // --target-error: the pilot and the period it chose
     if (cfg.typed.sim.fidelity == "sampled") {
@@ -240,6 +250,15 @@ int run_command(const RunOptions& opt) {
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));
 
+    if (recorder) {
+        // The command-level model's device sets the clock and burst; else chip cycles and the
+        // simple model's burst.
+        const bool command = cfg.typed.dram_model == "command";
+        const DramDeviceSpec spec = command ? command_dram_spec(cfg.typed.dram) : DramDeviceSpec{};
+        recorder->write(opt.mem_trace_path,
+                        command ? spec.burst_bytes() : uint32_t(cfg.typed.dram.burst_bytes),
+                        cfg.typed.clock_ghz, command ? spec.tck_ns : 0.0);
+    }
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
     write_file_atomically(stats_path, out.dump(2) + "\n");
     if (!opt.quiet) print_run_summary(out, stats_path);
