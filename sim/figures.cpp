@@ -93,6 +93,10 @@ std::vector<FigureDef> make_figures() {
          false, "/sampling/figures/dram_bytes_per_cycle"},
         {"DRAM utilisation", R::Points, true, at("/bandwidth/dram/utilization")},
         {"DRAM row hit rate", R::Points, true, at("/bandwidth/dram/row_hit_rate")},
+        // The command-level DRAM model's energy (absent from other models' stats).
+        {"DRAM energy per ray (nJ)", R::Ratio, false,
+         [](const json& j) { return per_ray(j, "/bandwidth/dram/energy_pj/total") / 1e3; }},
+        {"DRAM power (mW)", R::Ratio, false, at("/bandwidth/dram/average_power_mw")},
         {"crossbar utilisation", R::Points, true, at("/bandwidth/crossbar/utilization")},
         {"box unit utilisation", R::Points, true,
          estimate_or(

@@ -22,7 +22,8 @@ void MemTraceRecorder::write(const std::string& path, uint32_t burst_bytes, doub
         const auto cycle = uint64_t(std::ceil(double(r.cycle) * scale - 1e-9));
         const uint64_t first = r.addr / burst * burst;
         const uint64_t end = r.addr + std::max<uint32_t>(1, r.size_bytes);
-        for (uint64_t a = first; a < end; a += burst) text += fmt::format("0x{:x} READ {}\n", a, cycle);
+        for (uint64_t a = first; a < end; a += burst)
+            text += fmt::format("0x{:x} READ {}\n", a, cycle);
     }
     write_file_atomically(path, text);
 }

@@ -12,13 +12,13 @@
 #include <systemc>
 
 #include "models/calendar.h"
+#include "models/dram_device.h"
 #include "models/traversal_mode.h"
 #include "sim/bound.h"
 #include "sim/chip.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/mem_trace.h"
-#include "models/dram_device.h"
 #include "sim/run_report.h"
 #include "sim/work_sources.h"
 #include "workloads/error.h"

@@ -150,3 +150,30 @@ TEST(DramTrace, EveryPresetLoadsAndRuns) {
         EXPECT_EQ(s["device"]["name"].get<std::string>(), device);
     }
 }
+
+// rtsim run --mem-trace: one line per burst that reached DRAM, in time order, which rtsim dram
+// replays into the same number of reads.
+TEST(DramTrace, RunWritesTheRequestsThatReachDram) {
+    const fs::path trace = work_dir() / "run.memtrace", out = work_dir() / "memtrace_run";
+    const Result r = run_rtsim(
+        "run -q --scene builtin:sphere --res 32x32 --rays primary,ao "
+        "--set dram.model=command --mem-trace '" +
+        trace.string() + "' -o '" + out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = json::parse(slurp(out / "stats.json"));
+    std::ifstream in(trace);
+    std::string addr, op;
+    uint64_t cycle = 0, last = 0, lines = 0;
+    while (in >> addr >> op >> cycle) {
+        EXPECT_EQ(op, "READ");
+        EXPECT_EQ(addr.rfind("0x", 0), 0u);
+        EXPECT_GE(cycle, last);
+        last = cycle;
+        ++lines;
+    }
+    EXPECT_EQ(lines, s["counters"]["dram.reads"].get<uint64_t>());
+    EXPECT_EQ(lines * 64, s["bandwidth"]["dram"]["bytes"].get<uint64_t>());
+    const fs::path replay = work_dir() / "memtrace_replay";
+    ASSERT_EQ(run_rtsim("dram -q '" + trace.string() + "' -o '" + replay.string() + "'").status, 0);
+    EXPECT_EQ(json::parse(slurp(replay / "stats.json"))["reads"].get<uint64_t>(), lines);
+}
