@@ -171,6 +171,14 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_period_units", M(sim.sample_period_units)),
         field("sim.sample_warmup_rays", M(sim.sample_warmup_rays)),
         field("sim.sample_first_unit", M(sim.sample_first_unit)),
+        field("energy.sram_8kib_pj", M(energy.sram_8kib_pj), 1, kNotMirrored),
+        field("energy.sram_32kib_pj", M(energy.sram_32kib_pj), 1, kNotMirrored),
+        field("energy.sram_1mib_pj", M(energy.sram_1mib_pj), 1, kNotMirrored),
+        field("energy.fp32_add_pj", M(energy.fp32_add_pj), 1, kNotMirrored),
+        field("energy.fp32_mul_pj", M(energy.fp32_mul_pj), 1, kNotMirrored),
+        field("energy.wire_pj_per_bit_mm", M(energy.wire_pj_per_bit_mm), 1, kNotMirrored),
+        field("energy.crossbar_mm", M(energy.crossbar_mm), 1, kNotMirrored),
+        field("energy.dram_pj_per_byte", M(energy.dram_pj_per_byte), 1, kNotMirrored),
     };
     t.insert(t.end(), rest.begin(), rest.end());
     return t;

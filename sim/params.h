@@ -38,6 +38,15 @@ struct SimParams {
     int64_t sample_first_unit = -1;  // -1: drawn from the seed
 };
 
+// energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults
+// and their sources.
+struct EnergyParams {
+    double sram_8kib_pj = 0, sram_32kib_pj = 0, sram_1mib_pj = 0;
+    double fp32_add_pj = 0, fp32_mul_pj = 0;
+    double wire_pj_per_bit_mm = 0, crossbar_mm = 0;
+    double dram_pj_per_byte = 0;
+};
+
 // Members outside the model structs have no meaningful C++ default: only binding sets them.
 struct Params {
     std::string name;
@@ -59,6 +68,7 @@ struct Params {
     TraversalParams traversal;
     RayBufferParams ray_buffer;  // ray_buffer.*, and traversal's treelet scheduler and batches
     SimParams sim;
+    EnergyParams energy;
 };
 
 // One row of the table: a schema path and how its value reaches its member.

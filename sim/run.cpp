@@ -16,6 +16,7 @@
 #include "models/traversal_mode.h"
 #include "sim/bound.h"
 #include "sim/chip.h"
+#include "sim/energy.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/mem_trace.h"
@@ -248,6 +249,7 @@ int run_command(const RunOptions& opt) {
     if (sampler)
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);
+    out["energy"] = energy_report(cfg.typed, out);
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));
 
     if (recorder) {

@@ -1,0 +1,129 @@
+#include "sim/energy.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "workloads/reduced_box.h"
+
+namespace rtsim {
+
+using nlohmann::json;
+
+double sram_word_pj(const EnergyParams& e, double bytes) {
+    const double x[3] = {std::log2(8.0 * 1024), std::log2(32.0 * 1024), std::log2(1024.0 * 1024)};
+    const double y[3] = {e.sram_8kib_pj, e.sram_32kib_pj, e.sram_1mib_pj};
+    const double lx = std::log2(std::max(bytes, 1.0));
+    const int seg = lx < x[1] ? 0 : 1;  // the segment, extended beyond the ends
+    const double t = (lx - x[seg]) / (x[seg + 1] - x[seg]);
+    return std::max(0.0, y[seg] + t * (y[seg + 1] - y[seg]));
+}
+
+namespace {
+
+// A counter's total: a sampled run's estimate where it has one, else the run's count.
+double counter(const json& stats, const std::string& name) {
+    if (stats.contains("sampling") && stats["sampling"].contains("counters")) {
+        const json& c = stats["sampling"]["counters"];
+        if (c.contains(name)) return c[name]["value"].get<double>();
+        if (stats["sampling"].contains("total_cycles")) return 0.0;  // never moved when measured
+    }
+    const json& c = stats["counters"];
+    return c.contains(name) ? c[name].get<double>() : 0.0;
+}
+
+// The sum of `suffix` over every block named prefix[i] (l1[0].accesses, l1[1].accesses, ...).
+double sum_blocks(const json& stats, const std::string& prefix, const std::string& suffix) {
+    double sum = 0;
+    for (const auto& [name, value] : stats["counters"].items()) {
+        (void)value;
+        if (name.rfind(prefix + "[", 0) == 0 && name.size() > suffix.size() &&
+            name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
+            sum += counter(stats, name);
+    }
+    return sum;
+}
+
+}  // namespace
+
+json energy_report(const Params& P, const json& stats) {
+    const EnergyParams& e = P.energy;
+    json per_access = json::object(), blocks = json::object();
+    auto line_pj = [&](const CacheParams& c) {
+        return sram_word_pj(e, double(c.size_bytes) / std::max(1, c.banks)) * double(c.line_bytes) /
+               8.0;
+    };
+    // Caches: every lookup reads a line's worth of its bank, every miss writes a line in.
+    auto cache = [&](const char* block, const CacheParams& c, bool indexed) {
+        const double accesses = indexed ? sum_blocks(stats, block, ".accesses")
+                                        : counter(stats, std::string(block) + ".accesses");
+        const double misses = indexed ? sum_blocks(stats, block, ".misses")
+                                      : counter(stats, std::string(block) + ".misses");
+        if (accesses + misses <= 0) return;
+        const double pj = line_pj(c);
+        per_access[std::string(block) + "_line_pj"] = pj;
+        blocks[block] = (accesses + misses) * pj;
+    };
+    cache("l1", P.l1, true);
+    cache("l1_tri", P.l1, true);
+    if (P.traversal.treelet_cache_bytes > 0) {
+        CacheParams t = P.l1;
+        t.size_bytes = P.traversal.treelet_cache_bytes;
+        t.banks = 1;
+        cache("treelet_cache", t, true);
+    }
+    cache("l2", P.l2, false);
+    // The ray buffer: an SRAM of its capacity, a ray record per access.
+    const double rb = counter(stats, "ray_buffer.reads") + counter(stats, "ray_buffer.writes");
+    if (rb > 0) {
+        const double bytes = double(P.ray_buffer.capacity_rays) * P.ray_buffer.ray_bytes;
+        const double pj = sram_word_pj(e, bytes) * P.ray_buffer.ray_bytes / 8.0;
+        per_access["ray_buffer_record_pj"] = pj;
+        blocks["ray_buffer"] = rb * pj;
+    }
+    // The crossbar: bits times the distance they travel.
+    const double xbar_bytes = counter(stats, "crossbar.bytes");
+    if (xbar_bytes > 0) {
+        const double mm = e.crossbar_mm > 0 ? e.crossbar_mm : std::sqrt(double(P.core_count));
+        per_access["crossbar_pj_per_byte"] = 8.0 * e.wire_pj_per_bit_mm * mm;
+        blocks["crossbar"] = xbar_bytes * 8.0 * e.wire_pj_per_bit_mm * mm;
+    }
+    // Units: a W-wide box operation switches all W lanes' datapaths; a triangle operation tests
+    // one triangle.
+    const double m = (double(P.bvh.box_mantissa_bits) + 1.0) / (kFullMantissaBits + 1.0);
+    const double box_pj = 6 * e.fp32_mul_pj * m * m + 12 * e.fp32_add_pj * m;
+    const double tri_pj = 20 * e.fp32_mul_pj + 20 * e.fp32_add_pj;
+    per_access["box_test_pj"] = box_pj;
+    per_access["triangle_test_pj"] = tri_pj;
+    const auto box = size_t(StepKind::Node);
+    const double box_ops = sum_blocks(stats, "box_unit", ".ops"),
+                 tri_ops = sum_blocks(stats, "triangle_unit", ".ops");
+    if (box_ops > 0) blocks["box_unit"] = box_ops * P.unit[box].width * box_pj;
+    if (tri_ops > 0) blocks["triangle_unit"] = tri_ops * tri_pj;
+    // DRAM: the command-level model's own figure (scaled to a sampled run's estimated reads),
+    // else bytes times a cost per byte.
+    const double dram_bytes = counter(stats, "dram.bytes");
+    const json::json_pointer cmd("/bandwidth/dram/energy_pj/total");
+    if (stats.contains(cmd)) {
+        const double measured = stats["counters"].value("dram.bytes", 0.0);
+        const double scale = measured > 0 ? dram_bytes / measured : 1.0;
+        blocks["dram"] = stats.at(cmd).get<double>() * scale;
+    } else if (dram_bytes > 0) {
+        per_access["dram_pj_per_byte"] = e.dram_pj_per_byte;
+        blocks["dram"] = dram_bytes * e.dram_pj_per_byte;
+    }
+    double total = 0;
+    for (const auto& [name, pj] : blocks.items()) {
+        (void)name;
+        total += pj.get<double>();
+    }
+    const double rays = stats["rays"]["total"].get<double>();
+    const double seconds = stats.value("simulated_seconds", 0.0);
+    return {{"blocks_pj", blocks},
+            {"total_pj", total},
+            {"per_ray_nj", rays > 0 ? total / rays / 1e3 : 0.0},
+            {"average_power_w", seconds > 0 ? total * 1e-12 / seconds : 0.0},
+            {"per_access_pj", per_access}};
+}
+
+}  // namespace rtsim

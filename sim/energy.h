@@ -1,0 +1,20 @@
+// stats.json's "energy" section (issue 17): each block's energy from its counters and a cost
+// per access or operation (energy.*, defaults from public sources named in the schema), DRAM's
+// from the command-level model's currents when it ran, the total, energy per ray and average
+// power. A sampled run's blocks use its estimated totals.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "sim/params.h"
+
+namespace rtsim {
+
+// Energy of a 64-bit access to an SRAM of `bytes`: the three stated sizes' energies
+// interpolated (and extrapolated) linearly in log size.
+double sram_word_pj(const EnergyParams& e, double bytes);
+
+// The section, from a finished run's stats (its counters, bandwidth and sampling sections).
+nlohmann::json energy_report(const Params& P, const nlohmann::json& stats);
+
+}  // namespace rtsim
