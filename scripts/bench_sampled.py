@@ -82,6 +82,8 @@ def svg_plot(cells, path):
     pts = []
     for c in cells:
         for m in c["modes"]:
+            if m["runs"] == 0:
+                continue
             err = max(m["cycles"]["mean_abs_error_pct"], 0.01)
             pts.append((m["host_s"], err, m["mode"], f"{c['scene']}/{c['workload']}"))
     if not pts:
@@ -230,18 +232,25 @@ def main(argv=None):
                     "modes": []}
             for mode in [f"1/{p}" for p in periods] + [f"target {t:g}%" for t in targets]:
                 rows = []
+                no_estimate = 0
                 for (sc, w, m, k), st in results.items():
                     if (sc, w, m) != (scene, wl, mode):
                         continue
                     sm = st["sampling"]
                     if "total_cycles" not in sm:
-                        sys.exit(f"bench_sampled: {scene}/{wl} {mode} start {k}: {sm.get('note')}")
+                        # Too few units at this period for an estimate (a short frame): counted,
+                        # not averaged in.
+                        no_estimate += 1
+                        continue
                     row = {"start": k, "detailed_share": sm["detailed_share"],
                            "units_measured": sm["units_measured"],
                            "host_s": st["host"]["run_time_s"]}
                     for name, t, est in (("cycles", truth["total_cycles"], sm["total_cycles"]),
                                          ("dram_bytes", truth["counters"]["dram.bytes"],
-                                          sm["counters"].get("dram.bytes"))):
+                                          # absent: no measured unit moved a DRAM byte
+                                          sm["counters"].get("dram.bytes", {
+                                              "value": 0.0, "lo": 0.0, "hi": 0.0,
+                                              "half_width_pct": 0.0}))):
                         row[name] = {"value": est["value"],
                                      "error_pct": 100.0 * (est["value"] - t) / t,
                                      "half_width_pct": est["half_width_pct"],
@@ -249,7 +258,11 @@ def main(argv=None):
                     if "target" in sm:
                         row["target_met"] = sm["target"]["met"]
                     rows.append(row)
+                if not rows:
+                    cell["modes"].append({"mode": mode, "runs": 0, "no_estimate": no_estimate})
+                    continue
                 summary = summarise(rows)
+                summary["no_estimate"] = no_estimate
                 summary["mode"] = mode
                 summary["speedup"] = cell["full"]["host_s"] / summary["host_s"]
                 summary["rows"] = rows
@@ -275,9 +288,15 @@ def main(argv=None):
                      f"{args.full_repeats} | 100% | | | | | | | | | | | "
                      f"{c['full']['host_s']:.2f} | 1 |")
         for m in c["modes"]:
+            if m["runs"] == 0:
+                lines.append(f"| | | | {m['mode']} | 0 ({m['no_estimate']} without an estimate: "
+                             "too few units) | | | | | | | | | | | | | |")
+                continue
             cy, dr = m["cycles"], m["dram_bytes"]
             lines.append(
-                f"| | | | {m['mode']} | {m['runs']} | {100 * m['detailed_share']:.1f}% | "
+                f"| | | | {m['mode']} | {m['runs']}"
+                f"{' (+' + str(m['no_estimate']) + ' without)' if m['no_estimate'] else ''} | "
+                f"{100 * m['detailed_share']:.1f}% | "
                 f"{m['units_measured']:.0f} | {cy['mean_abs_error_pct']:.2f}% | "
                 f"{cy['max_abs_error_pct']:.2f}% | {cy['mean_error_pct']:+.2f}% | "
                 f"{cy['mean_half_width_pct']:.2f}% | {100 * cy['coverage']:.0f}% | "
@@ -291,7 +310,9 @@ def main(argv=None):
               "|---|---|---|---|---|---|---|"]
     mode_names = [m["mode"] for m in cells[0]["modes"]] if cells else []
     for mode in mode_names:
-        ms = [m for c in cells for m in c["modes"] if m["mode"] == mode]
+        ms = [m for c in cells for m in c["modes"] if m["mode"] == mode and m["runs"] > 0]
+        if not ms:
+            continue
         cy = [m["cycles"] for m in ms]
         dr = [m["dram_bytes"] for m in ms]
         lines.append(
