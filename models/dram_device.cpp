@@ -133,6 +133,12 @@ json dram_device_to_json(const DramDeviceSpec& s) {
     return j;
 }
 
+json dram_energy_json(const DramCounters& k) {
+    return {{"activate", k.act_pj},          {"read", k.read_pj},
+            {"write", k.write_pj},           {"refresh", k.refresh_pj},
+            {"background", k.background_pj}, {"total", k.total_pj()}};
+}
+
 DramDeviceSpec command_dram_spec(const DramParams& p) {
     const DramDeviceEntry* e = DramDeviceRegistry::find(p.device);
     if (!e) throw std::invalid_argument(fmt::format("dram.device: unknown device '{}'", p.device));

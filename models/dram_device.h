@@ -29,6 +29,10 @@ nlohmann::json dram_device_to_json(const DramDeviceSpec& s);
 // Sets one field from text ("t_rcd", "20"), as --set does; throws std::invalid_argument.
 void set_dram_device_field(DramDeviceSpec& s, const std::string& key, const std::string& value);
 
+// A controller's energy by kind, in pJ: activate, read, write, refresh, background and total
+// (stats.json of rtsim dram and of dram.model = command).
+nlohmann::json dram_energy_json(const DramCounters& k);
+
 // The device dram.model = command simulates: the preset dram.device with the config's controller
 // policy (page policy, address mapping, refresh). Throws std::invalid_argument naming the field.
 DramDeviceSpec command_dram_spec(const DramParams& p);

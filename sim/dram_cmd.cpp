@@ -297,13 +297,7 @@ int dram_command(const DramTraceOptions& opt) {
         {"row_conflicts", k.row_conflicts},
         {"row_hit_rate", columns ? double(k.row_hits) / double(columns) : 0.0},
         {"write_drains", k.write_drains},
-        {"energy_pj",
-         {{"activate", k.act_pj},
-          {"read", k.read_pj},
-          {"write", k.write_pj},
-          {"refresh", k.refresh_pj},
-          {"background", k.background_pj},
-          {"total", k.total_pj()}}},
+        {"energy_pj", dram_energy_json(k)},
         {"energy_pj_per_bit", bytes > 0 ? k.total_pj() / (bytes * 8) : 0.0},
         {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
     if (!opt.out_dir.empty()) {

@@ -103,13 +103,7 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
             {"read_latency_device_cycles", R::ratio(double(k.read_latency_sum), double(k.reads))},
             {"utilization", R::ratio(double(k.reads + k.writes) * spec_.burst_cycles,
                                      device_cycles * spec_.channels)},
-            {"energy_pj",
-             {{"activate", k.act_pj},
-              {"read", k.read_pj},
-              {"write", k.write_pj},
-              {"refresh", k.refresh_pj},
-              {"background", k.background_pj},
-              {"total", k.total_pj()}}},
+            {"energy_pj", dram_energy_json(k)},
             {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
     }
 
