@@ -155,7 +155,10 @@ def main(argv=None):
     ap.add_argument("--scenes", default="bunny,armadillo,cornell,camel,elephant,homer")
     ap.add_argument("--workloads", default="primary,ao,diffuse,path2")
     ap.add_argument("--periods", default="10,20,100")
-    ap.add_argument("--max-starts", type=int, default=100)
+    ap.add_argument("--design", default="stratified", choices=["stratified", "systematic"])
+    ap.add_argument("--max-starts", type=int, default=100,
+                    help="systematic: at most this many start units per period (all if fewer); "
+                         "stratified: this many sample seeds")
     ap.add_argument("--target-errors", default="5",
                     help="comma list of --target-error percentages ('' for none)")
     ap.add_argument("--adaptive-starts", type=int, default=5)
@@ -189,13 +192,19 @@ def main(argv=None):
             if mode != "full":
                 extra = ["--set", "sim.fidelity=sampled",
                          "--set", f"sim.sample_unit_rays={args.unit_rays}"] + sets
+                extra += ["--set", f"sim.sample_design={args.design}"]
+                # A systematic sample is fixed by its start; a stratified one by its seed.
                 if mode.startswith("1/"):
-                    extra += ["--set", f"sim.sample_period_units={mode[2:]}",
-                              "--set", f"sim.sample_first_unit={k}"]
+                    extra += ["--set", f"sim.sample_period_units={mode[2:]}"]
+                    extra += (["--set", f"sim.sample_first_unit={k}"]
+                              if args.design == "systematic" else
+                              ["--set", f"sim.sample_seed={k + 1}"])
                 else:  # "target T%": the pilot's period is the first listed
                     extra += ["--set", f"sim.sample_period_units={periods[0]}",
-                              "--set", f"sim.sample_first_unit={k % periods[0]}",
                               "--target-error", mode.split()[1].rstrip("%")]
+                    extra += (["--set", f"sim.sample_first_unit={k % periods[0]}"]
+                              if args.design == "systematic" else
+                              ["--set", f"sim.sample_seed={k + 1}"])
             out = os.path.join(tmp, "-".join([scene, wl, mode.replace("/", "_").replace(" ", "_"),
                                               str(k)]))
             st = run_stats(args.rtsim, frame(scene, wl) + extra, out, "bench_sampled")
@@ -210,7 +219,9 @@ def main(argv=None):
             for wl in workloads:
                 jobs += [(scene, wl, "full", k) for k in range(args.full_repeats)]
                 for p in periods:
-                    jobs += [(scene, wl, f"1/{p}", k) for k in starts_for(p, args.max_starts)]
+                    ks = (starts_for(p, args.max_starts) if args.design == "systematic"
+                          else range(args.max_starts))
+                    jobs += [(scene, wl, f"1/{p}", k) for k in ks]
                 for t in targets:
                     jobs += [(scene, wl, f"target {t:g}%", k)
                              for k in range(args.adaptive_starts)]
@@ -270,12 +281,15 @@ def main(argv=None):
             cells.append(cell)
 
     lines = ["# Sampled simulation against the full run (scripts/bench_sampled.py)", "",
-             f"{args.res}, units of {args.unit_rays} rays; workloads: primary; ao (2 AO rays per "
-             "primary hit, primaries not simulated); diffuse (1 bounce); path2 (2-bounce "
-             "diffuse path). Each cell's frame runs once in full (the fast model), then sampled "
-             f"at 1 unit in P from every start unit (at most {args.max_starts}, evenly spread: "
-             "the systematic design's outcomes, so coverage is exact over them), and with "
-             "--target-error from a few starts. Errors and half-widths in percent of the full "
+             f"{args.res}, units of {args.unit_rays} rays, {args.design} design; workloads: "
+             "primary; ao (2 AO rays per primary hit, primaries not simulated); diffuse (1 "
+             "bounce); path2 (2-bounce diffuse path). Each cell's frame runs once in full (the "
+             "fast model), then sampled at 1 unit in P "
+             + (f"from every start unit (at most {args.max_starts}, evenly spread: the "
+                "systematic design's outcomes, so coverage is exact over them)"
+                if args.design == "systematic" else
+                f"with {args.max_starts} sample seeds (sim.sample_seed; the frame is the same)")
+             + ", and with --target-error from a few seeds. Errors and half-widths in percent of the full "
              "run; cov: the share of runs whose 95% interval holds the full run's figure; "
              "host: median seconds per run, x: full / sampled host seconds, on this shared "
              "2-core machine, several runs at a time.", "",
@@ -332,6 +346,7 @@ def main(argv=None):
     text = "\n".join(lines) + "\n"
     write_results(args.out, "sampled", text,
                   {"res": args.res, "unit_rays": args.unit_rays, "periods": periods,
+                   "design": args.design,
                    "target_errors": targets, "cells": cells})
     svg_plot(cells, os.path.join(args.out, "sampled_pareto.svg"))
     print(text)

@@ -237,6 +237,13 @@ void validate_cross(const json& c, const std::string& where) {
             throw InputError(fmt::format("{}: {}", where, e.what()));
         }
     }
+    if (c["sim"]["sample_first_unit"].get<int64_t>() >= 0 &&
+        c["sim"]["sample_design"] != "systematic")
+        throw InputError(fmt::format(
+            "{}: sim.sample_first_unit: only a systematic sample has a first unit; add "
+            "sim.sample_design=systematic (a stratified sample draws one unit per period; "
+            "sim.sample_seed picks another draw)",
+            where));
     if (c["sim"]["sample_first_unit"].get<int64_t>() >=
         c["sim"]["sample_period_units"].get<int64_t>())
         throw InputError(fmt::format(

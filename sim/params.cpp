@@ -170,6 +170,8 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_unit_rays", M(sim.sample_unit_rays)),
         field("sim.sample_period_units", M(sim.sample_period_units)),
         field("sim.sample_warmup_rays", M(sim.sample_warmup_rays)),
+        field("sim.sample_design", M(sim.sample_design)),
+        field("sim.sample_seed", M(sim.sample_seed)),
         field("sim.sample_first_unit", M(sim.sample_first_unit)),
         field("energy.sram_8kib_pj", M(energy.sram_8kib_pj), 1, kNotMirrored),
         field("energy.sram_32kib_pj", M(energy.sram_32kib_pj), 1, kNotMirrored),

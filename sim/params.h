@@ -36,6 +36,8 @@ struct SimParams {
     // sim.fidelity = sampled (sim/sampler.h)
     uint64_t sample_unit_rays = 1024, sample_period_units = 10, sample_warmup_rays = 512;
     int64_t sample_first_unit = -1;  // -1: drawn from the seed
+    std::string sample_design = "stratified";
+    uint64_t sample_seed = 0;  // 0: the workload's seed
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -208,8 +208,9 @@ int run_command(const RunOptions& opt) {
         sp.unit_rays = cfg.typed.sim.sample_unit_rays;
         sp.period_units = cfg.typed.sim.sample_period_units;
         sp.warmup_rays = cfg.typed.sim.sample_warmup_rays;
-        sp.seed = opt.workload.gen.seed;
+        sp.seed = cfg.typed.sim.sample_seed ? cfg.typed.sim.sample_seed : opt.workload.gen.seed;
         sp.first_unit = cfg.typed.sim.sample_first_unit;
+        sp.stratified = cfg.typed.sim.sample_design == "stratified";
         if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
         const BvhLayout& L = w.layout();

@@ -21,6 +21,15 @@ Sampler::Sampler(const SamplingParams& params,
     deltas_.resize(counters_.entries().size());
 }
 
+uint64_t Sampler::pick(uint64_t stratum) const {
+    // splitmix64 of (seed, stratum): independent, uniform picks, the same for a seed.
+    uint64_t z = (params_.seed ^ 0x9e3779b97f4a7c15ull) + stratum * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return z % params_.period_units;
+}
+
 bool Sampler::detailed_ray(uint64_t i) const {
     const uint64_t unit = i / params_.unit_rays;
     if (measured_unit(unit)) return true;
@@ -129,7 +138,8 @@ json Sampler::report(Cycle end_cycle) {
     json out = {{"unit_rays", params_.unit_rays},
                 {"period_units", params_.period_units},
                 {"warmup_rays", params_.warmup_rays},
-                {"first_unit", first_unit_},
+                {"design", params_.stratified ? "stratified" : "systematic"},
+                {"first_unit", params_.stratified ? pick(0) : first_unit_},
                 {"units", units},
                 {"units_measured", cycles_.size()},
                 {"work", work_total_},

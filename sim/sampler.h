@@ -34,8 +34,12 @@ struct SamplingParams {
     uint64_t unit_rays = 1024;
     uint64_t period_units = 10;  // one unit measured in this many
     uint64_t warmup_rays = 512;  // detailed, unmeasured, before each measured unit
-    uint64_t seed = 1;           // picks the first measured unit
-    int64_t first_unit = -1;     // or this one, if 0 or more
+    uint64_t seed = 1;           // picks the measured units
+    int64_t first_unit = -1;     // systematic: this start, if 0 or more
+    // Stratified: one unit drawn at random in each run of period_units (a systematic sample's
+    // fixed stride can alias with the image: 1080p rows of 240 tiles against a stride of 160
+    // tiles put every measured unit in 3 column bands). Systematic: every period_units-th.
+    bool stratified = true;
 };
 
 class Sampler {
@@ -75,7 +79,12 @@ class Sampler {
     void close_unit(uint64_t work, uint64_t fresh, Cycle end);
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
-    bool measured_unit(uint64_t unit) const { return unit % params_.period_units == first_unit_; }
+    bool measured_unit(uint64_t unit) const {
+        return unit % params_.period_units ==
+               (params_.stratified ? pick(unit / params_.period_units) : first_unit_);
+    }
+    // Stratified design: the unit measured in stratum k (a hash of the seed and k).
+    uint64_t pick(uint64_t stratum) const;
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.
     bool detailed_ray(uint64_t i) const;

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <sstream>
 
 #include "support/run_rtsim.h"
@@ -264,8 +265,9 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     const std::string common =
         "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao,diffuse --res 96x96 ";
     const std::string sampled =
-        "--set sim.fidelity=sampled --set sim.sample_period_units=5 "
-        "--set sim.sample_unit_rays=256 --set sim.sample_warmup_rays=128 ";
+        "--set sim.fidelity=sampled --set sim.sample_design=systematic "
+        "--set sim.sample_period_units=5 --set sim.sample_unit_rays=256 "
+        "--set sim.sample_warmup_rays=128 ";
     const fs::path full = work_dir() / "f", a = work_dir() / "a", b = work_dir() / "b",
                    c = work_dir() / "c";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
@@ -346,7 +348,8 @@ TEST(Sampled, TargetErrorIsHonoured) {
 TEST(Sampled, EveryStartTogetherMeasuresTheFrameOnce) {
     const std::string common =
         "run --scene builtin:sphere --rays primary --res 48x48 --set sim.fidelity=sampled "
-        "--set sim.sample_unit_rays=256 --set sim.sample_period_units=3 ";
+        "--set sim.sample_design=systematic --set sim.sample_unit_rays=256 "
+        "--set sim.sample_period_units=3 ";
     uint64_t measured = 0, units = 0;
     for (int start = 0; start < 3; ++start) {
         const fs::path out = work_dir() / ("start" + std::to_string(start));
@@ -364,6 +367,40 @@ TEST(Sampled, EveryStartTogetherMeasuresTheFrameOnce) {
     expect_one_line_error(run_rtsim(common + "--set sim.sample_first_unit=3"),
                           "sim.sample_first_unit: expected -1 or below sim.sample_period_units "
                           "(3), got 3");
+}
+
+// The stratified design (the default) measures exactly one unit in each run of
+// sample_period_units; the draw is the same for a seed and another for another seed, on the
+// same frame (sim.sample_seed leaves the rays alone).
+TEST(Sampled, StratifiedDesignDrawsOneUnitPerPeriod) {
+    const std::string common =
+        "run --scene builtin:sphere --rays primary,ao --res 48x48 --set sim.fidelity=sampled "
+        "--set sim.sample_unit_rays=256 --set sim.sample_period_units=3 ";
+    std::set<int> firsts;
+    json first_run;
+    for (int seed = 1; seed <= 6; ++seed) {
+        const fs::path out = work_dir() / ("strat" + std::to_string(seed));
+        ASSERT_EQ(run_rtsim(common + "--set sim.sample_seed=" + std::to_string(seed) + " -o '" +
+                            out.string() + "'")
+                      .status,
+                  0);
+        const json s = stats_of(out);
+        const json& sm = s["sampling"];
+        EXPECT_EQ(sm["design"], "stratified");
+        const uint64_t units = sm["units"].get<uint64_t>();
+        // One per full period, and one more if the last, partial period's draw fell in it.
+        EXPECT_GE(sm["units_measured"].get<uint64_t>(), units / 3);
+        EXPECT_LE(sm["units_measured"].get<uint64_t>(), (units + 2) / 3);
+        firsts.insert(sm["first_unit"].get<int>());
+        if (seed == 1) first_run = s;
+        EXPECT_EQ(s["rays"], first_run["rays"]);  // the same frame
+    }
+    EXPECT_GT(firsts.size(), 1u);
+    const fs::path again = work_dir() / "strat1_again";
+    ASSERT_EQ(run_rtsim(common + "--set sim.sample_seed=1 -o '" + again.string() + "'").status, 0);
+    EXPECT_EQ(without_host(stats_of(again)), without_host(first_run));
+    expect_one_line_error(run_rtsim(common + "--set sim.sample_first_unit=1"),
+                          "sim.sample_first_unit: only a systematic sample has a first unit");
 }
 
 TEST(Sampled, TreeletModeIsRefusedForNow) {
