@@ -296,10 +296,22 @@ bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
 }
 
 bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t, bool) {
+    // Banks whose open row a starving request waits to close: no more hits there.
+    auto blocked = [&](const Request& hit) {
+        if (spec_.starvation_cycles == 0) return false;
+        for (const Request& o : q) {
+            if (&o == &hit) return false;  // only older requests block it
+            if (o.a.rank == hit.a.rank && o.a.bankgroup == hit.a.bankgroup &&
+                o.a.bank == hit.a.bank && o.a.row != hit.a.row && starving(o, t))
+                return true;
+        }
+        return false;
+    };
     for (auto it = q.begin(); it != q.end(); ++it) {
         Bank& b = bank(c, it->a);
         if (!b.open || b.row != it->a.row) continue;
         if (c.ranks[size_t(it->a.rank)].refresh_pending) continue;  // its banks are closing
+        if (blocked(*it)) continue;
         if (t < (it->write ? b.next_wr : b.next_rd)) continue;
         // The data bus: one burst at a time, with a switch gap between ranks.
         const uint64_t data_start = t + uint64_t(it->write ? spec_.cwl : spec_.cl);
@@ -325,7 +337,7 @@ bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, ui
                 return o.a.rank == r.a.rank && o.a.bankgroup == r.a.bankgroup &&
                        o.a.bank == r.a.bank && o.a.row == b.row;
             });
-            if (wanted || t < b.next_pre) continue;
+            if ((wanted && !starving(r, t)) || t < b.next_pre) continue;
             r.conflict = true;
             issue_pre(c, channel, r.a.rank, b, r.a.bankgroup, r.a.bank, t);
             return true;

@@ -58,6 +58,10 @@ struct DramDeviceSpec {
     int write_queue = 32;   // entries per channel
     int write_high = 24;    // start draining writes at this many
     int write_low = 8;      // stop draining at this many (once reads wait)
+    // FR-FCFS with a cap (Mutlu & Moscibroda 2007): once a request to a closed or other row has
+    // waited this long, row hits to its bank stop overtaking it and its row is opened even if
+    // younger requests still want the open one. 0: no cap (plain FR-FCFS, as DRAMsim3).
+    int starvation_cycles = 0;
     bool refresh = true;
 
     int banks_per_rank() const { return bankgroups * banks_per_group; }
@@ -185,6 +189,10 @@ class DramController {
     bool try_refresh(Channel& c, int channel, uint64_t t);
     bool try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t, bool hits_only);
     bool try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
+    // Over the cap: waited starvation_cycles for a row other than its bank's open one.
+    bool starving(const Request& r, uint64_t t) const {
+        return spec_.starvation_cycles > 0 && t >= r.arrival + uint64_t(spec_.starvation_cycles);
+    }
     void issue_act(Channel& c, int channel, const DramAddress& a, uint64_t t);
     void issue_pre(Channel& c, int channel, int rank, Bank& b, int bg, int ba, uint64_t t);
     void issue_column(Channel& c, int channel, Request& r, uint64_t t);

@@ -248,3 +248,32 @@ TEST(DramCommand, InconsistentSpecsAreNamed) {
     s.write_low = 30;
     EXPECT_NE(s.check().find("write_low < write_high"), std::string::npos);
 }
+
+// FR-FCFS alone lets a stream of row hits hold back an older request to another row of the same
+// bank for as long as the stream lasts. With a cap of 100 cycles (the conflict arrived at 1) hits
+// stop overtaking it from 101: the hits read at 22, 30, ..., 94 (tCCD_L apart; one is always
+// queued), the precharge waits for the last one's tRTP (106), then ACT at 128 (tRP), RD at 150
+// (tRCD), last data at 150 + CL 22 + 4 = 176.
+TEST(DramCommand, StarvationCapBoundsHowLongRowHitsOvertake) {
+    const uint64_t row_bytes = 64 * 128 * 16;  // the next row of the same bank
+    for (const int cap : {0, 100}) {
+        DramDeviceSpec s = ddr4("rochrababgco");
+        s.starvation_cycles = cap;
+        DramController d(s);
+        ASSERT_TRUE(d.enqueue(0, 0, false, 0));          // opens row A
+        ASSERT_TRUE(d.enqueue(1, row_bytes, false, 1));  // row B: a conflict
+        uint64_t id = 2;
+        // Row-A hits, one every 8 cycles (tCCD_L) for 800 cycles, kept in the queue.
+        for (uint64_t t = 2; t < 800; t += 8, ++id)
+            ASSERT_TRUE(d.enqueue(id, ((id % 127) + 1) * 64, false, t));
+        d.drain();
+        uint64_t done_b = 0;
+        for (const auto& c : d.completions())
+            if (c.id == 1) done_b = c.cycle;
+        if (cap == 0) {
+            EXPECT_GT(done_b, 800u);  // after the whole stream
+        } else {
+            EXPECT_EQ(done_b, 176u);
+        }
+    }
+}
