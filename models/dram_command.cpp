@@ -253,7 +253,7 @@ void DramController::step(Channel& c, int channel, uint64_t t) {
     std::deque<Request>& q = c.draining ? c.writes : c.reads;
     if (q.empty()) return;
     // FR-FCFS: the oldest ready column command to an open row, else the oldest row command.
-    if (try_column(c, channel, q, t, true)) return;
+    if (try_column(c, channel, q, t)) return;
     try_row(c, channel, q, t);
 }
 
@@ -295,7 +295,7 @@ bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
     return false;
 }
 
-bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t, bool) {
+bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
     // Banks whose open row a starving request waits to close: no more hits there.
     auto blocked = [&](const Request& hit) {
         if (spec_.starvation_cycles == 0) return false;

@@ -187,7 +187,7 @@ class DramController {
     // Issues at most one command on channel `c` at cycle `t`.
     void step(Channel& c, int channel, uint64_t t);
     bool try_refresh(Channel& c, int channel, uint64_t t);
-    bool try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t, bool hits_only);
+    bool try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
     bool try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
     // Over the cap: waited starvation_cycles for a row other than its bank's open one.
     bool starving(const Request& r, uint64_t t) const {

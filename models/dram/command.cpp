@@ -70,12 +70,14 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         const std::string block = name();
         reg.add(block, "reads", &reads_, "read bursts");
         reg.add(block, "bytes", &bytes_, "bytes read");
-        reg.add(block, "row_hits", &row_hits_, "column commands to an already open row");
-        reg.add(block, "row_empty", &row_empty_, "column commands that needed an activate");
-        reg.add(block, "row_conflicts", &row_conflicts_,
+        // The controller's own counters, read where they live (ctrl_ is never moved).
+        const DramCounters& k = ctrl_.counters();
+        reg.add(block, "row_hits", &k.row_hits, "column commands to an already open row");
+        reg.add(block, "row_empty", &k.row_misses, "column commands that needed an activate");
+        reg.add(block, "row_conflicts", &k.row_conflicts,
                 "column commands that needed a precharge and an activate");
-        reg.add(block, "activates", &acts_, "ACT commands");
-        reg.add(block, "refreshes", &refs_, "REF commands");
+        reg.add(block, "activates", &k.acts, "ACT commands");
+        reg.add(block, "refreshes", &k.refs, "REF commands");
         reg.add(block, "late_requests", &late_,
                 "requests that arrived behind one later in simulated time (fast model)");
         reg.add(block, "queue_full_waits", &queue_full_waits_,
@@ -86,7 +88,6 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         // Refresh and background energy run to the frame's end.
         ctrl_.run_until(to_device(ctx.total_cycles));
         ctrl_.settle_background();
-        sync_counters();
         const DramCounters& k = ctrl_.counters();
         const double device_cycles = double(std::max<uint64_t>(1, ctrl_.now()));
         const double ns = device_cycles * spec_.tck_ns;
@@ -147,7 +148,6 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         reads_ += count;
         bytes_ += count * burst;
         if (series_) series_->add(now, count * burst);
-        sync_counters();
         return std::max(now + 1, predict(first, count));
     }
 
@@ -186,15 +186,6 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         ctrl_.completions().clear();
     }
 
-    void sync_counters() const {
-        const DramCounters& k = ctrl_.counters();
-        row_hits_ = k.row_hits;
-        row_empty_ = k.row_misses;
-        row_conflicts_ = k.row_conflicts;
-        acts_ = k.acts;
-        refs_ = k.refs;
-    }
-
     DramParams params_;
     DramDeviceSpec spec_;
     mutable DramController ctrl_;  // report() runs it to the frame's end
@@ -204,7 +195,6 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     TimeSeries* series_ = nullptr;
     uint64_t reads_ = 0, bytes_ = 0, late_ = 0, queue_full_waits_ = 0;
     uint64_t latest_arrival_ = 0;  // device cycle
-    mutable uint64_t row_hits_ = 0, row_empty_ = 0, row_conflicts_ = 0, acts_ = 0, refs_ = 0;
 };
 
 std::unique_ptr<DramModel> make_command(const char* module_name, const DramParams& p) {
