@@ -9,6 +9,11 @@ namespace rtsim {
 
 namespace {
 
+// The same bank of the same rank (and channel: requests are per channel's queues).
+bool same_bank(const DramAddress& x, const DramAddress& y) {
+    return x.rank == y.rank && x.bankgroup == y.bankgroup && x.bank == y.bank;
+}
+
 bool power_of_two(int64_t v) {
     return v > 0 && (v & (v - 1)) == 0;
 }
@@ -182,8 +187,7 @@ bool DramController::enqueue(uint64_t id, uint64_t addr, bool write, uint64_t cy
     if (int(c.reads.size()) >= spec_.read_queue) return false;
     // A read of data still waiting in the write queue is served from it.
     for (const Request& w : c.writes)
-        if (w.a.rank == a.rank && w.a.bankgroup == a.bankgroup && w.a.bank == a.bank &&
-            w.a.row == a.row && w.a.column == a.column) {
+        if (same_bank(w.a, a) && w.a.row == a.row && w.a.column == a.column) {
             done_.push_back({id, at + 1, false});
             ++counters_.reads;
             counters_.read_latency_sum += 1;
@@ -301,9 +305,7 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
         if (spec_.starvation_cycles == 0) return false;
         for (const Request& o : q) {
             if (&o == &hit) return false;  // only older requests block it
-            if (o.a.rank == hit.a.rank && o.a.bankgroup == hit.a.bankgroup &&
-                o.a.bank == hit.a.bank && o.a.row != hit.a.row && starving(o, t))
-                return true;
+            if (same_bank(o.a, hit.a) && o.a.row != hit.a.row && starving(o, t)) return true;
         }
         return false;
     };
@@ -334,8 +336,7 @@ bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, ui
         if (b.open) {
             // A conflict: close the row, unless a queued request still wants it.
             const bool wanted = std::any_of(q.begin(), q.end(), [&](const Request& o) {
-                return o.a.rank == r.a.rank && o.a.bankgroup == r.a.bankgroup &&
-                       o.a.bank == r.a.bank && o.a.row == b.row;
+                return same_bank(o.a, r.a) && o.a.row == b.row;
             });
             if ((wanted && !starving(r, t)) || t < b.next_pre) continue;
             r.conflict = true;
