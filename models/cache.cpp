@@ -97,6 +97,43 @@ uint64_t Cache::arrive(uint64_t addr, uint32_t size_bytes, Cycle now,
     return first;
 }
 
+Cycle Cache::write(uint64_t addr, uint32_t size_bytes, Cycle now) {
+    ++write_requests;
+    write_bytes += size_bytes;
+    note_lookup(now);
+    const auto [first, last] = line_range(addr, size_bytes);
+    Cycle done = now;
+    for (uint64_t line = first; line <= last; ++line) {
+        const Cycle start = banks_[line & bank_mask_].reserve(now, 1);
+        bank_conflict_cycles += start - now;
+        const Cycle looked_up = start + params_.hit_latency_cycles;
+        done = std::max(done, looked_up);
+        if (params_.write_back) write_fn_(*this, line, looked_up, kSendWriteBack);
+    }
+    // Write-through: on to the next level once looked up, nothing allocated.
+    if (!params_.write_back && next_) next_->write(addr, size_bytes, done);
+    return done;
+}
+
+uint64_t Cache::arrive_write(uint64_t addr, uint32_t size_bytes, Cycle now,
+                             std::vector<Cycle>& lookup_done) {
+    ++write_requests;
+    write_bytes += size_bytes;
+    note_lookup(now);
+    const auto [first, last] = line_range(addr, size_bytes);
+    lookup_done.resize(last - first + 1);
+    for (uint64_t line = first; line <= last; ++line) {
+        const Cycle start = banks_[line & bank_mask_].reserve(now, 1);
+        bank_conflict_cycles += start - now;
+        lookup_done[line - first] = start + params_.hit_latency_cycles;
+    }
+    return first;
+}
+
+void Cache::write_tag(uint64_t line, Cycle at) {
+    if (params_.write_back) write_fn_(*this, line, at, kQueueWriteBack);
+}
+
 void Cache::Slowest::hit(Cycle lookup_done, Cycle ready, uint64_t line) {
     const Cycle d = std::max(lookup_done, ready);
     if (d > done || !any) {
@@ -182,6 +219,14 @@ void Cache::register_stats(StatsRegistry& reg) {
             "lookups that touched tag state after a lookup later in simulated time");
     reg.add(block, "mshr_out_of_order", &mshr_out_of_order,
             "misses that took an MSHR after a miss later in simulated time");
+    if (level_ == kLevelL1) return;  // the L1s are read-only
+    reg.add(block, "write_requests", &write_requests, "writes from the level above");
+    reg.add(block, "write_bytes", &write_bytes, "bytes written from the level above");
+    reg.add(block, "write_hits", &write_hits, "written lines that were present");
+    reg.add(block, "write_misses", &write_misses,
+            "written lines allocated without a fetch (write-back)");
+    reg.add(block, "writebacks", &writebacks, "dirty lines written to the next level on eviction");
+    reg.add(block, "writeback_bytes", &writeback_bytes, "bytes of dirty lines written back");
 }
 
 namespace {
@@ -195,7 +240,15 @@ nlohmann::json cache_entry(uint64_t accesses, uint64_t hits, uint64_t misses, ui
 }  // namespace
 
 nlohmann::json Cache::report(const ReportContext&) const {
-    return cache_entry(accesses, hits, misses, merged_misses);
+    nlohmann::json e = cache_entry(accesses, hits, misses, merged_misses);
+    if (level_ != kLevelL1) {
+        e["write_requests"] = write_requests;
+        e["write_bytes"] = write_bytes;
+        e["writebacks"] = writebacks;
+        e["writeback_bytes"] = writeback_bytes;
+        e["dirty_lines_at_end"] = uint64_t(std::count(dirty_.begin(), dirty_.end(), uint8_t(1)));
+    }
+    return e;
 }
 
 nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, const ReportContext&) {

@@ -35,6 +35,10 @@ struct CacheParams {
     // Lookups come in non-decreasing time (a private L1 behind its core's in-order issue
     // port): the banks keep only their next free cycle (ReservationCalendar::assume_in_order).
     bool in_order_requests = false;
+    // Writes (stack spills, hit records; only a cache below the L1s gets them): write_back keeps
+    // a written line dirty until it is evicted (allocating a missing line without fetching it:
+    // the writer supplies the bytes it reads back), write_through sends every write on.
+    bool write_back = true;
     // Addresses stay below this: tags are stored in 32 bits (the constructor refuses a cache
     // whose tags would not fit).
     uint64_t address_limit_bytes = uint64_t(1) << 36;
@@ -109,6 +113,28 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
             if (!warm_fn_(*this, line, 0) && next_)
                 next_->warm(line << line_shift_, params_.line_bytes);
     }
+    // A posted write: each line's lookup takes its bank; write-back marks the line dirty (a
+    // missing line is allocated without a fetch, its victim written back if dirty);
+    // write-through passes the write on. Returns the cycle the last line was looked up.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override;
+    void warm_write(uint64_t addr, uint32_t size_bytes) override {
+        const auto [first, last] = line_range(addr, size_bytes);
+        for (uint64_t line = first; line <= last; ++line) {
+            if (params_.write_back)
+                write_fn_(*this, line, 0, kWarmWriteBack);
+            else if (next_)
+                next_->warm_write(line << line_shift_, params_.line_bytes);
+        }
+    }
+    // The time-ordered reference's write: bank reservations at `now` (lookup_done as arrive()),
+    // then write_tag at each line's lookup cycle. Dirty victims evicted by write_tag and by
+    // check_tag are queued (take_writebacks), not sent: the reference runs them as requests.
+    uint64_t arrive_write(uint64_t addr, uint32_t size_bytes, Cycle now,
+                          std::vector<Cycle>& lookup_done);
+    void write_tag(uint64_t line, Cycle at);
+    // Line addresses of dirty victims queued since the last call (the reference's).
+    std::vector<uint64_t>& queued_writebacks() { return queued_writebacks_; }
+    uint64_t line_address(uint64_t line) const { return line << line_shift_; }
     MemoryPort* next_level() const { return next_; }
     int level() const { return level_; }
     // Whether the line holding `addr` is present (or being filled); changes nothing.
@@ -139,6 +165,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // that took an MSHR after a later miss.
     uint64_t lookup_out_of_order = 0;
     uint64_t mshr_out_of_order = 0;
+    // Writes from the level above (posted): requests, line lookups that found or allocated the
+    // line, bytes; dirty lines written back to the next level on eviction.
+    uint64_t write_requests = 0, write_hits = 0, write_misses = 0, write_bytes = 0;
+    uint64_t writebacks = 0, writeback_bytes = 0;
 
   private:
     // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
@@ -362,6 +392,34 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         return c.access_local_in<G, P>(addr, size_bytes, now, ready, bd);
     }
     std::vector<Cycle> lookup_done_;  // scratch for requests of many lines
+
+    // Dirty bits per set and way, allocated at the first write (a read-only cache has none).
+    std::vector<uint8_t> dirty_;
+    std::vector<uint64_t> queued_writebacks_;
+    // What to do with a dirty victim: write it to the next level now (the fast model), queue it
+    // for the reference, or warm the next level with it.
+    enum WritebackMode { kSendWriteBack, kQueueWriteBack, kWarmWriteBack };
+    void evict(uint64_t set, int way, uint64_t victim_tag, Cycle at, WritebackMode mode) {
+        if (dirty_.empty()) return;
+        uint8_t& d = dirty_[set * uint64_t(params_.ways) + uint64_t(way)];
+        if (!d || victim_tag == kNoTag) return;
+        d = 0;
+        const uint64_t line = uint64_t(victim_tag) << set_shift_ | set;
+        if (mode == kWarmWriteBack) {
+            if (next_) next_->warm_write(line << line_shift_, params_.line_bytes);
+            return;
+        }
+        ++writebacks;
+        writeback_bytes += params_.line_bytes;
+        if (mode == kQueueWriteBack)
+            queued_writebacks_.push_back(line);
+        else
+            next_->write(line << line_shift_, params_.line_bytes, at);
+    }
+    // A write-back write of `line` looked up at `at` (hit: dirty; miss: allocated dirty).
+    void (*write_fn_)(Cache&, uint64_t, Cycle, WritebackMode) = nullptr;
+    template <int G, typename P>
+    static void write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode);
 };
 
 }  // namespace rtsim

@@ -17,24 +17,28 @@ void Cache::use_policy(Cache& c) {
             c.local_fn_ = &Cache::local_entry<1, P>;
             c.tag_fn_ = &Cache::tag_entry<1, P>;
             c.warm_fn_ = &Cache::tag_entry<1, P, false>;
+            c.write_fn_ = &Cache::write_entry<1, P>;
             break;
         case 2:
             c.access_fn_ = &Cache::access_entry<2, P>;
             c.local_fn_ = &Cache::local_entry<2, P>;
             c.tag_fn_ = &Cache::tag_entry<2, P>;
             c.warm_fn_ = &Cache::tag_entry<2, P, false>;
+            c.write_fn_ = &Cache::write_entry<2, P>;
             break;
         case 4:
             c.access_fn_ = &Cache::access_entry<4, P>;
             c.local_fn_ = &Cache::local_entry<4, P>;
             c.tag_fn_ = &Cache::tag_entry<4, P>;
             c.warm_fn_ = &Cache::tag_entry<4, P, false>;
+            c.write_fn_ = &Cache::write_entry<4, P>;
             break;
         default:
             c.access_fn_ = &Cache::access_entry<0, P>;
             c.local_fn_ = &Cache::local_entry<0, P>;
             c.tag_fn_ = &Cache::tag_entry<0, P>;
             c.warm_fn_ = &Cache::tag_entry<0, P, false>;
+            c.write_fn_ = &Cache::write_entry<0, P>;
     }
 }
 
@@ -50,6 +54,7 @@ bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     }
     // The same steps as fill(), in the same order (the random policy draws in victim()).
     const int victim = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
+    c.evict(set, victim, c.tags<G>(set)[victim], at, kCount ? kQueueWriteBack : kWarmWriteBack);
     if constexpr (kCount) {
         ++c.misses;
         c.fill_bytes += c.params_.line_bytes;
@@ -59,6 +64,26 @@ bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     c.fill_ready<G>(set)[victim] = 0;  // the reference keeps fills in flight itself
     P::template filled<G>(c.stamps<G>(set), victim, c.repl_);
     return false;
+}
+
+template <int G, typename P>
+void Cache::write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode) {
+    const uint64_t set = c.set_of(line);
+    if (c.dirty_.empty()) c.dirty_.assign(c.params_.sets() * uint64_t(c.params_.ways), 0);
+    int way = c.find_way<G>(set, line);
+    const bool counted = mode != kWarmWriteBack;
+    if (way >= 0) {
+        c.write_hits += counted;
+        P::template hit<G>(c.stamps<G>(set), way, c.repl_);
+    } else {
+        way = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
+        c.evict(set, way, c.tags<G>(set)[way], at, mode);
+        c.write_misses += counted;
+        c.tags<G>(set)[way] = c.tag_of(line);
+        c.fill_ready<G>(set)[way] = at;  // its bytes are the write's: there once looked up
+        P::template filled<G>(c.stamps<G>(set), way, c.repl_);
+    }
+    c.dirty_[set * uint64_t(c.params_.ways) + uint64_t(way)] = 1;
 }
 
 template <int G, typename P>
@@ -83,6 +108,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
                   AccessBreakdown* bd) {
     // Miss: the policy's victim (an invalid way if there is one).
     const int victim = P::template victim<G>(tags<G>(set), stamps<G>(set), repl_);
+    evict(set, victim, tags<G>(set)[victim], lookup_done, kSendWriteBack);
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);

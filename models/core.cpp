@@ -53,6 +53,7 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
     // Slots beyond ray_slots pad the keys to the eights the pick unrolls; they never run.
     for (size_t i = 0; i < ready_.size(); ++i) set_ready(i, i < slots_.size() ? 0 : kNeverCycle);
     issue_port_.per_cycle = params.issue_width;
+    for (Slot& s : slots_) s.stack = ShortStack(params.short_stack_entries);
 }
 
 // Issues `instructions` (at least 1) instructions ready at t through the core's shared issue
@@ -201,6 +202,8 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
                 }
                 s.pos = 0;
                 s.start = t;
+                s.stack.reset();
+                s.stack_pos = ~size_t(0);
             } else if (s.phase != kSetUp) {
                 if (s.phase == kTakeRay) {
                     if (batch_.empty()) {
@@ -244,7 +247,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             const Cycle done = issue(got, params_.ray_setup_instructions);
             set_ready(i, done);
             stall_cycles[kIssue] += done - got;
-            if (!ray_buffer_ && s.work.steps.empty()) finish_ray(s, done);
+            if (finish_at_step_end() && s.work.steps.empty()) finish_ray(s, done);
             continue;
         }
         const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
@@ -255,10 +258,19 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
                       unit_by_kind_[s.unit_kind]->issue(t, s.unit_items, lanes));
             continue;
         }
+        if (!ray_buffer_ && s.pos == s.work.steps.size()) {  // its hit records are due
+            if (beyond(t)) return t;
+            if (const uint32_t bytes = count_hit_records(s.work))
+                local_->write(hit_record_address(s.work.ray_id), bytes, t);
+            finish_ray(s, t);
+            continue;
+        }
         if (ray_buffer_) {
             // Leaving the buffer, or moving to another treelet's queue, is shared work.
             if (s.pos == s.work.steps.size()) {
                 if (beyond(t)) return t;
+                if (const uint32_t bytes = count_hit_records(s.work))
+                    local_->write(hit_record_address(s.work.ray_id), bytes, t);
                 ray_buffer_->release(s.handle);
                 finish_ray(s, t);
                 continue;
@@ -275,6 +287,32 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             }
         }
         const Step& st = s.work.steps[s.pos];
+        if (params_.short_stack_entries > 0 && s.stack_pos != s.pos) {
+            // The stack's traffic before the step: spills posted, a refill waited for (the step
+            // fetches the popped entry's node). Both reach the shared levels.
+            ShortStack after = s.stack;
+            const StackTraffic traffic = after.before(st);
+            if (traffic.any()) {
+                if (beyond(t)) return t;
+                if (traffic.spill_entries)
+                    local_->write(stack_address(i, traffic.spill_from), count_stack_spill(traffic),
+                                  t);
+                s.stack = after;
+                s.stack_pos = s.pos;
+                if (traffic.refill_entries) {
+                    count_stack_refill(traffic);
+                    const Cycle back =
+                        local_->access(stack_address(i, traffic.refill_from),
+                                       traffic.refill_entries * params_.stack_entry_bytes, t);
+                    stall_cycles[kStack] += back - t;
+                    set_ready(i, back);
+                    continue;
+                }
+            } else {
+                s.stack = after;
+                s.stack_pos = s.pos;
+            }
+        }
         // Nodes and triangles interleave unpredictably: what differs is looked up by kind.
         const auto kind = size_t(st.kind);
         MemoryPort* mem = mem_by_kind_[kind];
@@ -346,7 +384,7 @@ const char* Core::stall_name(int s) {
     static const char* const names[kUnitStall] = {"issue", "l1", "l2", "dram", "crossbar"};
     if (s < kUnitStall) return names[s];
     if (s < kRayBuffer) return step_kind_info(s - kUnitStall).unit;
-    return "ray_buffer";
+    return s == kRayBuffer ? "ray_buffer" : "stack";
 }
 
 void Core::register_stats(StatsRegistry& reg) {
@@ -368,6 +406,18 @@ void Core::register_stats(StatsRegistry& reg) {
     if (ray_buffer_) {
         reg.add(block, "treelet_loads", &treelet_loads, "treelets loaded for a batch");
         reg.add(block, "treelet_load_bytes", &treelet_load_bytes, "bytes of treelets loaded");
+    }
+    if (params_.short_stack_entries > 0) {
+        reg.add(block, "stack_spills", &stack_spills, "stack spills (writes) to memory");
+        reg.add(block, "stack_spill_bytes", &stack_spill_bytes, "bytes of stack entries spilled");
+        reg.add(block, "stack_refills", &stack_refills, "stack refills (reads) from memory");
+        reg.add(block, "stack_refill_bytes", &stack_refill_bytes,
+                "bytes of stack entries read back");
+    }
+    if (params_.hit_record_bytes > 0) {
+        reg.add(block, "hit_record_writes", &hit_record_writes,
+                "hit-record writes (per work item)");
+        reg.add(block, "hit_record_bytes", &hit_record_bytes, "bytes of hit records written");
     }
     if (params_.packet_lanes > 0) {
         reg.add(block, "active_lanes", &active_lanes, "packet lanes whose ray took part, summed");

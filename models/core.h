@@ -21,6 +21,7 @@
 #include "models/cache.h"
 #include "models/calendar.h"
 #include "models/fidelity.h"
+#include "models/short_stack.h"
 #include "models/stats.h"
 #include "models/timing.h"
 #include "models/unit.h"
@@ -51,6 +52,12 @@ struct CoreParams {
     // many SIMD lanes whether or not every lane's ray takes part (lockstep). 0: single rays.
     int packet_lanes = 0;
     bool treelet_prefetch = true;  // treelet mode: load a batch's treelet before its rays run
+    // Memory traffic of the traversal itself, through the level below the L1 (the L1s hold
+    // BVH data only). A short stack of this many entries per slot, the rest spilled to memory
+    // (models/short_stack.h); 0: the whole stack on chip.
+    uint32_t short_stack_entries = 0;
+    uint32_t stack_entry_bytes = 8;  // a node address and its entry distance
+    uint32_t hit_record_bytes = 0;   // written per ray when it finishes; 0: results stay on chip
 };
 
 // The cycle a core reports when it has nothing left to do.
@@ -119,6 +126,44 @@ class Core : public sc_core::sc_module {
     // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
     // from the source) instead of one by one from the source.
     void set_ray_buffer(RayBuffer* buffer);
+    // Where stack spills, refills and hit records go (the L1s' next level), and the chip-wide
+    // index of this core's first slot (each slot spills to its own stack region).
+    void set_local_memory(MemoryPort* local, uint64_t first_slot) {
+        local_ = local;
+        first_slot_ = first_slot;
+    }
+    MemoryPort* local_memory() const { return local_; }
+    // Without a ray buffer, a ray finishes where its last step's unit operation ends; with hit
+    // records it ends at its own turn instead, as writing them is shared work.
+    bool finish_at_step_end() const { return !ray_buffer_ && params_.hit_record_bytes == 0; }
+    // The address of memory stack entry `index` of slot `slot`.
+    uint64_t stack_address(size_t slot, uint32_t index) const {
+        return kStackRegionBase +
+               (first_slot_ + slot) * uint64_t(kStackDepthMax + 1) * params_.stack_entry_bytes +
+               uint64_t(index) * params_.stack_entry_bytes;
+    }
+    uint64_t hit_record_address(uint32_t ray_id) const {
+        return kHitRecordBase + uint64_t(ray_id) * params_.hit_record_bytes;
+    }
+    // A finished work item's hit records: counted, and their bytes (0: none written).
+    uint32_t count_hit_records(const RayWork& work) {
+        if (params_.hit_record_bytes == 0) return 0;
+        const uint32_t bytes = params_.hit_record_bytes * work.rays;
+        hit_record_writes += 1;
+        hit_record_bytes += bytes;
+        return bytes;
+    }
+    // Stack spills of `traffic`: counted, and their bytes.
+    uint32_t count_stack_spill(const StackTraffic& traffic) {
+        const uint32_t bytes = traffic.spill_entries * params_.stack_entry_bytes;
+        ++stack_spills;
+        stack_spill_bytes += bytes;
+        return bytes;
+    }
+    void count_stack_refill(const StackTraffic& traffic) {
+        ++stack_refills;
+        stack_refill_bytes += uint64_t(traffic.refill_entries) * params_.stack_entry_bytes;
+    }
 
     // Runs the slots in ready order: private work freely, shared work only at cycles up to
     // `horizon`. Returns the cycle of the next shared work; kParkedCycle when every slot waits
@@ -165,6 +210,7 @@ class Core : public sc_core::sc_module {
         kCrossbar,
         kUnitStall,
         kRayBuffer = kUnitStall + kStepKinds,
+        kStack,  // waiting for spilled stack entries to come back from memory
         kStallKinds
     };
     static const char* stall_name(int s);
@@ -182,6 +228,9 @@ class Core : public sc_core::sc_module {
     uint64_t treelet_loads = 0, treelet_load_bytes = 0;
     // Packet mode: lanes whose ray took part, and lanes occupied, summed over steps.
     uint64_t active_lanes = 0, lane_slots = 0;
+    // The traversal's own memory traffic: stack spills (writes) and refills (reads), hit records.
+    uint64_t stack_spills = 0, stack_spill_bytes = 0, stack_refills = 0, stack_refill_bytes = 0;
+    uint64_t hit_record_writes = 0, hit_record_bytes = 0;
 
   private:
     // Treelet mode: what a slot without a running ray does next (take a ray from the batch, read
@@ -199,9 +248,11 @@ class Core : public sc_core::sc_module {
         bool unit_pending = false;
         uint8_t unit_kind = 0;
         uint16_t unit_items = 0;
-        uint32_t handle = 0;   // treelet mode: the ray's ray-buffer entry
-        uint32_t treelet = 0;  // treelet mode: the treelet this slot's ray runs in
-        Cycle idle_since = 0;  // parked or retired: the cycle it found no work
+        uint32_t handle = 0;            // treelet mode: the ray's ray-buffer entry
+        uint32_t treelet = 0;           // treelet mode: the treelet this slot's ray runs in
+        Cycle idle_since = 0;           // parked or retired: the cycle it found no work
+        ShortStack stack;               // the running ray's short stack (core.short_stack_entries)
+        size_t stack_pos = ~size_t(0);  // the step whose stack traffic has been made
     };
     // The slot has no work from `t` on: parked (more may come) or retired.
     void go_idle(size_t slot, Cycle t, Cycle key_cycle);
@@ -222,7 +273,7 @@ class Core : public sc_core::sc_module {
     void step_done(Slot& s, size_t slot, int kind, Cycle fetched, Cycle done) {
         set_ready(slot, done);
         stall_cycles[kUnitStall + kind] += done - fetched;
-        if (s.pos == s.work.steps.size() && !ray_buffer_) finish_ray(s, done);
+        if (s.pos == s.work.steps.size() && finish_at_step_end()) finish_ray(s, done);
     }
     void finish_ray(Slot& s, Cycle done) {
         count_finished(s.work.rays, s.start, done);
@@ -247,6 +298,8 @@ class Core : public sc_core::sc_module {
     PipelinedUnit* unit_by_kind_[kStepKinds];  // per StepKind: the unit its test runs on
     int instructions_by_kind_[kStepKinds];     // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
+    MemoryPort* local_ = nullptr;  // below the L1s: stack and hit-record traffic
+    uint64_t first_slot_ = 0;
     std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
     uint32_t batch_treelet_ = 0;
     uint32_t loaded_treelet_ = ~0u;

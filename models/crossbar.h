@@ -22,21 +22,36 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     void register_stats(StatsRegistry& reg);  // under this module's name
     // stats.json "bandwidth.crossbar": bytes, GB/s, queueing and utilisation.
     nlohmann::json report(const ReportContext& ctx) const;
-    void follow(const TimeFloor* floor) { link_.follow(floor); }
+    void follow(const TimeFloor* floor) {
+        link_.follow(floor);
+        up_.follow(floor);
+    }
     // A line of `size_bytes` the L2 returned at `returned` takes the link; returns the cycle it
     // has crossed. (access() is the L2 access and this; the time-ordered reference calls it
     // alone, at the cycle the L2 returns the line.)
     Cycle carry(Cycle returned, uint32_t size_bytes);
     MemoryPort* next_level() const { return next_; }
     void warm(uint64_t addr, uint32_t size_bytes) override { next_->warm(addr, size_bytes); }
+    // Writes cross the other way, on a link of their own (a crossbar's request and response
+    // networks are separate), then reach the L2; returns the cycle the L2 accepted the write.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+        return next_->write(addr, size_bytes, carry_up(now, size_bytes));
+    }
+    void warm_write(uint64_t addr, uint32_t size_bytes) override {
+        next_->warm_write(addr, size_bytes);
+    }
+    // Write data of `size_bytes` ready at `ready` crosses towards the L2; returns when it has.
+    Cycle carry_up(Cycle ready, uint32_t size_bytes);
 
     uint64_t transfers = 0;
     uint64_t bytes = 0;
-    uint64_t busy_cycles = 0;   // transfer time, rounded up per transfer
-    uint64_t queue_cycles = 0;  // cycles requests waited for bandwidth
+    uint64_t busy_cycles = 0;                       // transfer time, rounded up per transfer
+    uint64_t queue_cycles = 0;                      // cycles requests waited for bandwidth
+    uint64_t write_transfers = 0, write_bytes = 0;  // towards the L2
 
   private:
     BandwidthCalendar link_;
+    BandwidthCalendar up_;  // write data, from the cores to the L2
     MemoryPort* next_;
 };
 

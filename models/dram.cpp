@@ -23,6 +23,17 @@ Cycle Dram::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdow
     return t;
 }
 
+Cycle Dram::write(uint64_t addr, uint32_t size_bytes, Cycle now) {
+    DramRequest r;
+    r.addr = addr;
+    r.size_bytes = size_bytes;
+    r.write = true;
+    bool done = false;
+    Cycle t = now;
+    while (!done) t = advance(r, t, done);
+    return now;
+}
+
 Cycle Dram::advance(DramRequest& r, Cycle now, bool& done) {
     const uint64_t block = r.addr / params_.row_bytes;
     const auto channels = uint64_t(buses_.size());
@@ -58,8 +69,10 @@ Cycle Dram::advance(DramRequest& r, Cycle now, bool& done) {
     const uint32_t moved = std::max(1u, bursts) * params_.burst_bytes;
     // Reads from different banks reach the bus out of order: the bus is a calendar.
     const auto [bus_start, bus_end] = buses_[channel].transfer(data_ready, moved);
-    ++reads;
+    reads += !r.write;
+    writes += r.write;
     bytes += moved;
+    write_bytes += r.write ? moved : 0;
     if (bytes_series_) bytes_series_->add(bus_start, moved);
     busy_cycles += buses_[channel].idle_cycles(moved);
     queue_cycles += bus_start - data_ready;
@@ -71,11 +84,13 @@ Cycle Dram::advance(DramRequest& r, Cycle now, bool& done) {
 
 void Dram::register_stats(StatsRegistry& reg) {
     const std::string block = name();
-    reg.add(block, "reads", &reads, "read bursts");
-    reg.add(block, "bytes", &bytes, "bytes read");
-    reg.add(block, "row_hits", &row_hits, "reads to the open row of their bank");
-    reg.add(block, "row_empty", &row_empty, "reads to a bank with no open row");
-    reg.add(block, "row_conflicts", &row_conflicts, "reads that closed another row first");
+    reg.add(block, "reads", &reads, "read requests");
+    reg.add(block, "writes", &writes, "write requests");
+    reg.add(block, "bytes", &bytes, "bytes read and written");
+    reg.add(block, "write_bytes", &write_bytes, "bytes written");
+    reg.add(block, "row_hits", &row_hits, "requests to the open row of their bank");
+    reg.add(block, "row_empty", &row_empty, "requests to a bank with no open row");
+    reg.add(block, "row_conflicts", &row_conflicts, "requests that closed another row first");
     reg.add(block, "busy_cycles", &busy_cycles, "cycles the buses were transferring");
     reg.add(block, "queue_cycles", &queue_cycles, "cycles requests waited for a bank or a bus");
     reg.add(block, "bank_out_of_order", &bank_out_of_order,
@@ -86,11 +101,12 @@ nlohmann::json Dram::report(const ReportContext& ctx) const {
     using R = ReportContext;
     return {{"bytes", bytes},
             {"gbps", ctx.gbps(bytes)},
+            {"write_bytes", write_bytes},
             {"busy_cycles", busy_cycles},
             {"row_hits", row_hits},
             {"row_empty", row_empty},
             {"row_conflicts", row_conflicts},
-            {"row_hit_rate", R::ratio(double(row_hits), double(reads))},
+            {"row_hit_rate", R::ratio(double(row_hits), double(reads + writes))},
             {"utilization",
              R::ratio(double(busy_cycles), double(ctx.total_cycles) * params_.channels)}};
 }

@@ -47,7 +47,8 @@ struct DramRequest {
     uint64_t addr = 0;
     uint32_t size_bytes = 0;
     Cycle arrived = 0;
-    int stage = 0;  // 0: not yet arrived
+    bool write = false;  // a posted write: done once accepted, nothing waits for its data
+    int stage = 0;       // 0: not yet arrived
     uint64_t state[4] = {0, 0, 0, 0};
 };
 
@@ -83,6 +84,9 @@ class Dram final : public sc_core::sc_module, public DramModel {
     Dram(sc_core::sc_module_name name, const DramParams& params);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
+    // A write takes its bank and the bus as a read does (write data crosses the same bus), and
+    // is accepted on arrival.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override;
     // Two stages: the bank (at arrival), then the channel's bus (when the data is ready).
     Cycle advance(DramRequest& request, Cycle now, bool& done) override;
     void register_stats(StatsRegistry& reg) override;
@@ -94,8 +98,9 @@ class Dram final : public sc_core::sc_module, public DramModel {
     }
     const DramParams& params() const { return params_; }
 
-    uint64_t reads = 0;
-    uint64_t bytes = 0;
+    uint64_t reads = 0, writes = 0;
+    uint64_t bytes = 0;        // read and written
+    uint64_t write_bytes = 0;  // of which written
     uint64_t row_hits = 0, row_empty = 0, row_conflicts = 0;
     uint64_t busy_cycles = 0;   // cycles the buses spent transferring (rounded up per access)
     uint64_t queue_cycles = 0;  // cycles requests waited for a bank or a bus

@@ -100,6 +100,13 @@ class MemoryPort {
     // (tags and replacement order of every level it reaches), taking no time, reserving nothing
     // and counting nothing. A level with no such state ignores it.
     virtual void warm(uint64_t /*addr*/, uint32_t /*size_bytes*/) {}
+    // A posted write (a stack spill, a hit record, a dirty line written back): returns the cycle
+    // this level has accepted it; the writer does not wait for anything below. A level with no
+    // write path (a read-only L1) must never be given one.
+    virtual Cycle write(uint64_t /*addr*/, uint32_t /*size_bytes*/, Cycle now) { return now; }
+    // Functional warming of a write: the state it would leave (a write-back cache's line and
+    // its dirty bit), taking no time and counting nothing.
+    virtual void warm_write(uint64_t /*addr*/, uint32_t /*size_bytes*/) {}
 };
 
 }  // namespace rtsim

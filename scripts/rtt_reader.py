@@ -58,7 +58,7 @@ class Trace:
         if len(d) < 40 or d[:8] != b"RTSIMTRC":
             raise TraceError(f"{path}: not an RTSim trace")
         self.version, flags, meta_len = struct.unpack_from("<III", d, 8)
-        if self.version not in (1, 2) or flags != 0:
+        if self.version not in (1, 2, 3) or flags != 0:
             raise TraceError(f"{path}: unsupported version {self.version} or flags {flags}")
         meta = d[20:20 + meta_len]
         (crc,) = struct.unpack_from("<I", d, 20 + meta_len)
@@ -78,7 +78,7 @@ class Trace:
         self.chunks = [struct.unpack_from("<QI", d, index_offset + 24 + 16 * k) for k in range(n)]
 
     def chunk(self, k):
-        """Yields (ray_id, kind, steps, prim, t) for chunk k; steps are (kind, count, id)."""
+        """Yields (ray_id, kind, steps, prim, t) for chunk k; steps are (kind, count, id, stack depth, popped)."""
         offset, rays = self.chunks[k]
         d = self.data
         if d[offset:offset + 4] != b"CHNK":
@@ -111,7 +111,11 @@ class Trace:
                         raise TraceError(f"chunk {k}: unknown step kind {sk}")
                 v, pos = read_varint(raw, pos)
                 prev[sk] += unzigzag(v)
-                steps.append((STEP_KINDS[sk], n, prev[sk]))
+                stack = 0
+                if self.version >= 3:  # the stack byte: bits 0-6 depth, bit 7 popped
+                    stack = raw[pos]
+                    pos += 1
+                steps.append((STEP_KINDS[sk], n, prev[sk], stack & 127, bool(stack & 128)))
             prim, pos = read_varint(raw, pos)
             t = None
             if prim:

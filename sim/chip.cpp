@@ -131,6 +131,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         cores.push_back(
             std::make_unique<Core>(indexed("core", i).c_str(), cp, memories, core_units, source));
         cores.back()->set_ray_buffer(ray_buffer.get());
+        cores.back()->set_local_memory(
+            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1,
+            uint64_t(i) * uint64_t(cp.ray_slots));
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
     }

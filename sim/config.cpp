@@ -225,6 +225,13 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: traversal.treelet_cache_kib: a treelet cache sits in front of a unified L1; set "
             "l1.split to false or the treelet cache to 0",
             where));
+    if (c["core"]["short_stack_entries"].get<int64_t>() > 0 && (mode.packets || mode.ray_buffer))
+        throw InputError(fmt::format(
+            "{}: core.short_stack_entries: a short stack is modelled for independent traversal "
+            "only (traversal.mode={}: {}); set it to 0",
+            where, mode.name,
+            mode.packets ? "packet traces record no per-ray stack"
+                         : "a ray's stack would move with it through the ray buffer"));
     if (c["dram"]["model"] == "command") {
         DramParams p;
         p.device = c["dram"]["device"];

@@ -53,12 +53,15 @@ json energy_report(const Params& P, const json& stats) {
         return sram_word_pj(e, double(c.size_bytes) / std::max(1, c.banks)) * double(c.line_bytes) /
                8.0;
     };
-    // Caches: every lookup reads a line's worth of its bank, every miss writes a line in.
+    // Caches: every lookup reads a line's worth of its bank, every miss writes a line in; a
+    // written line is a line written, a dirty line written back one read out.
     auto cache = [&](const char* block, const CacheParams& c, bool indexed) {
-        const double accesses = indexed ? sum_blocks(stats, block, ".accesses")
-                                        : counter(stats, std::string(block) + ".accesses");
-        const double misses = indexed ? sum_blocks(stats, block, ".misses")
-                                      : counter(stats, std::string(block) + ".misses");
+        auto sum = [&](const char* suffix) {
+            return indexed ? sum_blocks(stats, block, suffix)
+                           : counter(stats, std::string(block) + suffix);
+        };
+        const double accesses = sum(".accesses") + sum(".write_hits") + sum(".write_misses");
+        const double misses = sum(".misses") + sum(".writebacks");
         if (accesses + misses <= 0) return;
         const double pj = line_pj(c);
         per_access[std::string(block) + "_line_pj"] = pj;
@@ -82,7 +85,8 @@ json energy_report(const Params& P, const json& stats) {
         blocks["ray_buffer"] = rb * pj;
     }
     // The crossbar: bits times the distance they travel.
-    const double xbar_bytes = counter(stats, "crossbar.bytes");
+    const double xbar_bytes =
+        counter(stats, "crossbar.bytes") + counter(stats, "crossbar.write_bytes");
     if (xbar_bytes > 0) {
         const double mm = e.crossbar_mm > 0 ? e.crossbar_mm : std::sqrt(double(P.core_count));
         per_access["crossbar_pj_per_byte"] = 8.0 * e.wire_pj_per_bit_mm * mm;

@@ -9,8 +9,8 @@
 
 namespace rtsim {
 
-void MemTraceRecorder::write(const std::string& path, uint32_t burst_bytes, double chip_clock_ghz,
-                             double device_tck_ns) const {
+void MemTraceRecorder::save(const std::string& path, uint32_t burst_bytes, double chip_clock_ghz,
+                            double device_tck_ns) const {
     std::vector<Request> sorted = kept_;
     std::stable_sort(sorted.begin(), sorted.end(),
                      [](const Request& a, const Request& b) { return a.cycle < b.cycle; });
@@ -23,7 +23,7 @@ void MemTraceRecorder::write(const std::string& path, uint32_t burst_bytes, doub
         const uint64_t first = r.addr / burst * burst;
         const uint64_t end = r.addr + std::max<uint32_t>(1, r.size_bytes);
         for (uint64_t a = first; a < end; a += burst)
-            text += fmt::format("0x{:x} READ {}\n", a, cycle);
+            text += fmt::format("0x{:x} {} {}\n", a, r.write ? "WRITE" : "READ", cycle);
     }
     write_file_atomically(path, text);
 }

@@ -1,6 +1,6 @@
 // `rtsim run --mem-trace FILE`: the request stream that reaches DRAM, in DRAMsim3's trace
-// format ("0x<address> READ <cycle>", a line per burst, in time order), so the same requests can
-// be run through rtsim dram, DRAMsim3 or Ramulator.
+// format ("0x<address> READ|WRITE <cycle>", a line per burst, in time order), so the same requests
+// can be run through rtsim dram, DRAMsim3 or Ramulator.
 #pragma once
 
 #include <string>
@@ -22,8 +22,12 @@ class MemTraceRecorder final : public DramModel {
         return inner_.access(addr, size_bytes, now, breakdown);
     }
     void warm(uint64_t addr, uint32_t size_bytes) override { inner_.warm(addr, size_bytes); }
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+        keep(addr, size_bytes, now, true);
+        return inner_.write(addr, size_bytes, now);
+    }
     Cycle advance(DramRequest& r, Cycle now, bool& done) override {
-        if (r.stage == 0) keep(r.addr, r.size_bytes, now);
+        if (r.stage == 0) keep(r.addr, r.size_bytes, now, r.write);
         return inner_.advance(r, now, done);
     }
     void register_stats(StatsRegistry& reg) override { inner_.register_stats(reg); }
@@ -35,8 +39,8 @@ class MemTraceRecorder final : public DramModel {
     // Writes the trace: requests sorted by arrival (the fast model meets them slightly out of
     // order), split into bursts of `burst_bytes`, cycles converted to the memory's clock
     // (device_tck_ns; 0: chip cycles). Written whole or not at all.
-    void write(const std::string& path, uint32_t burst_bytes, double chip_clock_ghz,
-               double device_tck_ns) const;
+    void save(const std::string& path, uint32_t burst_bytes, double chip_clock_ghz,
+              double device_tck_ns) const;
     size_t requests() const { return kept_.size(); }
 
   private:
@@ -44,9 +48,10 @@ class MemTraceRecorder final : public DramModel {
         uint64_t addr;
         uint32_t size_bytes;
         Cycle cycle;
+        bool write;
     };
-    void keep(uint64_t addr, uint32_t size_bytes, Cycle now) {
-        kept_.push_back({addr, size_bytes, now});
+    void keep(uint64_t addr, uint32_t size_bytes, Cycle now, bool write = false) {
+        kept_.push_back({addr, size_bytes, now, write});
     }
     DramModel& inner_;
     std::vector<Request> kept_;

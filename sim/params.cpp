@@ -105,6 +105,9 @@ std::vector<FieldBinding> make_bindings() {
         field("core.node_step_instructions", M(core.step_instructions[0])),
         field("core.triangle_step_instructions", M(core.step_instructions[1])),
         field("core.ray_setup_instructions", M(core.ray_setup_instructions)),
+        field("core.short_stack_entries", M(core.short_stack_entries)),
+        field("core.stack_entry_bytes", M(core.stack_entry_bytes)),
+        field("core.hit_record_bytes", M(core.hit_record_bytes)),
     };
     // CacheParams and UnitParams default to the first section's values (l1, box_unit).
     add_unit_rows(t, StepKind::Node, true, /*width=*/true);
@@ -114,6 +117,10 @@ std::vector<FieldBinding> make_bindings() {
     add_cache_rows(t, "l1", &Params::l1, true);
     t.push_back(field("l1.split", M(l1_split), 1, kNotMirrored));
     add_cache_rows(t, "l2", &Params::l2, kNotMirrored);
+    t.push_back(custom(
+        "l2.write_policy",
+        [](Params& p, const json& v) { p.l2.write_back = v.get<std::string>() == "write_back"; },
+        [](const Params& p) -> json { return p.l2.write_back ? "write_back" : "write_through"; }));
     const std::vector<FieldBinding> rest = {
         field("crossbar.bytes_per_cycle", M(crossbar_bytes_per_cycle), 1, kNotMirrored),
         field("dram.model", M(dram_model), 1, kNotMirrored),

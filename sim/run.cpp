@@ -79,6 +79,12 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         w.reader = std::make_unique<TraceReader>(opt.trace_path);
         w.meta = open_trace_metadata(*w.reader, opt.trace_path);
         check_trace_matches_config(w.meta["bvh"], cfg, opt.trace_path);
+        if (cfg.typed.core.short_stack_entries > 0 && w.reader->version() < 3)
+            throw InputError(fmt::format(
+                "{}: core.short_stack_entries needs each step's stack depth, which trace format "
+                "version {} does not record (version 3 does); record the trace again with rtsim "
+                "trace",
+                opt.trace_path, w.reader->version()));
         w.source = std::make_unique<TraceWorkSource>(*w.reader, progress);
         return w;
     }
@@ -213,6 +219,9 @@ int run_command(const RunOptions& opt) {
         sp.stratified = cfg.typed.sim.sample_design == "stratified";
         if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
+        std::vector<const Core*> cores;
+        for (const auto& core : chip.cores) cores.push_back(core.get());
+        sampler->set_write_warming(std::move(cores));
         const BvhLayout& L = w.layout();
         sampler->set_line_range(std::min(L.node_base_addr, L.tri_base_addr),
                                 std::max(L.node_base_addr + L.node_bytes_total(),
@@ -258,9 +267,9 @@ int run_command(const RunOptions& opt) {
         // simple model's burst.
         const bool command = cfg.typed.dram_model == "command";
         const DramDeviceSpec spec = command ? command_dram_spec(cfg.typed.dram) : DramDeviceSpec{};
-        recorder->write(opt.mem_trace_path,
-                        command ? spec.burst_bytes() : uint32_t(cfg.typed.dram.burst_bytes),
-                        cfg.typed.clock_ghz, command ? spec.tck_ns : 0.0);
+        recorder->save(opt.mem_trace_path,
+                       command ? spec.burst_bytes() : uint32_t(cfg.typed.dram.burst_bytes),
+                       cfg.typed.clock_ghz, command ? spec.tck_ns : 0.0);
     }
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
     write_file_atomically(stats_path, out.dump(2) + "\n");

@@ -71,10 +71,31 @@ bool Sampler::fast_forward(const RayWork& work) {
     }
     if (!ports_.empty()) {
         const auto& mem = ports_[next_core_];
-        next_core_ = (next_core_ + 1) % ports_.size();
         for (const Step& s : work.steps) mem[size_t(s.kind)]->warm(s.addr, s.size_bytes);
+        if (next_core_ < write_cores_.size()) warm_writes(*write_cores_[next_core_], work);
+        next_core_ = (next_core_ + 1) % ports_.size();
     }
     return true;
+}
+
+void Sampler::warm_writes(const Core& core, const RayWork& work) const {
+    const CoreParams& p = core.params();
+    MemoryPort* local = core.local_memory();
+    if (!local) return;
+    if (p.short_stack_entries > 0) {
+        ShortStack stack(p.short_stack_entries);
+        for (const Step& s : work.steps) {
+            const StackTraffic t = stack.before(s);
+            if (t.spill_entries)
+                local->warm_write(core.stack_address(0, t.spill_from),
+                                  t.spill_entries * p.stack_entry_bytes);
+            if (t.refill_entries)
+                local->warm(core.stack_address(0, t.refill_from),
+                            t.refill_entries * p.stack_entry_bytes);
+        }
+    }
+    if (p.hit_record_bytes > 0)
+        local->warm_write(core.hit_record_address(work.ray_id), p.hit_record_bytes * work.rays);
 }
 
 void Sampler::handed_out(Cycle now) {

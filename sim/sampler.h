@@ -24,6 +24,7 @@
 #include <string>
 #include <vector>
 
+#include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
 #include "workloads/step.h"
@@ -52,6 +53,9 @@ class Sampler {
     // The next ray of the stream (work.rays of them: a packet counts its rays): true if it is
     // fast-forwarded (its fetches have warmed the caches and no core is to run it).
     bool fast_forward(const RayWork& work);
+    // Fast-forwarded rays also warm what the traversal writes (stack spills and refills, hit
+    // records) through each core's local memory, as the cores in `cores` would make them.
+    void set_write_warming(std::vector<const Core*> cores) { write_cores_ = std::move(cores); }
     // The ray just judged detailed is handed out at `now`.
     void handed_out(Cycle now);
     // The addresses rays fetch from ([base, end), in lines of line_bytes): every ray's first
@@ -96,7 +100,9 @@ class Sampler {
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail
     size_t next_core_ = 0;   // whose memories the next fast-forwarded ray warms
-    uint64_t current_ = 0;   // index of the ray just judged
+    std::vector<const Core*> write_cores_;
+    void warm_writes(const Core& core, const RayWork& work) const;
+    uint64_t current_ = 0;  // index of the ray just judged
     // The measured unit in progress: its start cycle and counters.
     bool open_ = false;
     uint64_t open_unit_ = 0;

@@ -44,7 +44,23 @@ struct Step {
     uint8_t count;         // items the unit tests: a node's child boxes, 1 for a triangle
     uint32_t treelet = 0;  // treelet of the record (0 when the layout has no treelets)
     uint8_t lanes = 1;     // rays of a packet that take part (1 for a single ray)
+    // The ray's traversal stack when the step is fetched (models size short stacks by it):
+    // bits 0-6 its entries (saturated at kStackDepthMax), bit 7 set when the step's node or
+    // leaf came off the stack (popped) rather than by descending to the nearest child.
+    // 0 in packet traces and traces older than version 3 (no stack recorded).
+    uint8_t stack = 0;
 };
+constexpr unsigned kStackDepthMax = 127;
+constexpr uint8_t kStackPopped = 0x80;
+constexpr uint8_t stack_byte(unsigned depth, bool popped) {
+    return uint8_t((depth < kStackDepthMax ? depth : kStackDepthMax) | (popped ? kStackPopped : 0));
+}
+constexpr unsigned stack_depth(const Step& s) {
+    return s.stack & kStackDepthMax;
+}
+constexpr bool stack_popped(const Step& s) {
+    return (s.stack & kStackPopped) != 0;
+}
 static_assert(sizeof(Step) == 24, "Step is streamed in bulk; keep it small");
 
 enum class RayKind : uint8_t { Primary = 0, Shadow = 1, AO = 2, Diffuse = 3, Reflection = 4 };

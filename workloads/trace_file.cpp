@@ -109,6 +109,7 @@ void TraceWriter::add(const TraceRecord& r) {
         if (count_field == 15) put_varint(raw_, s.count - 15u);
         put_varint(raw_, zigzag(int64_t(s.id) - prev[k]));
         prev[k] = s.id;
+        raw_.push_back(char(s.stack));  // version 3
     }
     if (r.prim == kInvalidPrim) {
         put_varint(raw_, 0);
@@ -352,6 +353,7 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
     for (int k = 0; k < kStepKinds; ++k) kinds[k] = layout_.records(StepKind(k));
     // Version 1's step byte: bit 0 the kind (node or triangle), bits 1-7 a node's children.
     const bool v1 = version_ == 1;
+    const bool has_stack = version_ >= 3;
     const size_t rays = size_t(std::min<uint64_t>(max_rays, chunk_rays_left_));
     out.resize(rays);
     int64_t last_id = chunk_last_id_;
@@ -394,6 +396,7 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
                                        i, step_kind_info(sk).name, prev[sk], K.count));
             step[i] = BvhLayout::step(K, StepKind(sk), uint32_t(prev[sk]), uint8_t(items));
+            if (has_stack) step[i].stack = byte();
         }
         const uint64_t prim = varint();
         if (prim == 0) {

@@ -19,8 +19,9 @@
 
 namespace rtsim {
 
-// Version written. Version 1 (a step byte of 1 kind bit and 7 count bits) is still read.
-constexpr uint32_t kTraceVersion = 2;
+// Version written. Version 1 (a step byte of 1 kind bit and 7 count bits) and version 2 (no
+// stack byte per step: such traces read with Step::stack 0) are still read.
+constexpr uint32_t kTraceVersion = 3;
 constexpr uint32_t kOldestTraceVersion = 1;
 // Step kinds version 2's 4-bit kind field can hold (this build knows kStepKinds of them).
 constexpr int kTraceStepKinds = 16;

@@ -13,16 +13,26 @@ namespace rtsim {
 namespace {
 
 struct NullSink {
+    void at_stack(int, bool) {}
     void node(const BvhLayout&, uint32_t, uint8_t) {}
     void tri(const BvhLayout&, uint32_t) {}
 };
 
+// Records the steps with the stack as each was fetched: a leaf's first triangle carries the
+// leaf's pop, the rest of its triangles none.
 struct VectorSink {
     std::vector<Step>* out;
+    uint8_t stack = 0;
+    void at_stack(int depth, bool popped) { stack = stack_byte(unsigned(depth), popped); }
     void node(const BvhLayout& L, uint32_t index, uint8_t children) {
         out->push_back(L.node_step(index, children));
+        out->back().stack = stack;
     }
-    void tri(const BvhLayout& L, uint32_t slot) { out->push_back(L.tri_step(slot)); }
+    void tri(const BvhLayout& L, uint32_t slot) {
+        out->push_back(L.tri_step(slot));
+        out->back().stack = stack;
+        stack &= uint8_t(~kStackPopped);
+    }
 };
 
 struct Entry {
@@ -229,7 +239,9 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
     int sp = 0;
     uint32_t depth_max = 1;
     Entry cur = start;
+    bool popped = false;  // whether `cur` came off the stack
     for (;;) {
+        sink.at_stack(sp, popped);
         if (cur.count) {
             if (test_leaf(bvh, rp, ray, any, cur.child, cur.count, hit, sink, c)) {
                 c.max_stack = depth_max;
@@ -261,6 +273,7 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
                     stack[sp++] = {n.child[order[i]], n.count[order[i]], tn[order[i]]};
                 depth_max = std::max<uint32_t>(depth_max, sp + 1);
                 cur = {n.child[order[k - 1]], n.count[order[k - 1]], tn[order[k - 1]]};
+                popped = false;
                 continue;
             }
         }
@@ -272,6 +285,7 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
             }
             cur = stack[--sp];
         } while (cur.tnear > hit.t * kCullScale);
+        popped = true;
     }
 }
 

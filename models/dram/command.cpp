@@ -40,7 +40,21 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         return done;
     }
 
+    // Posted: the bursts enter the write queue (waiting for room in a full one) and nothing
+    // waits for them to drain.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+        DramRequest r;
+        r.addr = addr;
+        r.size_bytes = size_bytes;
+        r.write = true;
+        return enqueue(r, now);
+    }
+
     Cycle advance(DramRequest& r, Cycle now, bool& done) override {
+        if (r.write) {
+            done = true;
+            return enqueue(r, now);
+        }
         if (r.stage == 0) {
             done = false;
             return arrive(r, now);
@@ -69,7 +83,9 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     void register_stats(StatsRegistry& reg) override {
         const std::string block = name();
         reg.add(block, "reads", &reads_, "read bursts");
-        reg.add(block, "bytes", &bytes_, "bytes read");
+        reg.add(block, "writes", &writes_, "write bursts");
+        reg.add(block, "bytes", &bytes_, "bytes read and written");
+        reg.add(block, "write_bytes", &write_bytes_, "bytes written");
         // The controller's own counters, read where they live (ctrl_ is never moved).
         const DramCounters& k = ctrl_.counters();
         reg.add(block, "row_hits", &k.row_hits, "column commands to an already open row");
@@ -95,6 +111,7 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         return {
             {"bytes", bytes_},
             {"gbps", ctx.gbps(bytes_)},
+            {"write_bytes", write_bytes_},
             {"device", spec_.name},
             {"row_hits", k.row_hits},
             {"row_empty", k.row_misses},
@@ -123,6 +140,18 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     // Enqueues the request's bursts at `now` and returns when a copy of the controller, run on
     // alone, has its data back (plus the path latency).
     Cycle arrive(DramRequest& r, Cycle now) {
+        const uint64_t first = next_id_;
+        enqueue(r, now);
+        const uint64_t count = next_id_ - first;
+        r.state[0] = first;
+        r.state[1] = count;
+        r.stage = 1;
+        return std::max(now + 1, predict(first, count));
+    }
+
+    // Puts the request's bursts in the controller's queues from `now` on; returns the chip cycle
+    // the last one entered (later than `now` when a queue was full).
+    Cycle enqueue(DramRequest& r, Cycle now) {
         r.arrived = now;
         const uint64_t t = to_device(now);
         // Out of time order: behind a request that arrived later in simulated time (the fast
@@ -132,23 +161,22 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         latest_arrival_ = std::max(latest_arrival_, t);
         const uint32_t burst = spec_.burst_bytes();
         const uint64_t count = std::max<uint64_t>(1, (r.size_bytes + burst - 1) / burst);
-        const uint64_t first = next_id_;
         const uint64_t base = r.addr / burst * burst;
+        uint64_t entered = t;
         for (uint64_t k = 0; k < count; ++k) {
             uint64_t at = std::max(t, ctrl_.now());
-            while (!ctrl_.enqueue(next_id_, base + k * burst, false, at)) {
+            while (!ctrl_.enqueue(next_id_, base + k * burst, r.write, at)) {
                 at = ctrl_.now() + 1;
                 ++queue_full_waits_;
             }
+            entered = std::max(entered, at);
             ++next_id_;
         }
-        r.state[0] = first;
-        r.state[1] = count;
-        r.stage = 1;
-        reads_ += count;
+        (r.write ? writes_ : reads_) += count;
         bytes_ += count * burst;
+        if (r.write) write_bytes_ += count * burst;
         if (series_) series_->add(now, count * burst);
-        return std::max(now + 1, predict(first, count));
+        return std::max(now, to_chip(entered));
     }
 
     // The chip cycle the bursts [first, first + count) are back, if nothing else arrives.
@@ -182,7 +210,8 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     }
 
     void collect() {
-        for (const auto& c : ctrl_.completions()) finished_[c.id] = c.cycle;
+        for (const auto& c : ctrl_.completions())
+            if (!c.write) finished_[c.id] = c.cycle;  // nothing waits for a write
         ctrl_.completions().clear();
     }
 
@@ -193,7 +222,8 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     uint64_t next_id_ = 0;
     std::unordered_map<uint64_t, uint64_t> finished_;  // burst id -> device cycle (reference)
     TimeSeries* series_ = nullptr;
-    uint64_t reads_ = 0, bytes_ = 0, late_ = 0, queue_full_waits_ = 0;
+    uint64_t reads_ = 0, writes_ = 0, bytes_ = 0, write_bytes_ = 0, late_ = 0,
+             queue_full_waits_ = 0;
     uint64_t latest_arrival_ = 0;  // device cycle
 };
 

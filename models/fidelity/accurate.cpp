@@ -101,7 +101,18 @@ class ReferenceScheduler final : public ChipDriver {
     const TimeFloor* private_floor(size_t) const override { return &now_; }
 
   private:
-    enum EventType : uint8_t { kSlot, kArrive, kTag, kFillDone, kDram, kIdealDone, kLoad };
+    enum EventType : uint8_t {
+        kSlot,
+        kArrive,
+        kTag,
+        kFillDone,
+        kDram,
+        kIdealDone,
+        kLoad,
+        kWriteArrive,  // a posted write reaches its cache
+        kWriteTag,     // one of its lines is looked up
+        kDramWrite     // a write's next stage in DRAM
+    };
     // Within a cycle: fills complete first, then other memory stages, then ray slots by core and
     // slot (the fast model's arbitration: at equal cycles the lower core, then the lower slot,
     // takes the next ray), each group first scheduled first.
@@ -124,7 +135,8 @@ class ReferenceScheduler final : public ChipDriver {
     }
 
     // What a memory request's completion goes to.
-    enum WaiterKind : uint8_t { kForStep, kForFill, kForNothing };
+    // kForStack: a stack refill a slot waits for; kForWrite: a posted write nobody waits for.
+    enum WaiterKind : uint8_t { kForStep, kForFill, kForNothing, kForStack, kForWrite };
     struct Access {
         MemoryPort* node = nullptr;
         uint64_t addr = 0;
@@ -175,6 +187,12 @@ class ReferenceScheduler final : public ChipDriver {
         int kind = 0;  // the step being fetched, and its unit's items
         int count = 1;
         Cycle idle_since = 0;
+        ShortStack stack;
+        size_t stack_pos = ~size_t(0);  // the step whose stack traffic has been made
+    };
+    struct DramWrite {
+        DramModel* dram = nullptr;
+        DramRequest request;
     };
     struct CoreState {
         std::vector<SlotState> slots;
@@ -202,6 +220,14 @@ class ReferenceScheduler final : public ChipDriver {
     void line_done(uint32_t a, uint64_t k, Cycle t, const Timeline& timeline);
     void access_done(uint32_t a, Cycle t);
     uint32_t cache_state(Cache* cache);
+    // The traversal's own traffic through a core's local memory (below its L1s).
+    void post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t);
+    void write_arrive(uint32_t a, Cycle t);
+    void write_tag(uint32_t a, uint32_t k, Cycle t);
+    void start_dram_write(MemoryPort* dram, uint64_t addr, uint32_t size, Cycle t);
+    void dram_write_stage(uint32_t w, Cycle t);
+    void send_writebacks(Cache* cache, Cycle t);
+    void read_stack(uint32_t c, uint32_t i, uint64_t addr, uint32_t size, Cycle t);
     // A fresh record from a pool of them (reusing a freed one when there is one).
     template <typename T>
     static uint32_t take(std::vector<T>& pool, std::vector<uint32_t>& free) {
@@ -228,6 +254,8 @@ class ReferenceScheduler final : public ChipDriver {
     std::vector<Fill> fills_;
     std::vector<uint32_t> free_fills_;
     std::vector<CacheState> caches_;
+    std::vector<DramWrite> dram_writes_;
+    std::vector<uint32_t> free_dram_writes_;
     std::unordered_map<const Cache*, uint32_t> cache_index_;
     std::vector<Cycle> lookup_scratch_;
     double host_busy_seconds_ = 0;
@@ -288,6 +316,15 @@ void ReferenceScheduler::run() {
                 break;
             case kLoad:
                 load_line(e.id, e.k, e.t);
+                break;
+            case kWriteArrive:
+                write_arrive(e.id, e.t);
+                break;
+            case kWriteTag:
+                write_tag(e.id, e.k, e.t);
+                break;
+            case kDramWrite:
+                dram_write_stage(e.id, e.t);
                 break;
             case kIdealDone: {
                 Timeline tl(accesses_[e.id].start);
@@ -383,7 +420,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
             core.stall_cycles[Core::kIssue] += done - t;
             s.phase = kTakeWork;
             s.busy = true;
-            if (!rb && s.work.steps.empty()) {  // a ray missing the root box ends here
+            if (core.finish_at_step_end() && s.work.steps.empty()) {  // a root-box miss ends
                 core.count_finished(s.work.rays, s.start, done);
                 s.busy = false;
             }
@@ -398,6 +435,8 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
                 return;
             }
             s.pos = 0;
+            s.stack = ShortStack(core.params().short_stack_entries);
+            s.stack_pos = ~size_t(0);
             s.phase = kSetUp;
             slot_ready(c, i, t);
             return;
@@ -423,8 +462,18 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         schedule(std::max(t, rb->record_written(s.handle)), kSlot, c, i);
         return;
     }
+    if (!rb && s.pos == s.work.steps.size()) {  // its hit records are due
+        if (const uint32_t bytes = core.count_hit_records(s.work))
+            post_write(core.local_memory(), core.hit_record_address(s.work.ray_id), bytes, t);
+        core.count_finished(s.work.rays, s.start, t);
+        s.busy = false;
+        schedule(t, kSlot, c, i);
+        return;
+    }
     if (rb) {
         if (s.pos == s.work.steps.size()) {
+            if (const uint32_t bytes = core.count_hit_records(s.work))
+                post_write(core.local_memory(), core.hit_record_address(s.work.ray_id), bytes, t);
             rb->release(s.handle);
             core.count_finished(s.work.rays, s.start, t);
             s.busy = false;
@@ -444,6 +493,20 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         }
     }
     const Step& st = s.work.steps[s.pos];
+    if (core.params().short_stack_entries > 0 && s.stack_pos != s.pos) {
+        // The stack's traffic before the step: spills posted, a refill waited for.
+        const StackTraffic traffic = s.stack.before(st);
+        s.stack_pos = s.pos;
+        if (traffic.spill_entries)
+            post_write(core.local_memory(), core.stack_address(i, traffic.spill_from),
+                       core.count_stack_spill(traffic), t);
+        if (traffic.refill_entries) {
+            core.count_stack_refill(traffic);
+            read_stack(c, i, core.stack_address(i, traffic.refill_from),
+                       traffic.refill_entries * core.params().stack_entry_bytes, t);
+            return;
+        }
+    }
     const int kind = int(st.kind);
     const Cycle issued = core.issue(t, core.params().step_instructions[kind]);
     core.stall_cycles[Core::kIssue] += issued - t;
@@ -473,11 +536,91 @@ void ReferenceScheduler::step_fetched(uint32_t c, uint32_t i, Cycle t, const Tim
     const int lanes = core.params().packet_lanes > 0 ? core.params().packet_lanes : 1;
     const Cycle done = core.unit(s.kind)->issue(t, s.count, lanes);
     core.stall_cycles[Core::kUnitStall + s.kind] += done - t;
-    if (s.pos == s.work.steps.size() && !core.ray_buffer()) {
+    if (s.pos == s.work.steps.size() && core.finish_at_step_end()) {
         core.count_finished(s.work.rays, s.start, done);
         s.busy = false;
     }
     schedule(done, kSlot, c, i);
+}
+
+// A posted write from t: across the crossbar's write link, then into the cache below (or DRAM).
+void ReferenceScheduler::post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t) {
+    if (auto* xbar = dynamic_cast<Crossbar*>(port)) {
+        t = xbar->carry_up(t, size);
+        port = xbar->next_level();
+    }
+    if (auto* cache = dynamic_cast<Cache*>(port)) {
+        const uint32_t a = new_access(cache, addr, size, t);
+        accesses_[a].for_kind = kForWrite;
+        schedule(t, kWriteArrive, a);
+        return;
+    }
+    if (dynamic_cast<DramModel*>(port)) start_dram_write(port, addr, size, t);
+    // Ideal memory: nothing below to write to.
+}
+
+void ReferenceScheduler::write_arrive(uint32_t a, Cycle t) {
+    Access& A = accesses_[a];
+    auto* cache = static_cast<Cache*>(A.node);
+    A.first_line = cache->arrive_write(A.addr, A.size_bytes, t, lookup_scratch_);
+    A.lines_left = uint32_t(lookup_scratch_.size());
+    for (uint32_t k = 0; k < lookup_scratch_.size(); ++k)
+        schedule(lookup_scratch_[k], kWriteTag, a, k);
+}
+
+void ReferenceScheduler::write_tag(uint32_t a, uint32_t k, Cycle t) {
+    Access& A = accesses_[a];
+    auto* cache = static_cast<Cache*>(A.node);
+    cache->write_tag(A.first_line + k, t);
+    send_writebacks(cache, t);
+    if (--A.lines_left > 0) return;
+    // Write-through: on to the next level once every line is looked up (as the fast model).
+    if (!cache->params().write_back && cache->next_level())
+        start_dram_write(cache->next_level(), A.addr, A.size_bytes, t);
+    free_accesses_.push_back(a);
+}
+
+// Dirty lines the cache evicted (on a write's allocation or a miss's fill) go to DRAM.
+void ReferenceScheduler::send_writebacks(Cache* cache, Cycle t) {
+    std::vector<uint64_t>& lines = cache->queued_writebacks();
+    for (const uint64_t line : lines)
+        start_dram_write(cache->next_level(), cache->line_address(line), cache->params().line_bytes,
+                         t);
+    lines.clear();
+}
+
+void ReferenceScheduler::start_dram_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t) {
+    auto* dram = dynamic_cast<DramModel*>(port);
+    if (!dram) throw std::logic_error("accurate fidelity: a write below the L2 that is not DRAM");
+    const uint32_t w = take(dram_writes_, free_dram_writes_);
+    dram_writes_[w].dram = dram;
+    DramRequest& r = dram_writes_[w].request;
+    r.addr = addr;
+    r.size_bytes = size;
+    r.write = true;
+    dram_write_stage(w, t);
+}
+
+void ReferenceScheduler::dram_write_stage(uint32_t w, Cycle t) {
+    bool done = false;
+    const Cycle next = dram_writes_[w].dram->advance(dram_writes_[w].request, t, done);
+    if (done)
+        free_dram_writes_.push_back(w);
+    else
+        schedule(next, kDramWrite, w);
+}
+
+// A stack refill through the core's local memory: the slot goes on once it is back.
+void ReferenceScheduler::read_stack(uint32_t c, uint32_t i, uint64_t addr, uint32_t size, Cycle t) {
+    MemoryPort* port = cores_[c]->local_memory();
+    Crossbar* via = dynamic_cast<Crossbar*>(port);
+    const uint32_t a = new_access(via ? via->next_level() : port, addr, size, t);
+    Access& A = accesses_[a];
+    A.for_kind = kForStack;
+    A.a = c;
+    A.b = i;
+    A.via = via;
+    arrive(a, t);
 }
 
 // A request reaches its block at t.
@@ -500,7 +643,9 @@ void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
     Cache* cache = static_cast<Cache*>(accesses_[a].node);
     const uint64_t line = accesses_[a].first_line + k;
     const uint32_t cs = cache_state(cache);
-    if (cache->check_tag(line, t)) {
+    const bool hit = cache->check_tag(line, t);
+    if (!cache->queued_writebacks().empty()) send_writebacks(cache, t);
+    if (hit) {
         auto it = caches_[cs].in_flight.find(line);
         if (it != caches_[cs].in_flight.end()) {  // still filling: wait for it (merged miss)
             ++cache->merged_misses;
@@ -632,7 +777,14 @@ void ReferenceScheduler::access_done(uint32_t a, Cycle t) {
             }
             break;
         }
+        case kForStack: {
+            const Cycle end = A.via ? A.via->carry(t, A.size_bytes) : t;
+            cores_[A.a]->stall_cycles[Core::kStack] += end - A.start;
+            schedule(end, kSlot, A.a, A.b);
+            break;
+        }
         case kForNothing:
+        case kForWrite:
             break;
     }
 }
