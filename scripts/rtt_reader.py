@@ -96,6 +96,7 @@ class Trace:
             pos += 1
             count, pos = read_varint(raw, pos)
             prev = [0] * len(STEP_KINDS)
+            depth = 0
             steps = []
             for _ in range(count):
                 b = raw[pos]
@@ -111,11 +112,14 @@ class Trace:
                         raise TraceError(f"chunk {k}: unknown step kind {sk}")
                 v, pos = read_varint(raw, pos)
                 prev[sk] += unzigzag(v)
-                stack = 0
-                if self.version >= 3:  # the stack byte: bits 0-6 depth, bit 7 popped
-                    stack = raw[pos]
-                    pos += 1
-                steps.append((STEP_KINDS[sk], n, prev[sk], stack & 127, bool(stack & 128)))
+                popped = False
+                if self.version >= 3:  # zz(change of stack depth) << 1 | popped
+                    v, pos = read_varint(raw, pos)
+                    depth += unzigzag(v >> 1)
+                    popped = bool(v & 1)
+                    if not 0 <= depth <= 127:
+                        raise TraceError(f"chunk {k}: stack depth {depth} outside 0..127")
+                steps.append((STEP_KINDS[sk], n, prev[sk], depth, popped))
             prim, pos = read_varint(raw, pos)
             t = None
             if prim:

@@ -14,6 +14,13 @@ double sram_word_pj(const EnergyParams& e, double bytes) {
     const double x[3] = {std::log2(8.0 * 1024), std::log2(32.0 * 1024), std::log2(1024.0 * 1024)};
     const double y[3] = {e.sram_8kib_pj, e.sram_32kib_pj, e.sram_1mib_pj};
     const double lx = std::log2(std::max(bytes, 1.0));
+    // Below the smallest point, the power law through the first two (energy ~ size^0.5 with
+    // Horowitz's figures: a quarter of the size, half the energy); a straight line in log(size)
+    // would reach zero at 2 KiB.
+    if (lx < x[0] && y[0] > 0 && y[1] > 0) {
+        const double exponent = std::log2(y[1] / y[0]) / (x[1] - x[0]);
+        return y[0] * std::exp2((lx - x[0]) * exponent);
+    }
     const int seg = lx < x[1] ? 0 : 1;  // the segment, extended beyond the ends
     const double t = (lx - x[seg]) / (x[seg + 1] - x[seg]);
     return std::max(0.0, y[seg] + t * (y[seg + 1] - y[seg]));

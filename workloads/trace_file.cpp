@@ -98,6 +98,7 @@ void TraceWriter::add(const TraceRecord& r) {
     put_varint(raw_, r.steps.size());
     // Per step kind the format can hold, reset per ray: a ray starts at the root.
     int64_t prev[kTraceStepKinds] = {};
+    int64_t prev_depth = 0;
     for (const Step& s : r.steps) {
         if (int(s.kind) >= kTraceStepKinds)
             throw std::logic_error("trace: a step kind above 15 does not fit the format");
@@ -109,7 +110,10 @@ void TraceWriter::add(const TraceRecord& r) {
         if (count_field == 15) put_varint(raw_, s.count - 15u);
         put_varint(raw_, zigzag(int64_t(s.id) - prev[k]));
         prev[k] = s.id;
-        raw_.push_back(char(s.stack));  // version 3
+        // Version 3: the stack's change of depth since the last step, and the pop bit.
+        const int64_t depth = int64_t(stack_depth(s));
+        put_varint(raw_, zigzag(depth - prev_depth) << 1 | (stack_popped(s) ? 1 : 0));
+        prev_depth = depth;
     }
     if (r.prim == kInvalidPrim) {
         put_varint(raw_, 0);
@@ -371,6 +375,7 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
         rec.steps.resize(count);
         Step* step = rec.steps.data();
         int64_t prev[kStepKinds] = {};
+        int64_t depth = 0;
         for (uint64_t i = 0; i < count; ++i) {
             const uint8_t b = byte();
             int sk;
@@ -396,7 +401,14 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
                 chunk_fail(fmt::format("ray {} step {} references {} {} outside the layout ({})", r,
                                        i, step_kind_info(sk).name, prev[sk], K.count));
             step[i] = BvhLayout::step(K, StepKind(sk), uint32_t(prev[sk]), uint8_t(items));
-            if (has_stack) step[i].stack = byte();
+            if (has_stack) {
+                const uint64_t v = end - p >= 2 ? short_varint() : varint();
+                depth += unzigzag(v >> 1);
+                if (depth < 0 || depth > int64_t(kStackDepthMax))
+                    chunk_fail(fmt::format("ray {} step {} has stack depth {}, outside 0..{}", r, i,
+                                           depth, kStackDepthMax));
+                step[i].stack = stack_byte(unsigned(depth), (v & 1) != 0);
+            }
         }
         const uint64_t prim = varint();
         if (prim == 0) {

@@ -18,6 +18,16 @@ class FixedLatencyMemory : public MemoryPort {
         if (bd) bd->cycles[level] += latency_;
         return now + latency_;
     }
+    // Posted writes: recorded apart from reads, accepted at once.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
+        write_addrs.push_back(addr);
+        write_times.push_back(now);
+        write_bytes += size_bytes;
+        return now;
+    }
+    std::vector<uint64_t> write_addrs;
+    std::vector<Cycle> write_times;
+    uint64_t write_bytes = 0;
     std::vector<uint64_t> addrs;
     std::vector<Cycle> times;  // cycle of each request, in arrival order
     uint64_t bytes = 0;

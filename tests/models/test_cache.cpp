@@ -418,3 +418,91 @@ TEST(Cache, RequestsOutOfTimeOrderAreCounted) {
     EXPECT_EQ(c.lookup_out_of_order, 2u);
     EXPECT_EQ(c.mshr_out_of_order, 1u);
 }
+
+namespace {
+CacheParams one_bank_direct_mapped() {
+    CacheParams p;
+    p.size_bytes = 4 * 64;  // 4 sets of one 64-byte way
+    p.ways = 1;
+    p.line_bytes = 64;
+    p.hit_latency_cycles = 4;
+    p.mshrs = 0;
+    return p;
+}
+}  // namespace
+
+// Write-back, write-allocate without a fetch: a written line is there for a later read and costs
+// the next level nothing until it is evicted, when exactly its line goes down as one write.
+TEST(CacheWrites, WriteBackAllocatesWithoutFetchAndWritesBackOnEviction) {
+    test::FixedLatencyMemory mem(50);
+    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem, kLevelL2);
+    // A write looks its line up like a read: bank at 0, tag at 0 + 4.
+    EXPECT_EQ(c.write(0x1008, 8, 0), 4u);
+    EXPECT_TRUE(c.contains(0x1000));
+    EXPECT_TRUE(mem.addrs.empty());  // no fetch
+    EXPECT_EQ(c.write_misses, 1u);
+    // A read of it at 10 hits: 10 + 4.
+    EXPECT_EQ(c.access(0x1000, 64, 10), 14u);
+    EXPECT_EQ(c.hits, 1u);
+    // A second write to the line hits it.
+    c.write(0x1010, 8, 20);
+    EXPECT_EQ(c.write_hits, 1u);
+    EXPECT_TRUE(mem.write_addrs.empty());
+    // A read of another line of the same set (4 sets of 64 bytes: 0x1100 is set 0 too) evicts
+    // the dirty line: it goes down at the read's lookup (30 + 4), before the fill.
+    EXPECT_EQ(c.access(0x1100, 64, 30), 30u + 4u + 50u);
+    ASSERT_EQ(mem.write_addrs.size(), 1u);
+    EXPECT_EQ(mem.write_addrs[0], 0x1000u);
+    EXPECT_EQ(mem.write_times[0], 34u);
+    EXPECT_EQ(mem.write_bytes, 64u);
+    EXPECT_EQ(c.writebacks, 1u);
+    EXPECT_EQ(c.writeback_bytes, 64u);
+    // The line read in is clean: evicting it by a write writes nothing back.
+    c.write(0x1200, 8, 100);
+    EXPECT_EQ(mem.write_addrs.size(), 1u);
+    // ...and the written line, evicted by a read, does.
+    c.access(0x1300, 64, 200);
+    ASSERT_EQ(mem.write_addrs.size(), 2u);
+    EXPECT_EQ(mem.write_addrs[1], 0x1200u);
+}
+
+TEST(CacheWrites, WriteThroughSendsEveryWriteOnAndAllocatesNothing) {
+    test::FixedLatencyMemory mem(50);
+    CacheParams p = one_bank_direct_mapped();
+    p.write_back = false;
+    Cache c(sc_core::sc_gen_unique_name("c"), p, &mem, kLevelL2);
+    EXPECT_EQ(c.write(0x2008, 16, 7), 11u);
+    EXPECT_FALSE(c.contains(0x2000));
+    ASSERT_EQ(mem.write_addrs.size(), 1u);
+    EXPECT_EQ(mem.write_addrs[0], 0x2008u);  // the write itself, as it came
+    EXPECT_EQ(mem.write_times[0], 11u);      // once looked up
+    EXPECT_EQ(mem.write_bytes, 16u);
+    EXPECT_EQ(c.writebacks, 0u);
+}
+
+// A write takes its bank's lookup slot: a read to the same bank in the same cycle waits one.
+TEST(CacheWrites, WritesTakeBankSlots) {
+    test::FixedLatencyMemory mem(50);
+    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem, kLevelL2);
+    c.write(0x3000, 8, 0);
+    // The line is there from the write's lookup (4); the read's lookup ends at 1 + 4.
+    EXPECT_EQ(c.access(0x3000, 64, 0), 5u);
+    EXPECT_EQ(c.bank_conflict_cycles, 1u);
+}
+
+// Writes cross the crossbar on a link of their own: a line coming back from the L2 does not
+// wait for write data, and write data waits only for other writes.
+TEST(CacheWrites, CrossbarCarriesWritesOnTheirOwnLink) {
+    test::FixedLatencyMemory l2(30);
+    Crossbar x(sc_core::sc_gen_unique_name("x"), 16.0, &l2);
+    // 64 bytes at 16 per cycle: 4 cycles; a second write right behind the first waits for it.
+    x.write(0x100, 64, 0);
+    x.write(0x200, 64, 0);
+    ASSERT_EQ(l2.write_times.size(), 2u);
+    EXPECT_EQ(l2.write_times[0], 4u);
+    EXPECT_EQ(l2.write_times[1], 8u);
+    // A read returning at 30 crosses at once (30..34): the writes are on the other link.
+    EXPECT_EQ(x.access(0x300, 64, 0), 34u);
+    EXPECT_EQ(x.write_bytes, 128u);
+    EXPECT_EQ(x.bytes, 64u);
+}

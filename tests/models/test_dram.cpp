@@ -109,3 +109,19 @@ TEST(Dram, BankRequestsOutOfTimeOrderAreCounted) {
     EXPECT_EQ(d.bank_out_of_order, 1u);
     EXPECT_EQ(d.out_of_order_requests(), 1u);
 }
+
+// A write takes its bank and the bus as a read would (the write data crosses the same bus), and
+// is accepted at once: a read behind it in the same bank waits for the write's column command.
+TEST(Dram, WritesTakeTheBankAndTheBusAndAreCounted) {
+    Dram d("dram", rows(1, 2));
+    EXPECT_EQ(d.write(0, 64, 0), 0u);  // posted
+    // The write: empty bank, column at 20, the bank free for the next column at 24; its data
+    // on the bus 30..31. The read of the same row: a row hit at 24, data at 34, bus 34..35.
+    EXPECT_EQ(d.access(64, 64, 0), 24u + 10 + 1 + 10);
+    EXPECT_EQ(d.writes, 1u);
+    EXPECT_EQ(d.reads, 1u);
+    EXPECT_EQ(d.write_bytes, 64u);
+    EXPECT_EQ(d.bytes, 128u);
+    EXPECT_EQ(d.row_empty, 1u);
+    EXPECT_EQ(d.row_hits, 1u);
+}

@@ -25,9 +25,13 @@ TEST(Energy, SramCurvePassesThroughItsPointsAndIsLinearInLogSize) {
     EXPECT_NEAR(sram_word_pj(e, 1024 * 1024), 100.0, 1e-9);
     // 128 KiB: 2 of the 5 doublings from 32 KiB to 1 MiB: 20 + 0.4 x 80.
     EXPECT_NEAR(sram_word_pj(e, 128 * 1024), 52.0, 1e-9);
-    // 16 KiB: halfway from 8 to 32 KiB in log size; 4 KiB extends the first segment down.
+    // 16 KiB: halfway from 8 to 32 KiB in log size.
     EXPECT_NEAR(sram_word_pj(e, 16 * 1024), 15.0, 1e-9);
-    EXPECT_NEAR(sram_word_pj(e, 4 * 1024), 5.0, 1e-9);
+    // Below 8 KiB, the power law through the first two points (4x the size, 2x the energy):
+    // 2 KiB, a quarter of 8 KiB, costs half of 10 pJ; 512 bytes a quarter; never zero.
+    EXPECT_NEAR(sram_word_pj(e, 2 * 1024), 5.0, 1e-9);
+    EXPECT_NEAR(sram_word_pj(e, 512), 2.5, 1e-9);
+    EXPECT_GT(sram_word_pj(e, 1), 0.0);
 }
 
 TEST(Energy, BlocksAreTheirCountersTimesTheirCosts) {

@@ -47,6 +47,8 @@ std::vector<TraceRecord> random_records(int n, uint32_t seed) {
             s.addr = s.kind == StepKind::Node ? L.node_addr(s.id) : L.tri_addr(s.id);
             s.size_bytes =
                 uint16_t(s.kind == StepKind::Node ? L.node_size_bytes : L.tri_size_bytes);
+            // Stack depths in their whole range (jumps included), popped or not.
+            s.stack = stack_byte(unsigned(rng() % 5 == 0 ? rng() % 128 : k % 9), rng() % 2 == 0);
             r.steps.push_back(s);
         }
         if (rng() % 2) {
@@ -98,6 +100,7 @@ void expect_same(const std::vector<TraceRecord>& a, const std::vector<TraceRecor
             ASSERT_EQ(x.count, y.count);
             ASSERT_EQ(x.addr, y.addr);
             ASSERT_EQ(x.size_bytes, y.size_bytes);
+            ASSERT_EQ(x.stack, y.stack);
         }
     }
 }

@@ -120,6 +120,49 @@ TEST(Tracer, StepStreamMatchesCountersAndLayout) {
     }
 }
 
+// The stack each step records (Step::stack) is the traversal's: a ray starts with an empty stack
+// at the root; a step fetched without a pop follows a node that pushed at most its hit children
+// but one (the nearest is fetched directly), or is the next triangle of the same leaf; and the
+// stack never holds more than the deepest the counters saw.
+TEST(Tracer, StepsRecordTheTraversalStack) {
+    Scene s = load_scene("builtin:cornell");
+    for (int width : {2, 8}) {
+        BvhBuildOptions o;
+        o.width = width;
+        Bvh bvh = build_bvh(s, o);
+        uint64_t pops = 0, pushes = 0;
+        for (const Ray& r : random_rays(s.bounds(), 300, 9)) {
+            std::vector<Step> steps;
+            TraceCounters c;
+            trace_ray(bvh, r, HitQuery::Closest, &steps, &c);
+            if (steps.empty()) continue;
+            ASSERT_EQ(steps[0].stack, 0);
+            for (size_t k = 0; k + 1 < steps.size(); ++k) {
+                const Step &a = steps[k], &b = steps[k + 1];
+                const int before_pop = int(stack_depth(b)) + (stack_popped(b) ? 1 : 0);
+                ASSERT_LT(unsigned(before_pop), c.max_stack) << width;
+                if (!stack_popped(b)) {
+                    if (a.kind == StepKind::Node) {
+                        const int pushed = int(stack_depth(b)) - int(stack_depth(a));
+                        ASSERT_GE(pushed, 0) << width << " step " << k;
+                        ASSERT_LE(pushed, int(a.count) - 1) << width << " step " << k;
+                        pushes += unsigned(pushed);
+                    } else {
+                        ASSERT_EQ(b.kind, StepKind::Triangle) << width << " step " << k;
+                        ASSERT_EQ(stack_depth(b), stack_depth(a)) << width << " step " << k;
+                    }
+                } else {
+                    ++pops;
+                    // A pop takes an entry pushed before: the stack before it was not empty.
+                    ASSERT_GE(before_pop, 1);
+                }
+            }
+        }
+        EXPECT_GT(pops, 100u) << width;  // the rays did use the stack
+        EXPECT_GT(pushes, 100u) << width;
+    }
+}
+
 TEST(Tracer, RayMissingRootBoxCostsNoStep) {
     Scene s = load_scene("builtin:sphere");
     Bvh bvh = build_bvh(s, BvhBuildOptions());
