@@ -29,6 +29,19 @@ Cycle RayBuffer::port(Cycle now) {
     return start + params_.latency_cycles;
 }
 
+Cycle RayBuffer::write_record(uint32_t handle, Cycle now) {
+    ++writes;
+    if (!params_.in_memory) return port(now);
+    if (defer_) {
+        deferred_writes_.push_back(record_address(handle));
+        return now;
+    }
+    // Readable from now: the memory serves a later read of the record after this write (the
+    // time-ordered reference posts it at now too).
+    memory_->write(record_address(handle), params_.ray_bytes, now);
+    return now;
+}
+
 void RayBuffer::recount(uint32_t treelet, size_t before) {
     const std::deque<uint32_t>& q = queues_[treelet];
     scheduler_->changed(treelet, before, q.size(), q.empty() ? 0 : entries_[q.front()].seq);
@@ -64,10 +77,9 @@ void RayBuffer::admit(Cycle now) {
         ++occupancy_;
         ++admitted;
         peak_rays = std::max<uint64_t>(peak_rays, occupancy_);
-        ++writes;
         // A ray that misses the scene has no step; it still passes through a core to finish.
         const uint32_t treelet = e.work.steps.empty() ? 0 : e.work.steps[0].treelet;
-        e.written = port(now);
+        e.written = write_record(h, now);
         enqueue(h, treelet, e.written);
     }
     if (blocked) ++admission_blocked;
@@ -97,16 +109,18 @@ Cycle RayBuffer::read(uint32_t handle, Cycle now, RayWork& work, size_t& pos) {
     work.rays = e.work.rays;
     pos = e.pos;
     ++reads;
-    return port(std::max(now, e.written));
+    const Cycle from = std::max(now, e.written);
+    if (!params_.in_memory) return port(from);
+    if (defer_) return from;
+    return memory_->access(record_address(handle), params_.ray_bytes, from);
 }
 
 Cycle RayBuffer::requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now) {
     Entry& e = entries_[handle];
     e.work.steps.swap(work.steps);
     e.pos = pos;
-    ++writes;
     ++crossings;
-    e.written = port(now);
+    e.written = write_record(handle, now);
     enqueue(handle, treelet, e.written);
     return e.written;
 }
@@ -143,6 +157,7 @@ nlohmann::json RayBuffer::report(const ReportContext& ctx, uint64_t treelet_load
     const uint64_t capacity = params_.capacity_rays, record = params_.ray_bytes;
     const uint64_t moved = (reads + writes) * record;
     return {{"capacity_rays", capacity},
+            {"storage", params_.in_memory ? "memory" : "sram"},
             {"size_bytes", capacity * record},
             {"reads", reads},
             {"writes", writes},

@@ -34,7 +34,12 @@ struct RayBufferParams {
     uint32_t batch_rays = 256;            // rays a core takes from one treelet's queue at once
     std::string scheduler = "most_rays";  // a registered treelet scheduler (rtsim list)
     uint32_t max_wait_batches = 8;        // its bound on starvation (age_ordered)
+    // The records live in memory (through the L2) instead of the SRAM (ray_buffer.storage).
+    bool in_memory = false;
 };
+
+// Where ray records live when the queues are in memory: a region of their own, like the stacks.
+constexpr uint64_t kRayRecordBase = uint64_t(5) << 32;
 
 // Where a treelet's data lives: one run of node records and one of triangles.
 struct TreeletSpan {
@@ -70,6 +75,20 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     Cycle requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now);
     // A finished ray leaves the buffer.
     void release(uint32_t handle);
+
+    // Records in memory (params().in_memory): where their reads and writes go (the level below
+    // the L1s), and each record's address. A driver that runs memory requests itself (the
+    // time-ordered reference) defers them: reads then return when the record may be read (it
+    // reads it itself), and writes queue their addresses (deferred_writes) for it to post.
+    void set_memory(MemoryPort* memory, bool defer) {
+        memory_ = memory;
+        defer_ = defer;
+    }
+    MemoryPort* memory() const { return memory_; }
+    uint64_t record_address(uint32_t handle) const {
+        return kRayRecordBase + uint64_t(handle) * params_.ray_bytes;
+    }
+    std::vector<uint64_t>& deferred_writes() { return deferred_writes_; }
     // Slots parked waiting for work (the cores say when they park and wake them).
     void note_parked(int delta) { parked_slots_ = uint32_t(int64_t(parked_slots_) + delta); }
     // Work arrived while slots are parked: the core running stops so that they wake first.
@@ -92,6 +111,8 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
 
   private:
     Cycle port(Cycle now);
+    // A record written at `now`: through the SRAM's ports, or to memory; the cycle it is there.
+    Cycle write_record(uint32_t handle, Cycle now);
     void admit(Cycle now);
     void enqueue(uint32_t handle, uint32_t treelet, Cycle now);
     // Tells the scheduler that a queue's length changed from `before`.
@@ -117,6 +138,9 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     bool wake_ = false;
     Cycle wake_cycle_ = 0;
     uint32_t parked_slots_ = 0;
+    MemoryPort* memory_ = nullptr;
+    bool defer_ = false;
+    std::vector<uint64_t> deferred_writes_;
 };
 
 }  // namespace rtsim

@@ -122,6 +122,9 @@ def main():
     ap.add_argument("--allow-added", action="store_true",
                     help="fields only the new binary reports (new counters or sections) are listed, "
                          "not differences; every field both report must still be equal")
+    ap.add_argument("--ignore", action="append", default=[],
+                    help="a top-level section a change deliberately moved (e.g. energy), left "
+                         "out of the comparison and named in the output; repeatable")
     a = ap.parse_args()
     names = [n for n in a.only.split(",") if n] or list(CASES)
     for n in names:
@@ -148,6 +151,9 @@ def main():
         if added or removed:  # the hash covers those fields; the rest of the config is compared
             old.pop("config_hash", None)
             new.pop("config_hash", None)
+        for section in a.ignore:
+            old.pop(section, None)
+            new.pop(section, None)
         d = diff(old, new)
         if d:
             print(f"{n}: DIFFERENT at {d}")
@@ -157,7 +163,8 @@ def main():
         if removed:
             extra += f"; config fields only the old binary had: {', '.join(removed)}"
         print(f"{n}: identical ({count_fields(new)} fields, {new['total_cycles']} cycles{extra})")
-    print(f"all {len(names)} cases identical")
+    ignored = f" (not compared: {', '.join(a.ignore)})" if a.ignore else ""
+    print(f"all {len(names)} cases identical{ignored}")
 
 
 if __name__ == "__main__":

@@ -142,6 +142,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     DriverSetup setup;
     setup.cores = std::move(core_ptrs);
     setup.wake = ray_buffer.get();
+    if (ray_buffer && P.ray_buffer.in_memory)  // (a driver may then defer its requests)
+        ray_buffer->set_memory(
+            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1, false);
     driver = FidelityRegistry::at(P.sim.fidelity).make("core_driver", setup);
     for (int i = 0; i < n; ++i) {
         // A core's private blocks forget what lies behind the floor of its own requests.

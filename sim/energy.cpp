@@ -84,7 +84,10 @@ json energy_report(const Params& P, const json& stats) {
     }
     cache("l2", P.l2, false);
     // The ray buffer: an SRAM of its capacity, a ray record per access.
-    const double rb = counter(stats, "ray_buffer.reads") + counter(stats, "ray_buffer.writes");
+    // (Records in memory cost what the L2 and DRAM counted for them.)
+    const double rb = P.ray_buffer.in_memory ? 0.0
+                                             : counter(stats, "ray_buffer.reads") +
+                                                   counter(stats, "ray_buffer.writes");
     if (rb > 0) {
         const double bytes = double(P.ray_buffer.capacity_rays) * P.ray_buffer.ray_bytes;
         const double pj = sram_word_pj(e, bytes) * P.ray_buffer.ray_bytes / 8.0;

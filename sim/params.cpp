@@ -170,6 +170,12 @@ std::vector<FieldBinding> make_bindings() {
         field("ray_buffer.ray_bytes", M(ray_buffer.ray_bytes)),
         field("ray_buffer.ports", M(ray_buffer.ports)),
         field("ray_buffer.latency_cycles", M(ray_buffer.latency_cycles)),
+        custom(
+            "ray_buffer.storage",
+            [](Params& p, const json& v) {
+                p.ray_buffer.in_memory = v.get<std::string>() == "memory";
+            },
+            [](const Params& p) -> json { return p.ray_buffer.in_memory ? "memory" : "sram"; }),
         field("sim.ideal_memory", M(sim.ideal_memory), 1, kNotMirrored),
         field("sim.ideal_units", M(sim.ideal_units), 1, kNotMirrored),
         field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),

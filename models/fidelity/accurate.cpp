@@ -93,6 +93,9 @@ class ReferenceScheduler final : public ChipDriver {
             CoreState cs;
             cs.slots.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
+            // Ray records in memory: read and written here, each stage at its cycle.
+            if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
+                rb->set_memory(rb->memory(), true);
         }
         SC_THREAD(run);
     }
@@ -136,7 +139,8 @@ class ReferenceScheduler final : public ChipDriver {
 
     // What a memory request's completion goes to.
     // kForStack: a stack refill a slot waits for; kForWrite: a posted write nobody waits for.
-    enum WaiterKind : uint8_t { kForStep, kForFill, kForNothing, kForStack, kForWrite };
+    // kForRecord: a ray record a slot reads from memory (queues in memory).
+    enum WaiterKind : uint8_t { kForStep, kForFill, kForNothing, kForStack, kForWrite, kForRecord };
     struct Access {
         MemoryPort* node = nullptr;
         uint64_t addr = 0;
@@ -227,7 +231,10 @@ class ReferenceScheduler final : public ChipDriver {
     void start_dram_write(MemoryPort* dram, uint64_t addr, uint32_t size, Cycle t);
     void dram_write_stage(uint32_t w, Cycle t);
     void send_writebacks(Cache* cache, Cycle t);
-    void read_stack(uint32_t c, uint32_t i, uint64_t addr, uint32_t size, Cycle t);
+    // A read through `port` (a core's local memory) that slot i of core c waits for.
+    void read_local(uint32_t c, uint32_t i, MemoryPort* port, uint64_t addr, uint32_t size, Cycle t,
+                    WaiterKind why);
+    void post_record_writes(RayBuffer* rb, Cycle t);
     // A fresh record from a pool of them (reusing a freed one when there is one).
     template <typename T>
     static uint32_t take(std::vector<T>& pool, std::vector<uint32_t>& free) {
@@ -410,8 +417,13 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
     if (!s.busy) {
         if (s.phase == kReadRecord) {  // the record is written: read it through a port
             const Cycle got = rb->read(s.handle, t, s.work, s.pos);
-            core.stall_cycles[Core::kRayBuffer] += got - s.start;
             s.phase = kSetUp;
+            if (rb->params().in_memory && rb->memory()) {  // ...or from memory
+                read_local(c, i, rb->memory(), rb->record_address(s.handle), rb->params().ray_bytes,
+                           got, kForRecord);
+                return;
+            }
+            core.stall_cycles[Core::kRayBuffer] += got - s.start;
             schedule(got, kSlot, c, i);
             return;
         }
@@ -443,6 +455,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         }
         if (cs.batch.empty()) {
             const bool any = rb->next_batch(t, cs.batch_treelet, cs.batch);
+            post_record_writes(rb, t);  // admissions
             if (!any) {
                 s.idle_since = t;
                 const bool retired = rb->finished();
@@ -484,6 +497,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         const uint32_t next_treelet = s.work.steps[s.pos].treelet;
         if (next_treelet != s.treelet) {
             const Cycle done = rb->requeue(s.handle, s.work, s.pos, next_treelet, t);
+            post_record_writes(rb, t);
             core.stall_cycles[Core::kRayBuffer] += done - t;
             core.ray_latency_cycles += done - s.start;
             s.busy = false;
@@ -502,8 +516,8 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
                        core.count_stack_spill(traffic), t);
         if (traffic.refill_entries) {
             core.count_stack_refill(traffic);
-            read_stack(c, i, core.stack_address(i, traffic.refill_from),
-                       traffic.refill_entries * core.params().stack_entry_bytes, t);
+            read_local(c, i, core.local_memory(), core.stack_address(i, traffic.refill_from),
+                       traffic.refill_entries * core.params().stack_entry_bytes, t, kForStack);
             return;
         }
     }
@@ -610,13 +624,21 @@ void ReferenceScheduler::dram_write_stage(uint32_t w, Cycle t) {
         schedule(next, kDramWrite, w);
 }
 
-// A stack refill through the core's local memory: the slot goes on once it is back.
-void ReferenceScheduler::read_stack(uint32_t c, uint32_t i, uint64_t addr, uint32_t size, Cycle t) {
-    MemoryPort* port = cores_[c]->local_memory();
+// Ray records the buffer wrote (admissions, crossings) go to memory as posted writes.
+void ReferenceScheduler::post_record_writes(RayBuffer* rb, Cycle t) {
+    if (!rb || rb->deferred_writes().empty()) return;
+    for (const uint64_t addr : rb->deferred_writes())
+        post_write(rb->memory(), addr, rb->params().ray_bytes, t);
+    rb->deferred_writes().clear();
+}
+
+// A stack refill or a ray record: the slot goes on once it is back.
+void ReferenceScheduler::read_local(uint32_t c, uint32_t i, MemoryPort* port, uint64_t addr,
+                                    uint32_t size, Cycle t, WaiterKind why) {
     Crossbar* via = dynamic_cast<Crossbar*>(port);
     const uint32_t a = new_access(via ? via->next_level() : port, addr, size, t);
     Access& A = accesses_[a];
-    A.for_kind = kForStack;
+    A.for_kind = why;
     A.a = c;
     A.b = i;
     A.via = via;
@@ -777,9 +799,14 @@ void ReferenceScheduler::access_done(uint32_t a, Cycle t) {
             }
             break;
         }
-        case kForStack: {
+        case kForStack:
+        case kForRecord: {
             const Cycle end = A.via ? A.via->carry(t, A.size_bytes) : t;
-            cores_[A.a]->stall_cycles[Core::kStack] += end - A.start;
+            if (A.for_kind == kForStack) {
+                cores_[A.a]->stall_cycles[Core::kStack] += end - A.start;
+            } else {  // the ray's wait from taking the slot to its record's arrival
+                cores_[A.a]->stall_cycles[Core::kRayBuffer] += end - states_[A.a].slots[A.b].start;
+            }
             schedule(end, kSlot, A.a, A.b);
             break;
         }

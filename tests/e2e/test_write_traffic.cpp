@@ -175,3 +175,38 @@ TEST(WriteTraffic, AShortStackRefusesTracesWithoutDepthsAndOtherTraversalModes) 
                                                 kWorkload)),
                           "packet traces record no per-ray stack");
 }
+
+// Treelet queues in memory (ray_buffer.storage = memory): every record the buffer writes
+// reaches the L2 as a write of ray_bytes, every record read is an L2 request, and the fast model
+// agrees with the time-ordered reference.
+TEST(WriteTraffic, TreeletQueuesInMemoryMoveTheirRecordsThroughTheL2) {
+    json s[2];
+    const char* fidelity[2] = {"fast", "accurate"};
+    for (int f = 0; f < 2; ++f) {
+        const fs::path out = work_dir() / fmt::format("rbmem_{}", fidelity[f]);
+        const Result r = run_rtsim(fmt::format(
+            "run -q {} --config '{}/configs/treelet.json' --set ray_buffer.storage=memory "
+            "--set sim.fidelity={} -o '{}'",
+            kWorkload, RTSIM_SOURCE_DIR, fidelity[f], out.string()));
+        ASSERT_EQ(r.status, 0) << r.err;
+        s[f] = stats_of(out);
+    }
+    for (const json& x : s) {
+        const uint64_t record = x["config"]["ray_buffer"]["ray_bytes"].get<uint64_t>();
+        EXPECT_GT(counter(x, "ray_buffer.crossings"), 0u);
+        EXPECT_EQ(counter(x, "l2.write_bytes"), record * counter(x, "ray_buffer.writes"));
+        EXPECT_EQ(counter(x, "l2.write_requests"), counter(x, "ray_buffer.writes"));
+        EXPECT_GT(x["stalls"]["total"]["ray_buffer"].get<uint64_t>(), 0u);
+        EXPECT_EQ(x["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+        EXPECT_EQ(x["ray_buffer"]["storage"], "memory");
+        // The SRAM is not there to spend energy.
+        EXPECT_FALSE(x["energy"]["blocks_pj"].contains("ray_buffer"));
+    }
+    // The same records move in both; the L2 sees the same requests.
+    EXPECT_EQ(counter(s[0], "ray_buffer.reads"), counter(s[1], "ray_buffer.reads"));
+    EXPECT_EQ(counter(s[0], "l2.write_requests"), counter(s[1], "l2.write_requests"));
+    EXPECT_EQ(counter(s[1], "l2.lookup_out_of_order"), 0u);
+    const double fast = s[0]["total_cycles"].get<double>(),
+                 ref = s[1]["total_cycles"].get<double>();
+    EXPECT_NEAR(fast / ref, 1.0, 0.03);
+}

@@ -110,6 +110,50 @@ TEST(RayBuffer, PortsServeAccessesPerCycleAfterLatency) {
     EXPECT_EQ(rb.writes, uint64_t(n));
 }
 
+// Queues in memory: every admission and crossing writes the ray's record at its own address
+// (posted, readable at once) and every read of it waits for the memory, not for ports.
+TEST(RayBuffer, RecordsInMemoryAreWrittenAndReadThere) {
+    TreeletSource src({{0, 1}, {0}});
+    RayBufferParams p;
+    p.in_memory = true;
+    p.ray_bytes = 48;
+    p.batch_rays = 2;
+    RayBuffer rb("rb_mem", p, spans(2), &src);
+    test::FixedLatencyMemory mem(100);
+    rb.set_memory(&mem, false);
+    uint32_t t;
+    std::deque<uint32_t> batch;
+    ASSERT_TRUE(rb.next_batch(10, t, batch));
+    ASSERT_EQ(batch.size(), 2u);
+    ASSERT_EQ(mem.write_addrs.size(), 2u);  // both admissions
+    EXPECT_EQ(mem.write_times[0], 10u);
+    EXPECT_EQ(mem.write_bytes, 96u);
+    for (size_t k = 0; k < 2; ++k) EXPECT_EQ(mem.write_addrs[k], rb.record_address(batch[k]));
+    EXPECT_EQ(rb.record_address(1) - rb.record_address(0), 48u);
+    RayWork w;
+    size_t pos;
+    // A read at 20 returns at 20 + 100: the memory's latency, nothing else.
+    EXPECT_EQ(rb.read(batch[0], 20, w, pos), 120u);
+    ASSERT_EQ(mem.addrs.size(), 1u);
+    EXPECT_EQ(mem.addrs[0], rb.record_address(batch[0]));
+    // The ray crosses into treelet 1: its record is written again, at once.
+    EXPECT_EQ(rb.requeue(batch[0], w, 1, 1, 200), 200u);
+    EXPECT_EQ(mem.write_addrs.size(), 3u);
+    EXPECT_EQ(mem.write_addrs[2], rb.record_address(batch[0]));
+    EXPECT_EQ(rb.writes, 3u);
+    EXPECT_EQ(rb.reads, 1u);
+    EXPECT_EQ(rb.port_wait_cycles, 0u);
+    // A driver that runs memory itself gets the writes' addresses instead, and reads that
+    // return when the record may be read.
+    rb.set_memory(&mem, true);
+    batch.clear();
+    ASSERT_TRUE(rb.next_batch(300, t, batch));
+    EXPECT_EQ(rb.read(batch[0], 310, w, pos), 310u);
+    EXPECT_EQ(rb.requeue(batch[0], w, pos, 0, 320), 320u);
+    EXPECT_EQ(rb.deferred_writes().size(), 1u);
+    EXPECT_EQ(mem.write_addrs.size(), 3u);  // nothing sent
+}
+
 TEST(RayBuffer, FullBufferHoldsNewRaysBack) {
     std::vector<std::vector<uint32_t>> rays(10, std::vector<uint32_t>{0});
     TreeletSource src(rays);
