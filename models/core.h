@@ -142,8 +142,9 @@ class Core : public sc_core::sc_module {
                (first_slot_ + slot) * uint64_t(kStackDepthMax + 1) * params_.stack_entry_bytes +
                uint64_t(index) * params_.stack_entry_bytes;
     }
+    // (A frame of more than 16 GiB of hit records wraps around its region.)
     uint64_t hit_record_address(uint32_t ray_id) const {
-        return kHitRecordBase + uint64_t(ray_id) * params_.hit_record_bytes;
+        return kHitRecordBase + uint64_t(ray_id) * params_.hit_record_bytes % kLocalRegionBytes;
     }
     // A finished work item's hit records: counted, and their bytes (0: none written).
     uint32_t count_hit_records(const RayWork& work) {

@@ -38,8 +38,6 @@ struct RayBufferParams {
     bool in_memory = false;
 };
 
-// Where ray records live when the queues are in memory: a region of their own, like the stacks.
-constexpr uint64_t kRayRecordBase = uint64_t(5) << 32;
 
 // Where a treelet's data lives: one run of node records and one of triangles.
 struct TreeletSpan {

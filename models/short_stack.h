@@ -17,10 +17,15 @@
 
 namespace rtsim {
 
-// Where a slot's spilled stack and the rays' hit records live: regions far above any BVH
-// layout (which starts at 0), below the caches' 2^36-byte tag limit.
+// Where the traversal's own data lives: 16 GiB regions far above any BVH layout (which starts
+// at 0), together below 2^36 bytes (the caches' tags are 32 bits): slots' spilled stacks, ray
+// records (treelet queues in memory, models/ray_buffer.h) and the rays' hit records. Configs
+// that would overrun a region are refused (sim/config.cpp).
+constexpr uint64_t kLocalRegionBytes = uint64_t(1) << 34;
 constexpr uint64_t kStackRegionBase = uint64_t(1) << 34;
-constexpr uint64_t kHitRecordBase = uint64_t(3) << 33;
+constexpr uint64_t kRayRecordBase = uint64_t(2) << 34;
+constexpr uint64_t kHitRecordBase = uint64_t(3) << 34;
+constexpr uint64_t kLocalRegionsEnd = uint64_t(4) << 34;
 
 struct StackTraffic {
     uint32_t spill_entries = 0, spill_from = 0;    // written: memory entries [from, from + n)

@@ -51,9 +51,14 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     dram->register_stats(stats);
     dram->set_series(series.dram_bytes.get());
     if (make_front) dram_front = make_front(*dram);
+    dram_regions = std::make_unique<DramRegions>(dram_front ? *dram_front : *dram, layout);
+    dram_regions->register_stats(stats);
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
-    l2 = std::make_unique<Cache>("l2", l2p, dram_front ? dram_front.get() : dram.get(), kLevelL2);
+    // The traversal's own data (spilled stacks, ray records, hit records) lives above the BVH.
+    if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
+        l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
+    l2 = std::make_unique<Cache>("l2", l2p, dram_regions.get(), kLevelL2);
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
@@ -231,7 +236,7 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
     const uint64_t l2_bytes = sum_of(l1s, &Cache::fill_bytes);
     out["bandwidth"] = {{"l1", {{"bytes", l1_bytes}, {"gbps", ctx.gbps(l1_bytes)}}},
                         {"l2", {{"bytes", l2_bytes}, {"gbps", ctx.gbps(l2_bytes)}}},
-                        {"dram", dram->report(ctx)}};
+                        {"dram", dram_regions->report(ctx)}};
     if (crossbar) out["bandwidth"]["crossbar"] = crossbar->report(ctx);
 
     // Stall attribution: every ray-slot cycle charged to one cause, per core and in total.

@@ -16,6 +16,7 @@
 #include "models/ray_buffer.h"
 #include "models/stats.h"
 #include "models/unit.h"
+#include "sim/dram_regions.h"
 #include "sim/params.h"
 #include "workloads/bvh.h"
 
@@ -43,7 +44,8 @@ class Chip {
 
     StatsRegistry stats;
     std::unique_ptr<DramModel> dram;
-    std::unique_ptr<DramModel> dram_front;  // in front of dram, when asked for
+    std::unique_ptr<DramModel> dram_front;      // in front of dram, when asked for
+    std::unique_ptr<DramRegions> dram_regions;  // in front of both: traffic by region
     std::unique_ptr<Cache> l2;
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;

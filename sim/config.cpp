@@ -232,6 +232,26 @@ void validate_cross(const json& c, const std::string& where) {
             where, mode.name,
             mode.packets ? "packet traces record no per-ray stack"
                          : "a ray's stack would move with it through the ray buffer"));
+    {
+        // The traversal's own data has 16 GiB regions (models/short_stack.h).
+        const uint64_t region = uint64_t(1) << 34;
+        const uint64_t slots =
+            c["core"]["count"].get<uint64_t>() * c["core"]["ray_slots"].get<uint64_t>();
+        if (c["core"]["short_stack_entries"].get<int64_t>() > 0 &&
+            slots * 128 * c["core"]["stack_entry_bytes"].get<uint64_t>() > region)
+            throw InputError(fmt::format(
+                "{}: core.stack_entry_bytes: {} slots x 128 entries x {} bytes overrun the 16 GiB "
+                "stack region",
+                where, slots, c["core"]["stack_entry_bytes"].get<uint64_t>()));
+        const uint64_t records = c["ray_buffer"]["capacity_rays"].get<uint64_t>() *
+                                 c["ray_buffer"]["ray_bytes"].get<uint64_t>();
+        if (c["ray_buffer"]["storage"] == "memory" && records > region)
+            throw InputError(fmt::format(
+                "{}: ray_buffer.capacity_rays: {} rays x {} bytes overrun the 16 GiB ray-record "
+                "region",
+                where, c["ray_buffer"]["capacity_rays"].get<uint64_t>(),
+                c["ray_buffer"]["ray_bytes"].get<uint64_t>()));
+    }
     if (c["dram"]["model"] == "command") {
         DramParams p;
         p.device = c["dram"]["device"];

@@ -96,6 +96,17 @@ TEST(WriteTraffic, BytesAreConservedFromTheCoresToDram) {
     EXPECT_GT(counter(s, "l2.writebacks"), 0u);
     EXPECT_EQ(counter(s, "dram.write_bytes"), 64 * counter(s, "l2.writebacks"));
     EXPECT_EQ(counter(s, "dram.writes"), counter(s, "l2.writebacks"));
+    // DRAM's traffic by region: reads are BVH data or stack refills, writes stacks or hit
+    // records, nothing falls outside the regions.
+    const json& by = s["bandwidth"]["dram"]["by_region"];
+    auto region = [&](const char* r, const char* dir) { return by[r][dir].get<uint64_t>(); };
+    EXPECT_EQ(region("other", "read_bytes") + region("other", "write_bytes"), 0u);
+    EXPECT_EQ(region("stack", "write_bytes") + region("hit_records", "write_bytes"),
+              counter(s, "dram.write_bytes"));
+    EXPECT_GT(region("hit_records", "write_bytes"), 0u);
+    EXPECT_EQ(region("nodes", "read_bytes") + region("triangles", "read_bytes") +
+                  region("stack", "read_bytes"),
+              counter(s, "dram.bytes") - counter(s, "dram.write_bytes"));
     const uint64_t dirty_end = s["caches"]["l2"]["dirty_lines_at_end"].get<uint64_t>();
     EXPECT_GE(counter(s, "l2.writebacks") + dirty_end, counter(s, "l2.write_misses"));
     EXPECT_LE(counter(s, "l2.writebacks") + dirty_end,
@@ -199,6 +210,10 @@ TEST(WriteTraffic, TreeletQueuesInMemoryMoveTheirRecordsThroughTheL2) {
         EXPECT_GT(x["stalls"]["total"]["ray_buffer"].get<uint64_t>(), 0u);
         EXPECT_EQ(x["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
         EXPECT_EQ(x["ray_buffer"]["storage"], "memory");
+        // Whatever reaches DRAM is BVH data or ray records.
+        const json& by = x["bandwidth"]["dram"]["by_region"];
+        EXPECT_EQ(by["other"]["read_bytes"].get<uint64_t>(), 0u);
+        EXPECT_EQ(by["ray_records"]["write_bytes"].get<uint64_t>(), counter(x, "dram.write_bytes"));
         // The SRAM is not there to spend energy.
         EXPECT_FALSE(x["energy"]["blocks_pj"].contains("ray_buffer"));
     }
