@@ -198,8 +198,13 @@ json comparison_json(const Comparison& c) {
 namespace {
 
 // One per stall cause (stall_causes() order).
-const char* const kStallColours[] = {"#8c8c8c", "#4e79a7", "#76b7b2", "#e15759",
-                                     "#f28e2b", "#edc948", "#b07aa1", "#dddddd"};
+// (no_work, the last cause, always light grey.)
+const char* const kStallColours[] = {"#8c8c8c", "#4e79a7", "#76b7b2", "#e15759", "#f28e2b",
+                                     "#edc948", "#b07aa1", "#59a14f", "#ff9da7", "#9c755f"};
+const char* stall_colour(size_t k, size_t causes) {
+    if (k + 1 == causes) return "#dddddd";
+    return kStallColours[k % std::size(kStallColours)];
+}
 const char* const kRunColours[] = {"#4e79a7", "#e15759", "#59a14f", "#f28e2b",
                                    "#b07aa1", "#76b7b2", "#edc948", "#9c755f"};
 
@@ -279,7 +284,7 @@ std::string comparison_svg(const Comparison& c) {
             svg += fmt::format(
                 "<rect x='{:.1f}' y='{:.1f}' width='{:.1f}' height='{}' fill='{}'><title>{} "
                 "{:.1f}%</title></rect>\n",
-                x, y, bar_w * share, bar_h, kStallColours[k % std::size(kStallColours)],
+                x, y, bar_w * share, bar_h, stall_colour(k, causes.size()),
                 stall_cause_label(causes[k]), 100 * share);
             x += bar_w * share;
         }
@@ -289,7 +294,7 @@ std::string comparison_svg(const Comparison& c) {
     for (size_t k = 0; k < causes.size(); ++k) {
         const std::string name = stall_cause_label(causes[k]);
         svg += fmt::format("<rect x='{}' y='{}' width='10' height='10' fill='{}'/>\n", legend_x,
-                           legend_y - 9, kStallColours[k % std::size(kStallColours)]);
+                           legend_y - 9, stall_colour(k, causes.size()));
         svg += fmt::format("<text x='{}' y='{}'>{}</text>\n", legend_x + 13, legend_y, name);
         legend_x += 13 + 7.0 * double(name.size()) + 12;  // about 7 pixels per character
     }

@@ -83,6 +83,8 @@ std::vector<FigureDef> make_figures() {
          "/sampling/counters/l2.bytes_requested"},
         {"DRAM bytes per ray", R::Ratio, false, bytes_per_ray("dram.bytes", "dram"), true,
          "/sampling/counters/dram.bytes"},
+        {"DRAM write bytes per ray", R::Ratio, false,
+         [](const json& j) { return per_ray(j, "/bandwidth/dram/write_bytes"); }},
         {"DRAM GB/s", R::Ratio, false,
          [](const json& j) {
              // bytes per cycle x GHz = GB/s
