@@ -34,6 +34,7 @@ struct RayBufferParams {
     uint32_t batch_rays = 256;            // rays a core takes from one treelet's queue at once
     std::string scheduler = "most_rays";  // a registered treelet scheduler (rtsim list)
     uint32_t max_wait_batches = 8;        // its bound on starvation (age_ordered)
+    uint32_t banks = 1;                   // SRAM banks (an access's energy is one bank's)
     // The records live in memory (through the L2) instead of the SRAM (ray_buffer.storage).
     bool in_memory = false;
 };

@@ -21,7 +21,7 @@ each against the independent-traversal run with the same scene, frame and L2. Th
 traffic (the BVH's bytes over the frame's rays: every byte fetched once) bounds what any order
 can save. Writes bench/results/treelets.{md,json}.
 
-    scripts/bench_treelets.py [--rtsim build/rtsim] [--res 1024x1024] [--spp 4] [-j 2]
+    scripts/bench_treelets.py [--rtsim build/rtsim] [--res 1024x1024] [-j 2]
                               [--out bench/results]
 """
 import argparse
@@ -40,8 +40,9 @@ SCENES = {"elephant": ELEPHANT, "elephant3x3": GRID}
 
 # The centre point: the regime where treelets pay (found by this benchmark; configs/
 # treelet_best.json holds it), each factor varied from it in turn.
-CENTRE = {"scene": "elephant", "l2_kib": 128, "treelet_bytes": 16384, "capacity": 65536,
-          "batch": 4096, "storage": "sram", "scheduler": "most_rays", "prefetch": False}
+CENTRE = {"scene": "elephant", "spp": 4, "l2_kib": 128, "treelet_bytes": 16384,
+          "capacity": 65536, "batch": 4096, "storage": "sram", "scheduler": "most_rays",
+          "prefetch": False, "banks": 1}
 
 
 def points():
@@ -56,8 +57,12 @@ def points():
     for scene in ("elephant", "elephant3x3"):
         for l2 in (128, 1024, 4096):
             add("scene size against L2", f"{scene}, L2 {l2} KiB", scene=scene, l2_kib=l2)
+    for spp in (1, 4, 16):
+        add("rays per frame", f"{spp} samples per pixel", spp=spp)
     for cap in (1024, 4096, 16384, 65536, 262144):
         add("rays in flight", f"{cap} rays in flight", capacity=cap)
+    for cap in (65536, 262144, 1048576):
+        add("rays in flight", f"{cap} rays in flight, 16 spp", capacity=cap, spp=16)
     for tb in (4096, 8192, 16384, 32768, 65536, 131072):
         add("treelet size against the 32 KiB L1", f"treelets of {tb // 1024} KiB",
             treelet_bytes=tb)
@@ -66,6 +71,12 @@ def points():
     for s in ("most_rays", "round_robin", "age_ordered"):
         add("scheduler", f"scheduler {s}", scheduler=s)
     add("prefetch", "whole treelet loaded per batch", prefetch=True)
+    for banks in (1, 4, 16, 64):
+        add("ray-buffer SRAM banks (energy)", f"{banks} banks of {65536 * 64 // banks // 1024} KiB",
+            banks=banks)
+    for scene in ("elephant", "elephant3x3"):
+        add("ray-buffer SRAM banks (energy)", f"{scene}, 16 banks, treelets of 64 KiB",
+            scene=scene, banks=16, treelet_bytes=65536)
     for storage in ("sram", "memory"):
         for cap in (16384, 65536):
             for l2 in (128, 4096):
@@ -77,7 +88,7 @@ def points():
 
 def frame_args(a, p):
     return ["--scene", SCENES[p["scene"]], "--rays", "diffuse", "--res", a.res, "--spp",
-            str(a.spp), "--set", "bvh.width=4", "--set", f"l2.size_kib={p['l2_kib']}"]
+            str(p["spp"]), "--set", "bvh.width=4", "--set", f"l2.size_kib={p['l2_kib']}"]
 
 
 def treelet_args(p):
@@ -87,7 +98,8 @@ def treelet_args(p):
             "--set", f"traversal.treelet_batch_rays={p['batch']}",
             "--set", f"ray_buffer.storage={p['storage']}",
             "--set", f"traversal.treelet_scheduler={p['scheduler']}",
-            "--set", f"traversal.treelet_prefetch={'true' if p['prefetch'] else 'false'}"]
+            "--set", f"traversal.treelet_prefetch={'true' if p['prefetch'] else 'false'}",
+            "--set", f"ray_buffer.banks={p['banks']}"]
 
 
 def figures(s):
@@ -109,6 +121,8 @@ def figures(s):
         "l2_to_l1_bytes_per_ray": l1_fill / rays,
         "energy_nj_per_ray": s["energy"]["per_ray_nj"],
         "dram_energy_nj_per_ray": s["energy"]["blocks_pj"].get("dram", 0.0) / rays / 1000.0,
+        "ray_buffer_energy_nj_per_ray":
+            s["energy"]["blocks_pj"].get("ray_buffer", 0.0) / rays / 1000.0,
         "rays_per_batch": rb.get("rays_per_batch", 0.0),
         "crossings_per_ray": rb.get("crossings_per_ray", 0.0),
         "l2_hit_rate": s["caches"]["l2"]["hit_rate"],
@@ -125,7 +139,6 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
     ap.add_argument("--res", default="1024x1024")
-    ap.add_argument("--spp", type=int, default=4)
     ap.add_argument("-j", type=int, default=2)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     a = ap.parse_args()
@@ -137,13 +150,13 @@ def main():
                         ELEPHANT, "3", GRID], check=True)
     work = tempfile.mkdtemp(prefix="bench_treelets_")
     pts = points()
-    base_keys = sorted({(p["scene"], p["l2_kib"]) for _, _, p in pts})
+    base_keys = sorted({(p["scene"], p["l2_kib"], p["spp"]) for _, _, p in pts})
     jobs = {}
     with concurrent.futures.ThreadPoolExecutor(a.j) as pool:
-        for scene, l2 in base_keys:
-            p = dict(CENTRE, scene=scene, l2_kib=l2)
-            out = os.path.join(work, f"base_{scene}_{l2}")
-            jobs[("base", scene, l2)] = pool.submit(run_stats, a.rtsim, frame_args(a, p), out,
+        for scene, l2, spp in base_keys:
+            p = dict(CENTRE, scene=scene, l2_kib=l2, spp=spp)
+            out = os.path.join(work, f"base_{scene}_{l2}_{spp}")
+            jobs[("base", scene, l2, spp)] = pool.submit(run_stats, a.rtsim, frame_args(a, p), out,
                                                     "baseline")
         for k, (_, _, p) in enumerate(pts):
             out = os.path.join(work, f"p{k}")
@@ -151,15 +164,14 @@ def main():
                                              frame_args(a, p) + treelet_args(p), out, "treelets")
         results = {key: figures(f.result()) for key, f in jobs.items()}
 
-    rows, data = [], {"res": a.res, "spp": a.spp, "centre": CENTRE, "baselines": [],
-                      "points": []}
-    for scene, l2 in base_keys:
-        b = results[("base", scene, l2)]
-        data["baselines"].append(dict(b, scene=scene, l2_kib=l2))
+    data = {"res": a.res, "centre": CENTRE, "baselines": [], "points": []}
+    for scene, l2, spp in base_keys:
+        b = results[("base", scene, l2, spp)]
+        data["baselines"].append(dict(b, scene=scene, l2_kib=l2, spp=spp))
     best = None
     for k, (group, label, p) in enumerate(pts):
         f = results[("point", k)]
-        b = results[("base", p["scene"], p["l2_kib"])]
+        b = results[("base", p["scene"], p["l2_kib"], p["spp"])]
         d = {"group": group, "label": label, "settings": p, "treelets": f,
              "baseline": b,
              "dram_change_pct": pct(f["dram_bytes_per_ray"], b["dram_bytes_per_ray"]),
@@ -173,7 +185,7 @@ def main():
     lines = [
         "# Treelet queues against independent traversal (issue 17, item 6)",
         "",
-        f"`scripts/bench_treelets.py --res {a.res} --spp {a.spp}`: diffuse rays (one bounce from "
+        f"`scripts/bench_treelets.py --res {a.res}`: diffuse rays (one bounce from "
         "each primary hit) of libcgal-demo's refined_elephant.off and a 3x3 grid of it, BVH4, "
         "8 cores of 8 slots, L1 32 KiB, the default (simple) DRAM model at 162.5 pJ per byte. Each treelet point "
         "(configs/treelet.json with the settings named) is set against independent traversal "
@@ -182,13 +194,14 @@ def main():
         "",
         "Compulsory DRAM traffic (the BVH's bytes once, over the frame's rays):",
         "",
-        "| scene | L2 KiB | rays | BVH MB | compulsory B/ray | baseline DRAM B/ray | "
+        "| scene | spp | L2 KiB | rays | BVH MB | compulsory B/ray | baseline DRAM B/ray | "
         "baseline L2->L1 B/ray | baseline nJ/ray | baseline Mcycles |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for b in data["baselines"]:
         lines.append(
-            f"| {b['scene']} | {b['l2_kib']} | {b['rays']} | {b['bvh_bytes'] / 1e6:.1f} | "
+            f"| {b['scene']} | {b['spp']} | {b['l2_kib']} | {b['rays']} | "
+            f"{b['bvh_bytes'] / 1e6:.1f} | "
             f"{b['bvh_bytes'] / b['rays']:.1f} | {b['dram_bytes_per_ray']:.1f} | "
             f"{b['l2_to_l1_bytes_per_ray']:.1f} | {b['energy_nj_per_ray']:.1f} | "
             f"{b['cycles'] / 1e6:.2f} |")
@@ -198,14 +211,16 @@ def main():
             group = d["group"]
             lines += ["", f"## {group}", "",
                       "| point | DRAM B/ray (BVH + records) | vs baseline | L2->L1 B/ray | vs baseline "
-                      "| nJ/ray | vs baseline | Mcycles | vs baseline | rays/batch | treelets |",
+                      "| nJ/ray (DRAM, ray buffer) | vs baseline | Mcycles | vs baseline | "
+                      "rays/batch | treelets |",
                       "|---|---|---|---|---|---|---|---|---|---|---|"]
         f = d["treelets"]
         lines.append(
             f"| {d['label']} | {f['dram_bytes_per_ray']:.1f} ({f['dram_bvh_bytes_per_ray']:.1f} + "
             f"{f['dram_record_bytes_per_ray']:.1f}) | {d['dram_change_pct']:+.1f}% | "
             f"{f['l2_to_l1_bytes_per_ray']:.1f} | {d['l2_to_l1_change_pct']:+.1f}% | "
-            f"{f['energy_nj_per_ray']:.1f} | {d['energy_change_pct']:+.1f}% | "
+            f"{f['energy_nj_per_ray']:.1f} ({f['dram_energy_nj_per_ray']:.1f}, "
+            f"{f['ray_buffer_energy_nj_per_ray']:.1f}) | {d['energy_change_pct']:+.1f}% | "
             f"{f['cycles'] / 1e6:.2f} | {d['cycles_change_pct']:+.1f}% | "
             f"{f['rays_per_batch']:.0f} | {f['treelets']} |")
     lines += ["", f"Best DRAM reduction: {best['label']} ({best['group']}): "

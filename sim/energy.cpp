@@ -83,13 +83,14 @@ json energy_report(const Params& P, const json& stats) {
         cache("treelet_cache", t, true);
     }
     cache("l2", P.l2, false);
-    // The ray buffer: an SRAM of its capacity, a ray record per access.
+    // The ray buffer: an SRAM bank of its capacity / banks, a ray record per access.
     // (Records in memory cost what the L2 and DRAM counted for them.)
     const double rb = P.ray_buffer.in_memory ? 0.0
                                              : counter(stats, "ray_buffer.reads") +
                                                    counter(stats, "ray_buffer.writes");
     if (rb > 0) {
-        const double bytes = double(P.ray_buffer.capacity_rays) * P.ray_buffer.ray_bytes;
+        const double bytes = double(P.ray_buffer.capacity_rays) * P.ray_buffer.ray_bytes /
+                             double(std::max<uint32_t>(1, P.ray_buffer.banks));
         const double pj = sram_word_pj(e, bytes) * P.ray_buffer.ray_bytes / 8.0;
         per_access["ray_buffer_record_pj"] = pj;
         blocks["ray_buffer"] = rb * pj;

@@ -170,6 +170,7 @@ std::vector<FieldBinding> make_bindings() {
         field("ray_buffer.ray_bytes", M(ray_buffer.ray_bytes)),
         field("ray_buffer.ports", M(ray_buffer.ports)),
         field("ray_buffer.latency_cycles", M(ray_buffer.latency_cycles)),
+        field("ray_buffer.banks", M(ray_buffer.banks)),
         custom(
             "ray_buffer.storage",
             [](Params& p, const json& v) {

@@ -34,6 +34,33 @@ TEST(Energy, SramCurvePassesThroughItsPointsAndIsLinearInLogSize) {
     EXPECT_GT(sram_word_pj(e, 1), 0.0);
 }
 
+// The ray buffer's record costs a bank's access: 8192 records of 64 bytes in 4 banks are
+// 128 KiB banks (52 pJ a word, 8 words a record); queues in memory cost no SRAM energy, and the
+// L2's writes and write-backs count as line accesses.
+TEST(Energy, RayBufferBanksAndWrites) {
+    const Params P = defaults({"ray_buffer.capacity_rays=8192", "ray_buffer.ray_bytes=64",
+                               "ray_buffer.banks=4", "l2.banks=8"});
+    json stats = {{"rays", {{"total", 10}}},
+                  {"simulated_seconds", 1e-6},
+                  {"counters",
+                   {{"ray_buffer.reads", 30},
+                    {"ray_buffer.writes", 20},
+                    {"l2.accesses", 5},
+                    {"l2.misses", 1},
+                    {"l2.write_hits", 2},
+                    {"l2.write_misses", 3},
+                    {"l2.writebacks", 4},
+                    {"crossbar.bytes", 100},
+                    {"crossbar.write_bytes", 60}}}};
+    const json e = energy_report(P, stats);
+    EXPECT_NEAR(e["blocks_pj"]["ray_buffer"].get<double>(), 50 * 8 * 52.0, 1e-6);
+    EXPECT_NEAR(e["blocks_pj"]["l2"].get<double>(), (5 + 2 + 3 + 1 + 4) * 416.0, 1e-6);
+    const double mm = std::sqrt(double(P.core_count));
+    EXPECT_NEAR(e["blocks_pj"]["crossbar"].get<double>(), 160 * 8 * 0.1 * mm, 1e-6);
+    const Params in_memory = defaults({"ray_buffer.storage=memory"});
+    EXPECT_FALSE(energy_report(in_memory, stats)["blocks_pj"].contains("ray_buffer"));
+}
+
 TEST(Energy, BlocksAreTheirCountersTimesTheirCosts) {
     // 2 cores; L1 32 KiB in 1 bank (64-byte lines: 8 words of 20 pJ = 160 pJ); L2 1 MiB in 8
     // banks (128 KiB each: 52 pJ a word, 416 pJ a line); box tests 6 x 3.7 + 12 x 0.9 = 33 pJ
