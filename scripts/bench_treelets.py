@@ -77,6 +77,9 @@ def points():
     for scene in ("elephant", "elephant3x3"):
         add("ray-buffer SRAM banks (energy)", f"{scene}, 16 banks, treelets of 64 KiB",
             scene=scene, banks=16, treelet_bytes=65536)
+    # configs/treelet_best.json as it is (its settings are the best regime's).
+    add("best regime: configs/treelet_best.json", "configs/treelet_best.json, 16 spp", spp=16,
+        config="treelet_best.json")
     for storage in ("sram", "memory"):
         for cap in (16384, 65536):
             for l2 in (128, 4096):
@@ -92,6 +95,8 @@ def frame_args(a, p):
 
 
 def treelet_args(p):
+    if "config" in p:
+        return ["--config", os.path.join(ROOT, "configs", p["config"])]
     return ["--config", os.path.join(ROOT, "configs", "treelet.json"),
             "--set", f"bvh.treelet_bytes={p['treelet_bytes']}",
             "--set", f"ray_buffer.capacity_rays={p['capacity']}",
