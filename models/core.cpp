@@ -54,6 +54,7 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
     for (size_t i = 0; i < ready_.size(); ++i) set_ready(i, i < slots_.size() ? 0 : kNeverCycle);
     issue_port_.per_cycle = params.issue_width;
     for (Slot& s : slots_) s.stack = ShortStack(params.short_stack_entries);
+    write_buffer_.assign(params.write_buffer_entries, 0);
 }
 
 // Issues `instructions` (at least 1) instructions ready at t through the core's shared issue
@@ -258,23 +259,24 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
                       unit_by_kind_[s.unit_kind]->issue(t, s.unit_items, lanes));
             continue;
         }
-        if (!ray_buffer_ && s.pos == s.work.steps.size()) {  // its hit records are due
+        if (s.pos == s.work.steps.size()) {  // its hit records are due (then it leaves)
             if (beyond(t)) return t;
-            if (const uint32_t bytes = count_hit_records(s.work))
-                local_->write(hit_record_address(s.work.ray_id), bytes, t);
+            if (const uint32_t bytes = hit_record_size(s.work)) {
+                const Cycle free = write_buffer_free_at(t);
+                if (free > t) {  // every entry busy: try again when one frees
+                    stall_cycles[kWriteBuffer] += free - t;
+                    set_ready(i, free);
+                    continue;
+                }
+                count_hit_records(bytes);
+                post_write(hit_record_address(s.work.ray_id), bytes, t);
+            }
+            if (ray_buffer_) ray_buffer_->release(s.handle);
             finish_ray(s, t);
             continue;
         }
         if (ray_buffer_) {
-            // Leaving the buffer, or moving to another treelet's queue, is shared work.
-            if (s.pos == s.work.steps.size()) {
-                if (beyond(t)) return t;
-                if (const uint32_t bytes = count_hit_records(s.work))
-                    local_->write(hit_record_address(s.work.ray_id), bytes, t);
-                ray_buffer_->release(s.handle);
-                finish_ray(s, t);
-                continue;
-            }
+            // Moving to another treelet's queue is shared work (as leaving the buffer, above).
             const uint32_t next_treelet = s.work.steps[s.pos].treelet;
             if (next_treelet != s.treelet) {
                 if (beyond(t)) return t;
@@ -294,9 +296,15 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             const StackTraffic traffic = after.before(st);
             if (traffic.any()) {
                 if (beyond(t)) return t;
-                if (traffic.spill_entries)
-                    local_->write(stack_address(i, traffic.spill_from), count_stack_spill(traffic),
-                                  t);
+                if (traffic.spill_entries) {
+                    const Cycle free = write_buffer_free_at(t);
+                    if (free > t) {  // every entry busy: the step waits for one
+                        stall_cycles[kWriteBuffer] += free - t;
+                        set_ready(i, free);
+                        continue;
+                    }
+                    post_write(stack_address(i, traffic.spill_from), count_stack_spill(traffic), t);
+                }
                 s.stack = after;
                 s.stack_pos = s.pos;
                 if (traffic.refill_entries) {
@@ -384,7 +392,8 @@ const char* Core::stall_name(int s) {
     static const char* const names[kUnitStall] = {"issue", "l1", "l2", "dram", "crossbar"};
     if (s < kUnitStall) return names[s];
     if (s < kRayBuffer) return step_kind_info(s - kUnitStall).unit;
-    return s == kRayBuffer ? "ray_buffer" : "stack";
+    static const char* const later[] = {"ray_buffer", "stack", "write_buffer"};
+    return later[s - kRayBuffer];
 }
 
 void Core::register_stats(StatsRegistry& reg) {

@@ -58,6 +58,10 @@ struct CoreParams {
     uint32_t short_stack_entries = 0;
     uint32_t stack_entry_bytes = 8;  // a node address and its entry distance
     uint32_t hit_record_bytes = 0;   // written per ray when it finishes; 0: results stay on chip
+    // Those writes are posted: each holds one of these entries from its issue until the level
+    // below has accepted it (looked it up); a write finding all busy waits (stall cause
+    // write_buffer). 0: unbounded.
+    uint32_t write_buffer_entries = 8;
 };
 
 // The cycle a core reports when it has nothing left to do.
@@ -146,13 +150,13 @@ class Core : public sc_core::sc_module {
     uint64_t hit_record_address(uint32_t ray_id) const {
         return kHitRecordBase + uint64_t(ray_id) * params_.hit_record_bytes % kLocalRegionBytes;
     }
-    // A finished work item's hit records: counted, and their bytes (0: none written).
-    uint32_t count_hit_records(const RayWork& work) {
-        if (params_.hit_record_bytes == 0) return 0;
-        const uint32_t bytes = params_.hit_record_bytes * work.rays;
+    // A finished work item's hit-record bytes (0: none written).
+    uint32_t hit_record_size(const RayWork& work) const {
+        return params_.hit_record_bytes * work.rays;
+    }
+    void count_hit_records(uint32_t bytes) {
         hit_record_writes += 1;
         hit_record_bytes += bytes;
-        return bytes;
     }
     // Stack spills of `traffic`: counted, and their bytes.
     uint32_t count_stack_spill(const StackTraffic& traffic) {
@@ -211,7 +215,8 @@ class Core : public sc_core::sc_module {
         kCrossbar,
         kUnitStall,
         kRayBuffer = kUnitStall + kStepKinds,
-        kStack,  // waiting for spilled stack entries to come back from memory
+        kStack,        // waiting for spilled stack entries to come back from memory
+        kWriteBuffer,  // a write waiting for a free write-buffer entry
         kStallKinds
     };
     static const char* stall_name(int s);
@@ -300,6 +305,19 @@ class Core : public sc_core::sc_module {
     int instructions_by_kind_[kStepKinds];     // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
     MemoryPort* local_ = nullptr;  // below the L1s: stack and hit-record traffic
+    // Per write-buffer entry, the cycle it frees (empty: unbounded).
+    std::vector<Cycle> write_buffer_;
+    // The cycle a write ready at t finds an entry free.
+    Cycle write_buffer_free_at(Cycle t) const {
+        if (write_buffer_.empty()) return t;
+        return std::max(t, *std::min_element(write_buffer_.begin(), write_buffer_.end()));
+    }
+    // Posts a write at t, which has found an entry free (write_buffer_free_at(t) == t).
+    void post_write(uint64_t addr, uint32_t bytes, Cycle t) {
+        const Cycle accepted = local_->write(addr, bytes, t);
+        if (!write_buffer_.empty())
+            *std::min_element(write_buffer_.begin(), write_buffer_.end()) = accepted;
+    }
     uint64_t first_slot_ = 0;
     std::deque<uint32_t> batch_;  // treelet mode: rays of the current batch not yet in a slot
     uint32_t batch_treelet_ = 0;

@@ -108,6 +108,7 @@ std::vector<FieldBinding> make_bindings() {
         field("core.short_stack_entries", M(core.short_stack_entries)),
         field("core.stack_entry_bytes", M(core.stack_entry_bytes)),
         field("core.hit_record_bytes", M(core.hit_record_bytes)),
+        field("core.write_buffer_entries", M(core.write_buffer_entries)),
     };
     // CacheParams and UnitParams default to the first section's values (l1, box_unit).
     add_unit_rows(t, StepKind::Node, true, /*width=*/true);

@@ -146,8 +146,9 @@ class ReferenceScheduler final : public ChipDriver {
         uint64_t addr = 0;
         uint32_t size_bytes = 0;
         WaiterKind for_kind = kForNothing;
-        uint32_t a = 0, b = 0;    // kForStep: core, slot; kForFill: the fill
-        Crossbar* via = nullptr;  // a fill's request through the crossbar
+        uint32_t a = 0, b = 0;          // kForStep: core, slot; kForFill: the fill
+        Crossbar* via = nullptr;        // a fill's request through the crossbar
+        uint32_t write_entry_core = 0;  // a core's posted write: 1 + the core whose entry it holds
         Cycle start = 0;
         uint64_t first_line = 0;
         uint32_t lines_left = 0;
@@ -193,6 +194,7 @@ class ReferenceScheduler final : public ChipDriver {
         Cycle idle_since = 0;
         ShortStack stack;
         size_t stack_pos = ~size_t(0);  // the step whose stack traffic has been made
+        Cycle write_wait_from = 0;      // when it began waiting for a write-buffer entry
     };
     struct DramWrite {
         DramModel* dram = nullptr;
@@ -207,6 +209,9 @@ class ReferenceScheduler final : public ChipDriver {
         // replaces it (a new generation; events of older ones are dropped).
         uint64_t load_next[kStepKinds] = {}, load_end[kStepKinds] = {};
         uint32_t load_generation = 0;
+        // Write-buffer entries held by posted writes not yet accepted, and slots waiting for one.
+        uint32_t writes_in_flight = 0;
+        std::deque<uint32_t> write_waiters;
     };
 
     void run();
@@ -225,7 +230,21 @@ class ReferenceScheduler final : public ChipDriver {
     void access_done(uint32_t a, Cycle t);
     uint32_t cache_state(Cache* cache);
     // The traversal's own traffic through a core's local memory (below its L1s).
-    void post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t);
+    // A write with no entry to free (ray records, write-backs), or holding core c's (entry_core
+    // 1 + c).
+    void post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t,
+                    uint32_t entry_core = 0);
+    // Core c's write buffer (core.write_buffer_entries; 0: unbounded).
+    bool write_buffer_full(uint32_t c) const {
+        const uint32_t n = cores_[c]->params().write_buffer_entries;
+        return n > 0 && states_[c].writes_in_flight >= n;
+    }
+    void wait_for_write_buffer(uint32_t c, uint32_t i, Cycle t) {
+        states_[c].slots[i].write_wait_from = t;
+        states_[c].write_waiters.push_back(i);
+    }
+    void post_core_write(uint32_t c, uint64_t addr, uint32_t size, Cycle t);
+    void write_accepted(uint32_t c, Cycle t);
     void write_arrive(uint32_t a, Cycle t);
     void write_tag(uint32_t a, uint32_t k, Cycle t);
     void start_dram_write(MemoryPort* dram, uint64_t addr, uint32_t size, Cycle t);
@@ -475,25 +494,23 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         schedule(std::max(t, rb->record_written(s.handle)), kSlot, c, i);
         return;
     }
-    if (!rb && s.pos == s.work.steps.size()) {  // its hit records are due
-        if (const uint32_t bytes = core.count_hit_records(s.work))
-            post_write(core.local_memory(), core.hit_record_address(s.work.ray_id), bytes, t);
+    if (s.pos == s.work.steps.size()) {  // its hit records are due (then it leaves)
+        if (const uint32_t bytes = core.hit_record_size(s.work)) {
+            if (write_buffer_full(c)) {
+                wait_for_write_buffer(c, i, t);
+                return;
+            }
+            core.count_hit_records(bytes);
+            post_core_write(c, core.hit_record_address(s.work.ray_id), bytes, t);
+        }
+        if (rb) rb->release(s.handle);
         core.count_finished(s.work.rays, s.start, t);
         s.busy = false;
+        if (rb) take_wakes(t);
         schedule(t, kSlot, c, i);
         return;
     }
     if (rb) {
-        if (s.pos == s.work.steps.size()) {
-            if (const uint32_t bytes = core.count_hit_records(s.work))
-                post_write(core.local_memory(), core.hit_record_address(s.work.ray_id), bytes, t);
-            rb->release(s.handle);
-            core.count_finished(s.work.rays, s.start, t);
-            s.busy = false;
-            take_wakes(t);
-            schedule(t, kSlot, c, i);
-            return;
-        }
         const uint32_t next_treelet = s.work.steps[s.pos].treelet;
         if (next_treelet != s.treelet) {
             const Cycle done = rb->requeue(s.handle, s.work, s.pos, next_treelet, t);
@@ -509,11 +526,17 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
     const Step& st = s.work.steps[s.pos];
     if (core.params().short_stack_entries > 0 && s.stack_pos != s.pos) {
         // The stack's traffic before the step: spills posted, a refill waited for.
-        const StackTraffic traffic = s.stack.before(st);
+        ShortStack after = s.stack;
+        const StackTraffic traffic = after.before(st);
+        if (traffic.spill_entries && write_buffer_full(c)) {
+            wait_for_write_buffer(c, i, t);
+            return;
+        }
+        s.stack = after;
         s.stack_pos = s.pos;
         if (traffic.spill_entries)
-            post_write(core.local_memory(), core.stack_address(i, traffic.spill_from),
-                       core.count_stack_spill(traffic), t);
+            post_core_write(c, core.stack_address(i, traffic.spill_from),
+                            core.count_stack_spill(traffic), t);
         if (traffic.refill_entries) {
             core.count_stack_refill(traffic);
             read_local(c, i, core.local_memory(), core.stack_address(i, traffic.refill_from),
@@ -557,8 +580,32 @@ void ReferenceScheduler::step_fetched(uint32_t c, uint32_t i, Cycle t, const Tim
     schedule(done, kSlot, c, i);
 }
 
+// A core's posted write takes a write-buffer entry until the cache below has looked it up.
+void ReferenceScheduler::post_core_write(uint32_t c, uint64_t addr, uint32_t size, Cycle t) {
+    MemoryPort* port = cores_[c]->local_memory();
+    const bool to_cache = dynamic_cast<Crossbar*>(port) || dynamic_cast<Cache*>(port);
+    if (to_cache && cores_[c]->params().write_buffer_entries > 0) {
+        ++states_[c].writes_in_flight;
+        post_write(port, addr, size, t, c + 1);
+        return;
+    }
+    post_write(port, addr, size, t);
+}
+
+// Core c's write was accepted at t: its entry goes to the first slot waiting for one.
+void ReferenceScheduler::write_accepted(uint32_t c, Cycle t) {
+    CoreState& cs = states_[c];
+    --cs.writes_in_flight;
+    if (cs.write_waiters.empty()) return;
+    const uint32_t i = cs.write_waiters.front();
+    cs.write_waiters.pop_front();
+    cores_[c]->stall_cycles[Core::kWriteBuffer] += t - cs.slots[i].write_wait_from;
+    schedule(t, kSlot, c, i);
+}
+
 // A posted write from t: across the crossbar's write link, then into the cache below (or DRAM).
-void ReferenceScheduler::post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t) {
+void ReferenceScheduler::post_write(MemoryPort* port, uint64_t addr, uint32_t size, Cycle t,
+                                    uint32_t entry_core) {
     if (auto* xbar = dynamic_cast<Crossbar*>(port)) {
         t = xbar->carry_up(t, size);
         port = xbar->next_level();
@@ -566,6 +613,7 @@ void ReferenceScheduler::post_write(MemoryPort* port, uint64_t addr, uint32_t si
     if (auto* cache = dynamic_cast<Cache*>(port)) {
         const uint32_t a = new_access(cache, addr, size, t);
         accesses_[a].for_kind = kForWrite;
+        accesses_[a].write_entry_core = entry_core;
         schedule(t, kWriteArrive, a);
         return;
     }
@@ -591,7 +639,9 @@ void ReferenceScheduler::write_tag(uint32_t a, uint32_t k, Cycle t) {
     // Write-through: on to the next level once every line is looked up (as the fast model).
     if (!cache->params().write_back && cache->next_level())
         start_dram_write(cache->next_level(), A.addr, A.size_bytes, t);
+    const uint32_t entry_core = A.write_entry_core;
     free_accesses_.push_back(a);
+    if (entry_core) write_accepted(entry_core - 1, t);
 }
 
 // Dirty lines the cache evicted (on a write's allocation or a miss's fill) go to DRAM.

@@ -225,3 +225,28 @@ TEST(WriteTraffic, TreeletQueuesInMemoryMoveTheirRecordsThroughTheL2) {
                  ref = s[1]["total_cycles"].get<double>();
     EXPECT_NEAR(fast / ref, 1.0, 0.03);
 }
+
+// A one-entry write buffer makes writes wait for each other: both fidelities charge the wait to
+// the write_buffer cause and agree on cycles; with more entries the waits shrink.
+TEST(WriteTraffic, AFullWriteBufferStallsAndBothFidelitiesSeeIt) {
+    json s[3];
+    const char* runs[3][2] = {{"fast", "1"}, {"accurate", "1"}, {"fast", "64"}};
+    for (int k = 0; k < 3; ++k) {
+        const fs::path out = work_dir() / fmt::format("wb_{}_{}", runs[k][0], runs[k][1]);
+        const Result r = run_rtsim(
+            fmt::format("run -q {} --set core.short_stack_entries=1 --set core.hit_record_bytes=16 "
+                        "--set core.write_buffer_entries={} --set sim.fidelity={} -o '{}'",
+                        kWorkload, runs[k][1], runs[k][0], out.string()));
+        ASSERT_EQ(r.status, 0) << r.err;
+        s[k] = stats_of(out);
+        EXPECT_EQ(s[k]["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+    }
+    const double fast = s[0]["stalls"]["total"]["share"]["write_buffer"].get<double>();
+    const double ref = s[1]["stalls"]["total"]["share"]["write_buffer"].get<double>();
+    EXPECT_GT(fast, 0.0);
+    EXPECT_GT(ref, 0.0);
+    EXPECT_NEAR(fast, ref, 0.01);  // within a point of slot cycles
+    EXPECT_NEAR(s[0]["total_cycles"].get<double>() / s[1]["total_cycles"].get<double>(), 1.0, 0.03);
+    EXPECT_LT(s[2]["stalls"]["total"]["write_buffer"].get<uint64_t>(),
+              s[0]["stalls"]["total"]["write_buffer"].get<uint64_t>());
+}

@@ -18,13 +18,14 @@ class FixedLatencyMemory : public MemoryPort {
         if (bd) bd->cycles[level] += latency_;
         return now + latency_;
     }
-    // Posted writes: recorded apart from reads, accepted at once.
+    // Posted writes: recorded apart from reads, accepted `write_latency` after they come.
     Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
         write_addrs.push_back(addr);
         write_times.push_back(now);
         write_bytes += size_bytes;
-        return now;
+        return now + write_latency;
     }
+    Cycle write_latency = 0;
     std::vector<uint64_t> write_addrs;
     std::vector<Cycle> write_times;
     uint64_t write_bytes = 0;

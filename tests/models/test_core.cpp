@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <deque>
+#include <memory>
 
 #include "fixed_memory.h"
 #include "models/core.h"
@@ -83,6 +84,49 @@ TEST(Core, NoWorkCyclesAreChargedAndNothingIsLeftOver) {
 }
 
 // One slot: every step waits for the previous one, so latencies add up exactly.
+// Hit records through a write buffer whose writes are accepted W = 100 cycles after they are
+// posted. Four one-step rays end their box operations at 8, 9, 10, 11 (latency 8, interval 1).
+struct WriteBufferRun {
+    test::FixedLatencyMemory mem{0}, local{0};
+    PipelinedUnit box{"box", UnitParams{1, 8, 1, 8}}, tri{"tri", UnitParams{1, 18, 1}};
+    SyntheticSource src{4, 1, StepKind::Node};
+    std::unique_ptr<Core> core;
+    std::unique_ptr<CoreScheduler> sched;
+    explicit WriteBufferRun(uint32_t entries) {
+        local.write_latency = 100;
+        CoreParams cp;
+        cp.ray_slots = 4;
+        cp.issue_width = 4;
+        cp.issue_latency_cycles = 0;
+        cp.hit_record_bytes = 16;
+        cp.write_buffer_entries = entries;
+        core = std::make_unique<Core>("core", cp, std::array<MemoryPort*, kStepKinds>{&mem, &mem},
+                                      std::array<PipelinedUnit*, kStepKinds>{&box, &tri}, &src);
+        core->set_local_memory(&local, 0);
+        sched = std::make_unique<CoreScheduler>("sched", std::vector<Core*>{core.get()});
+        sc_core::sc_start();
+    }
+};
+
+// One entry: ray 0 posts at 8, and ray k waits for the entry until 8 + 100k, so the frame ends
+// at 308 and the write-buffer stalls add up to 99 x (1 + 2 + 3) = 594 cycles.
+TEST(Core, WriteBufferHoldsWritesUntilAccepted) {
+    WriteBufferRun run(1);
+    EXPECT_EQ(run.core->rays, 4u);
+    EXPECT_EQ(run.core->last_cycle, 308u);
+    EXPECT_EQ(run.core->stall_cycles[Core::kWriteBuffer], 594u);
+    EXPECT_EQ(run.local.write_times, (std::vector<Cycle>{8, 108, 208, 308}));
+    EXPECT_EQ(run.core->hit_record_bytes, 64u);
+}
+
+// Unbounded: every ray posts its record when its box operation ends and nothing waits.
+TEST(Core, UnboundedWriteBufferNeverStalls) {
+    WriteBufferRun run(0);
+    EXPECT_EQ(run.core->last_cycle, 11u);
+    EXPECT_EQ(run.core->stall_cycles[Core::kWriteBuffer], 0u);
+    EXPECT_EQ(run.local.write_times, (std::vector<Cycle>{8, 9, 10, 11}));
+}
+
 TEST(Core, SingleSlotLatenciesAdd) {
     const Cycle M = 30, B = 8, T = 18, I = 2;
     const int rays = 5, steps = 7;
