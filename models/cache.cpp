@@ -98,17 +98,12 @@ uint64_t Cache::arrive(uint64_t addr, uint32_t size_bytes, Cycle now,
 }
 
 Cycle Cache::write(uint64_t addr, uint32_t size_bytes, Cycle now) {
-    ++write_requests;
-    write_bytes += size_bytes;
-    note_lookup(now);
-    const auto [first, last] = line_range(addr, size_bytes);
+    // The reference's two stages at once: each line's bank, then its tag at its lookup cycle.
+    const uint64_t first = arrive_write(addr, size_bytes, now, lookup_done_);
     Cycle done = now;
-    for (uint64_t line = first; line <= last; ++line) {
-        const Cycle start = banks_[line & bank_mask_].reserve(now, 1);
-        bank_conflict_cycles += start - now;
-        const Cycle looked_up = start + params_.hit_latency_cycles;
-        done = std::max(done, looked_up);
-        if (params_.write_back) write_fn_(*this, line, looked_up, kSendWriteBack);
+    for (size_t k = 0; k < lookup_done_.size(); ++k) {
+        done = std::max(done, lookup_done_[k]);
+        if (params_.write_back) write_fn_(*this, first + k, lookup_done_[k], kSendWriteBack);
     }
     // Write-through: on to the next level once looked up, nothing allocated.
     if (!params_.write_back && next_) next_->write(addr, size_bytes, done);
