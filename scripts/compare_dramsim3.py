@@ -7,7 +7,8 @@ importer) and the same traces in DRAMsim3's format:
   * stream: sequential 64-byte reads, one every 2 cycles (saturating);
   * random: uniform random addresses, 30% writes, one every 4 cycles;
   * rtsim-<scene>: the requests an RTSim run sent to DRAM (rtsim run --mem-trace), on the
-    DDR4-3200 preset's clock.
+    DDR4-3200 preset's clock; rtsim-<scene>-writes: the same with the traversal's own writes
+    (configs/write_traffic.json, a 128 KiB L2), so READ and WRITE lines mix.
 Reported per trace: cycles until the last request completed (DRAMsim3's found by bisection on
 its -c), read latency, row hits, ACT and REF commands, energy. Writes
 bench/results/dram_vs_dramsim3.{md,json}.
@@ -89,12 +90,18 @@ def main():
                 f.write(f"0x{rng.randrange(1 << 32) & ~63:x} {op} {4 * i}\n")
         traces["random"] = p
         for scene in args.scenes.split(","):
-            p = os.path.join(tmp, f"{scene}.trace")
-            subprocess.run([args.rtsim, "run", "-q", "--scene", SCENES[scene], "--res",
-                            "256x256", "--rays", "primary,ao", "--set", "dram.model=command",
-                            "--mem-trace", p, "-o", os.path.join(tmp, "run-" + scene)],
-                           check=True)
-            traces["rtsim-" + scene] = p
+            # Reads only (BVH data), and with the traversal's writes (configs/write_traffic.json:
+            # spilled stacks and hit records; a 128 KiB L2 writes dirty lines back in the frame).
+            for tag, extra in (("", []),
+                               ("-writes", ["--config", os.path.join(ROOT, "configs",
+                                                                     "write_traffic.json"),
+                                            "--set", "l2.size_kib=128"])):
+                p = os.path.join(tmp, f"{scene}{tag}.trace")
+                subprocess.run([args.rtsim, "run", "-q", "--scene", SCENES[scene], "--res",
+                                "256x256", "--rays", "primary,ao", "--set", "dram.model=command",
+                                "--mem-trace", p, "-o", os.path.join(tmp, "run-" + scene + tag)]
+                               + extra, check=True)
+                traces["rtsim-" + scene + tag] = p
         for name, trace in traces.items():
             with open(trace) as f:
                 n = sum(1 for line in f if line.strip())
