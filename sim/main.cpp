@@ -101,6 +101,12 @@ int main_impl(int argc, char** argv) {
     sweep_cmd->add_option("--out,-o", sweep.out_dir,
                           "Output folder (default: a fresh folder under out/)");
     sweep_cmd->add_option("-j,--jobs", sweep.jobs, "Runs at once")->capture_default_str();
+    sweep_cmd
+        ->add_option("--pareto", sweep.pareto,
+                     "Two figures (as the table names them, comma-separated) whose Pareto front "
+                     "plots/pareto.svg draws, e.g. 'cycles,energy per ray (nJ)'")
+        ->delimiter(',')
+        ->expected(2);
     sweep_cmd->add_flag("--resume", sweep.resume,
                         "Finish the sweep in --out: points that already ran with the same "
                         "arguments are not run again");

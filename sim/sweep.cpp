@@ -20,6 +20,7 @@
 #include "sim/config.h"
 #include "sim/interrupt.h"
 #include "sim/run.h"
+#include "sim/sweep_plot.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 #include "workloads/trace_file.h"
@@ -67,6 +68,20 @@ std::string first_line_of(const fs::path& file) {
 
 }  // namespace
 
+void check_pareto(const std::vector<std::string>& names, const std::string& where) {
+    std::string known;
+    for (const FigureDef& f : figure_list()) known += (known.empty() ? "" : ", ") + f.name;
+    if (names.size() != 2)
+        throw InputError(fmt::format("{}: expected two figure names, got {}", where, names.size()));
+    for (const std::string& n : names) {
+        bool found = false;
+        for (const FigureDef& f : figure_list()) found = found || f.name == n;
+        if (!found)
+            throw InputError(
+                fmt::format("{}: '{}' is not a figure (figures: {})", where, n, known));
+    }
+}
+
 SweepPlan plan_sweep(const std::string& path) {
     const json s = read_json_file(path, "sweep file");
     auto fail = [&](const std::string& what) {
@@ -74,8 +89,10 @@ SweepPlan plan_sweep(const std::string& path) {
     };
     if (!s.is_object()) fail("expected an object");
     for (const auto& [k, v] : s.items())
-        if (k != "config" && k != "set" && k != "workload" && k != "trace" && k != "vary")
-            fail(fmt::format("{}: unknown key (expected config, set, workload, trace, vary)", k));
+        if (k != "config" && k != "set" && k != "workload" && k != "trace" && k != "vary" &&
+            k != "pareto")
+            fail(fmt::format(
+                "{}: unknown key (expected config, set, workload, trace, vary, pareto)", k));
     const fs::path dir = fs::path(path).parent_path();
     auto relative = [&](const std::string& p) {
         return fs::path(p).is_absolute() ? p : (dir / p).lexically_normal().string();
@@ -134,6 +151,14 @@ SweepPlan plan_sweep(const std::string& path) {
             fail(fmt::format("workload.scene: {}: no such file", w.scene));
     }
 
+    std::vector<std::string> pareto;
+    if (s.contains("pareto")) {
+        if (!s["pareto"].is_array() || s["pareto"].size() != 2 || !s["pareto"][0].is_string() ||
+            !s["pareto"][1].is_string())
+            fail("pareto: expected two figure names, e.g. [\"cycles\", \"energy per ray (nJ)\"]");
+        for (const auto& n : s["pareto"]) pareto.push_back(n.get<std::string>());
+        check_pareto(pareto, path + ": pareto");
+    }
     if (!s.contains("vary") || !s["vary"].is_object() || s["vary"].empty())
         fail("vary: expected an object of KEY: [values], e.g. {\"l1.size_kib\": [16, 32, 64]}");
     SweepPlan plan;
@@ -174,6 +199,7 @@ SweepPlan plan_sweep(const std::string& path) {
         for (const auto& set : sets) p.run_args.insert(p.run_args.end(), {"--set", set});
         plan.points.push_back(std::move(p));
     }
+    plan.pareto = pareto;
     return plan;
 }
 
@@ -341,10 +367,35 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
         json({{"sweep", opt.path}, {"keys", plan.keys}, {"points", results}}).dump(1));
     write_file_atomically((fs::path(out_dir) / "results.csv").string(), csv);
 
+    // Plots: the table's figures and energy per ray against each varied axis; the Pareto front.
+    SweepPlotData plot;
+    plot.keys = plan.keys;
+    for (const FigureDef& f : figure_list()) {
+        plot.figure_names.push_back(f.name);
+        plot.figure_percent.push_back(f.percent);
+    }
+    for (const FigureDef& f : figure_list())
+        plot.panel.push_back(f.sweep_table || f.name == "energy per ray (nJ)");
+    for (size_t i = 0; i < plan.points.size(); ++i) plot.values.push_back(plan.points[i].values);
+    for (const json& row : results) {
+        std::vector<double> v;
+        for (const FigureDef& f : figure_list()) {
+            const json& x = row["figures"][f.name];
+            v.push_back(x.is_number() ? x.get<double>() : std::nan(""));
+        }
+        plot.figures.push_back(v);
+    }
+    std::string png_note;
+    const std::vector<std::string> plots =
+        write_sweep_plots(out_dir, plot, opt.pareto.empty() ? plan.pareto : opt.pareto, png_note);
+
     fmt::print("{}", format_table(table, false));
     fmt::print(
-        "\n{} runs{}; stats under {}; table in results.json and results.csv\n", plan.points.size(),
-        skipped ? fmt::format(" ({} finished before, not run again)", skipped) : "", out_dir);
+        "\n{} runs{}; stats under {}; table in results.json and results.csv; {} plots in {}{}\n",
+        plan.points.size(),
+        skipped ? fmt::format(" ({} finished before, not run again)", skipped) : "", out_dir,
+        plots.size(), (fs::path(out_dir) / "plots").string(),
+        png_note.empty() ? "" : " (" + png_note + ")");
 }
 
 }  // namespace
@@ -355,6 +406,7 @@ int sweep_command(const SweepOptions& opt) {
         throw InputError("--resume: needs --out, the folder of the sweep to finish");
     if (opt.resume && !fs::is_directory(opt.out_dir))
         throw InputError(fmt::format("--resume: {}: no such folder", opt.out_dir));
+    if (!opt.pareto.empty()) check_pareto(opt.pareto, "--pareto");
     const SweepPlan plan = plan_sweep(opt.path);
     const std::string out_dir =
         opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;

@@ -10,7 +10,10 @@
 //                  "seed": 1, ...}           rtsim run's ray options without dashes (optional)
 //     "trace": "frame.rtt",                  or replay a trace (relative to the sweep file)
 //     "vary": {"l1.size_kib": [16, 32, 64], "l1.ways": [2, 4]}   every combination
+//     "pareto": ["cycles", "energy per ray (nJ)"]   two figures: plots/pareto.svg (optional)
 //   }
+// Besides the table, OUT/plots/ gets a figure per varied axis (each figure of merit against
+// it, a line per value of the other axes) as SVG, and PNG where rsvg-convert is installed.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -26,6 +29,9 @@ struct SweepOptions {
     // Finish the sweep in out_dir: points whose folder holds a finished run of the same command
     // (stats.json beside a run.json with the same arguments) are not run again.
     bool resume = false;
+    // Two figure names (as the table names them) to draw the Pareto front of; overrides the
+    // file's "pareto".
+    std::vector<std::string> pareto;
 };
 
 // A sweep's points: the child command line of each, checked (configs resolved, workload parsed)
@@ -38,7 +44,10 @@ struct SweepPoint {
 struct SweepPlan {
     std::vector<std::string> keys;  // varied keys, in the file's order
     std::vector<SweepPoint> points;
+    std::vector<std::string> pareto;  // the file's two objectives, if it names them
 };
+// Checks that `names` are two figures of the shared list; throws InputError naming `where`.
+void check_pareto(const std::vector<std::string>& names, const std::string& where);
 SweepPlan plan_sweep(const std::string& path);
 
 // Runs the plan; writes each point's stats.json (and run.json, the arguments it ran with) under

@@ -1128,6 +1128,41 @@ TEST(Sweep, RunsEveryPointAndWritesOneTable) {
     EXPECT_NE(r.out.find("l1.ways"), std::string::npos) << r.out;
 }
 
+// Plots (issue 19): a figure per varied axis and the Pareto front the file names, as SVG, and
+// PNG when rsvg-convert is installed (setup.sh installs it; without it the PNG part is skipped,
+// said so). A figure name that does not exist is refused before anything runs.
+TEST(Sweep, WritesAFigurePerAxisAndTheParetoFront) {
+    const fs::path file = work_dir() / "sweep_plots.json";
+    std::ofstream(file) << R"J({"workload": {"rays": "primary", "res": "24x24"},
+                               "vary": {"l1.ways": [1, 8], "core.count": [1, 2]},
+                               "pareto": ["cycles", "energy per ray (nJ)"]})J";
+    const fs::path out = work_dir() / "sweep_plots";
+    const Result r = run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}'", file.string(), out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    for (const char* stem : {"l1.ways", "core.count", "pareto"}) {
+        const std::string svg = slurp(out / "plots" / (std::string(stem) + ".svg"));
+        ASSERT_FALSE(svg.empty()) << stem;
+        EXPECT_EQ(svg.rfind("<svg", 0), 0u) << stem;
+        EXPECT_NE(svg.find("</svg>"), std::string::npos) << stem;
+    }
+    // Against l1.ways: a line per core count in each panel, labelled.
+    const std::string ways = slurp(out / "plots" / "l1.ways.svg");
+    EXPECT_NE(ways.find(">count=1<"), std::string::npos);
+    EXPECT_NE(ways.find(">count=2<"), std::string::npos);
+    EXPECT_NE(slurp(out / "plots" / "pareto.svg").find("energy per ray (nJ)"), std::string::npos);
+    const Result bad = run_rtsim(fmt::format("sweep '{}' -o '{}' --pareto 'cycles,speed'",
+                                             file.string(), (work_dir() / "never").string()));
+    expect_one_line_error(bad, "--pareto: 'speed' is not a figure");
+    EXPECT_FALSE(fs::exists(work_dir() / "never"));
+    if (std::system("command -v rsvg-convert >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "rsvg-convert (librsvg2-bin) is not installed: PNGs not checked";
+    for (const char* stem : {"l1.ways", "core.count", "pareto"}) {
+        const std::string png = slurp(out / "plots" / (std::string(stem) + ".png"));
+        ASSERT_GT(png.size(), 1000u) << stem;
+        EXPECT_EQ(png.substr(1, 3), "PNG") << stem;
+    }
+}
+
 TEST(Sweep, BadSweepExitsTwoAndRunsNothing) {
     const fs::path file = work_dir() / "sweep_bad.json";
     std::ofstream(file) << R"({"vary": {"l1.size_kib": [8, 12]}})";
