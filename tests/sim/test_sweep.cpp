@@ -70,7 +70,12 @@ TEST(Sweep, PathsAreRelativeToTheSweepFile) {
 
 TEST(Sweep, BadFilesAreRefusedBeforeAnythingRuns) {
     EXPECT_EQ(refusal(R"({"vary": {"l1.size_kib": [8]}, "colour": 1})"),
-              "colour: unknown key (expected config, set, workload, trace, vary)");
+              "colour: unknown key (expected config, set, workload, trace, vary, pareto)");
+    EXPECT_EQ(refusal(R"({"vary": {"l1.size_kib": [8]}, "pareto": ["cycles"]})"),
+              "pareto: expected two figure names, e.g. [\"cycles\", \"energy per ray (nJ)\"]");
+    EXPECT_NE(refusal(R"({"vary": {"l1.size_kib": [8]}, "pareto": ["cycles", "speed"]})")
+                  .find("pareto: 'speed' is not a figure"),
+              std::string::npos);
     EXPECT_EQ(refusal(R"({"vary": {}})").rfind("vary: expected an object", 0), 0u);
     EXPECT_EQ(refusal(R"({"vary": {"l1.size_kib": 8}})"),
               "vary.l1.size_kib: expected a non-empty array of values");
