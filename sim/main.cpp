@@ -101,6 +101,9 @@ int main_impl(int argc, char** argv) {
     sweep_cmd->add_option("--out,-o", sweep.out_dir,
                           "Output folder (default: a fresh folder under out/)");
     sweep_cmd->add_option("-j,--jobs", sweep.jobs, "Runs at once")->capture_default_str();
+    sweep_cmd->add_flag("--quiet,-q", sweep.quiet,
+                        "No progress line (shown on a terminal only: points done, running and "
+                        "failed, and the time left)");
     sweep_cmd
         ->add_option("--pareto", sweep.pareto,
                      "Two figures (as the table names them, comma-separated) whose Pareto front "

@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -19,6 +20,7 @@
 #include "sim/compare.h"
 #include "sim/config.h"
 #include "sim/interrupt.h"
+#include "sim/progress.h"
 #include "sim/run.h"
 #include "sim/sweep_plot.h"
 #include "workloads/error.h"
@@ -245,8 +247,21 @@ pid_t spawn_point(const std::string& out_dir, const SweepPoint& p) {
 
 // Runs the points `jobs` at a time (points finished before, with --resume, are skipped) and
 // throws naming the first that failed. Returns how many were skipped.
-size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, bool resume) {
-    const bool progress = isatty(STDERR_FILENO);
+size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, bool resume,
+                  bool quiet) {
+    const bool progress = !quiet && isatty(STDERR_FILENO);
+    const auto started = std::chrono::steady_clock::now();
+    size_t failed_points = 0;
+    auto show = [&](size_t done_now, size_t running_now) {
+        if (!progress) return;
+        const double elapsed =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+        std::fprintf(
+            stderr, "\r%s   ",
+            sweep_progress_line(done_now, running_now, failed_points, plan.points.size(), elapsed)
+                .c_str());
+        std::fflush(stderr);
+    };
     std::map<pid_t, size_t> running;
     std::vector<int> status(plan.points.size(), -1);
     size_t skipped = 0;
@@ -274,6 +289,7 @@ size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, b
             }
             running[pid] = next++;
         }
+        show(done, running.size());
         if (running.empty()) break;
         int st = 0;
         const pid_t pid = waitpid(-1, &st, 0);
@@ -301,13 +317,12 @@ size_t run_points(const SweepPlan& plan, const std::string& out_dir, int jobs, b
         if (it == running.end()) continue;
         status[it->second] = WIFEXITED(st) ? WEXITSTATUS(st) : 128;
         failed = failed || status[it->second] != 0;
+        failed_points += status[it->second] != 0;
         running.erase(it);
         ++done;
-        if (progress)
-            std::fprintf(stderr, "\r[rtsim] sweep: %zu of %zu runs done   ", done,
-                         plan.points.size());
+        show(done, running.size());
     }
-    if (progress) std::fprintf(stderr, "\r%60s\r", "");
+    if (progress) std::fprintf(stderr, "\r%100s\r", "");
     if (!spawn_error.empty()) throw std::runtime_error(spawn_error);
     for (size_t i = 0; i < plan.points.size(); ++i)
         if (status[i] > 0) {
@@ -414,7 +429,7 @@ int sweep_command(const SweepOptions& opt) {
     fs::create_directories(out_dir, ec);
     if (ec)
         throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
-    const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume);
+    const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume, opt.quiet);
     write_results(opt, plan, out_dir, skipped);
     return 0;
 }

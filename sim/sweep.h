@@ -29,6 +29,7 @@ struct SweepOptions {
     // Finish the sweep in out_dir: points whose folder holds a finished run of the same command
     // (stats.json beside a run.json with the same arguments) are not run again.
     bool resume = false;
+    bool quiet = false;  // no progress line (it is shown on a terminal only anyway)
     // Two figure names (as the table names them) to draw the Pareto front of; overrides the
     // file's "pareto".
     std::vector<std::string> pareto;

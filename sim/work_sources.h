@@ -17,6 +17,7 @@
 #include "models/core.h"
 #include "sim/errors.h"
 #include "sim/interrupt.h"
+#include "sim/progress.h"
 #include "sim/sampler.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
@@ -61,7 +62,7 @@ class CountingSource : public RayWorkSource {
     void set_sampler(Sampler* sampler) { sampler_ = sampler; }
 
     void finish_progress() {
-        if (progress_ && printed_) std::fprintf(stderr, "\r%70s\r", "");
+        if (progress_ && printed_) std::fprintf(stderr, "\r%100s\r", "");
     }
 
     std::array<uint64_t, kRayKindCount> rays_by_kind{}, hits_by_kind{};
@@ -87,17 +88,24 @@ class CountingSource : public RayWorkSource {
         if (printed_ && now - last_print_ < std::chrono::milliseconds(250)) return;
         last_print_ = now;
         printed_ = true;
+        if (!started_) {
+            started_ = true;
+            start_ = now;
+        }
         uint64_t rays = 0;
         for (uint64_t r : rays_by_kind) rays += r;
-        std::fprintf(stderr, "\r[rtsim] %5.1f%% of %s, %llu rays, %.4g simulated us   ",
+        const std::string left =
+            time_left(std::chrono::duration<double>(now - start_).count(), fraction);
+        std::fprintf(stderr, "\r[rtsim] %5.1f%% of %s, %llu rays, %.4g simulated us%s%s   ",
                      100.0 * fraction, what, (unsigned long long)rays,
-                     sc_core::sc_time_stamp().to_seconds() * 1e6);
+                     sc_core::sc_time_stamp().to_seconds() * 1e6, left.empty() ? "" : ", ",
+                     left.c_str());
         std::fflush(stderr);
     }
 
   private:
-    bool progress_, printed_ = false;
-    WorkClock::time_point last_print_;
+    bool progress_, printed_ = false, started_ = false;
+    WorkClock::time_point last_print_, start_;
 };
 
 // Work prepared on a helper thread, one batch ahead of the simulation: the simulation never

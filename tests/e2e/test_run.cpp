@@ -1163,6 +1163,43 @@ TEST(Sweep, WritesAFigurePerAxisAndTheParetoFront) {
     }
 }
 
+// On a terminal (util-linux's `script` gives the run one), a run shows how far it is with the
+// time left and a sweep its points done, running and failed; --quiet and a pipe show nothing.
+TEST(Progress, ShownOnATerminalOnly) {
+    if (std::system("command -v script >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "util-linux's script is not installed: no terminal to test on";
+    const fs::path out = work_dir() / "progress", log = work_dir() / "progress.log";
+    auto on_terminal = [&](const std::string& args) {
+        const std::string cmd = fmt::format("script -qec \"'{}' {}\" /dev/null > '{}' 2>&1",
+                                            RTSIM_BINARY, args, log.string());
+        EXPECT_EQ(std::system(cmd.c_str()), 0) << cmd;
+        return slurp(log);
+    };
+    const std::string run = on_terminal(
+        fmt::format("run --rays primary,ao --res 160x160 -o '{}'", (out / "run").string()));
+    EXPECT_NE(run.find("[rtsim] "), std::string::npos) << run;
+    EXPECT_NE(run.find("% of tiles"), std::string::npos) << run;
+    EXPECT_EQ(on_terminal(fmt::format("run -q --rays primary --res 64x64 -o '{}'",
+                                      (out / "quiet").string()))
+                  .find("[rtsim]"),
+              std::string::npos);
+    const fs::path file = work_dir() / "sweep_progress.json";
+    std::ofstream(file) << R"({"workload": {"rays": "primary", "res": "24x24"},
+                               "vary": {"l1.ways": [1, 2, 4]}})";
+    const std::string sweep =
+        on_terminal(fmt::format("sweep '{}' -j 2 -o '{}'", file.string(), (out / "sw").string()));
+    EXPECT_NE(sweep.find("of 3 points done"), std::string::npos) << sweep;
+    EXPECT_NE(sweep.find("running, 0 failed"), std::string::npos) << sweep;
+    EXPECT_EQ(on_terminal(
+                  fmt::format("sweep '{}' -q -o '{}'", file.string(), (out / "sw_quiet").string()))
+                  .find("points done"),
+              std::string::npos);
+    // Not a terminal: nothing, whatever the flags.
+    const Result piped =
+        run_rtsim(fmt::format("sweep '{}' -o '{}'", file.string(), (out / "sw_pipe").string()));
+    EXPECT_EQ(piped.err.find("points done"), std::string::npos);
+}
+
 TEST(Sweep, BadSweepExitsTwoAndRunsNothing) {
     const fs::path file = work_dir() / "sweep_bad.json";
     std::ofstream(file) << R"({"vary": {"l1.size_kib": [8, 12]}})";
