@@ -11,6 +11,7 @@
 #include "sim/config.h"
 #include "sim/figures.h"
 #include "sim/stats_report.h"
+#include "sim/svg.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 
@@ -207,21 +208,6 @@ const char* stall_colour(size_t k, size_t causes) {
 }
 const char* const kRunColours[] = {"#4e79a7", "#e15759", "#59a14f", "#f28e2b",
                                    "#b07aa1", "#76b7b2", "#edc948", "#9c755f"};
-
-std::string escape_xml(const std::string& t) {
-    std::string out;
-    for (char ch : t) {
-        if (ch == '<')
-            out += "&lt;";
-        else if (ch == '>')
-            out += "&gt;";
-        else if (ch == '&')
-            out += "&amp;";
-        else
-            out += ch;
-    }
-    return out;
-}
 
 // One line chart: `series` values of every run per window, x in cycles.
 void line_chart(std::string& svg, const Comparison& c, const char* series, const char* title,

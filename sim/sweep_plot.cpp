@@ -9,6 +9,7 @@
 #include <map>
 
 #include "sim/figures.h"
+#include "sim/svg.h"
 #include "workloads/output_file.h"
 
 namespace rtsim {
@@ -19,23 +20,6 @@ namespace {
 
 const char* const kColours[] = {"#4e79a7", "#e15759", "#59a14f", "#f28e2b", "#b07aa1",
                                 "#76b7b2", "#edc948", "#9c755f", "#ff9da7", "#bab0ac"};
-
-std::string esc(const std::string& t) {
-    std::string out;
-    for (char ch : t) {
-        if (ch == '<')
-            out += "&lt;";
-        else if (ch == '>')
-            out += "&gt;";
-        else if (ch == '&')
-            out += "&amp;";
-        else if (ch == '\'')
-            out += "&apos;";
-        else
-            out += ch;
-    }
-    return out;
-}
 
 bool as_number(const std::string& s, double& v) {
     char* end = nullptr;
@@ -109,7 +93,7 @@ void draw_panel(std::string& svg, double x0, double y0, double w, double h,
     };
     auto Y = [&](double v) { return bottom - (bottom - top) * (v - lo) / (hi - lo); };
     svg += fmt::format("<text x='{:.1f}' y='{:.1f}' font-size='13' font-weight='bold'>{}</text>\n",
-                       x0 + 8, y0 + 18, esc(title));
+                       x0 + 8, y0 + 18, escape_xml(title));
     // Three ticks: bottom, middle, top of the data (one when every value is the same).
     for (int t = data_hi > data_lo ? 0 : 2; t <= 2; ++t) {
         const double v = data_lo + (data_hi - data_lo) * t / 2.0;
@@ -117,7 +101,7 @@ void draw_panel(std::string& svg, double x0, double y0, double w, double h,
         svg += fmt::format(
             "<line x1='{:.1f}' y1='{:.1f}' x2='{:.1f}' y2='{:.1f}' stroke='#e6e6e6'/>\n"
             "<text x='{:.1f}' y='{:.1f}' font-size='10' text-anchor='end' fill='#555'>{}</text>\n",
-            left, y, right, y, left - 4, y + 3, esc(format_figure(v, percent)));
+            left, y, right, y, left - 4, y + 3, escape_xml(format_figure(v, percent)));
     }
     svg +=
         fmt::format("<line x1='{0:.1f}' y1='{1:.1f}' x2='{2:.1f}' y2='{1:.1f}' stroke='#888'/>\n",
@@ -126,7 +110,7 @@ void draw_panel(std::string& svg, double x0, double y0, double w, double h,
         svg += fmt::format(
             "<text x='{:.1f}' y='{:.1f}' font-size='10' text-anchor='middle' "
             "fill='#333'>{}</text>\n",
-            X(i), bottom + 14, esc(xs[i]));
+            X(i), bottom + 14, escape_xml(xs[i]));
     // Labels at the lines' ends, pushed apart by at least 11 px.
     std::vector<std::pair<double, size_t>> ends;
     for (size_t s = 0; s < series.size(); ++s)
@@ -148,9 +132,9 @@ void draw_panel(std::string& svg, double x0, double y0, double w, double h,
             svg += fmt::format("<circle cx='{:.1f}' cy='{:.1f}' r='3' fill='{}'/>\n", X(i), Y(v),
                                colour);
         if (!ser.label.empty())
-            svg +=
-                fmt::format("<text x='{:.1f}' y='{:.1f}' font-size='10' fill='{}'>{}</text>\n",
-                            X(ser.points.back().first) + 7, label_y[s] + 3, colour, esc(ser.label));
+            svg += fmt::format("<text x='{:.1f}' y='{:.1f}' font-size='10' fill='{}'>{}</text>\n",
+                               X(ser.points.back().first) + 7, label_y[s] + 3, colour,
+                               escape_xml(ser.label));
     }
 }
 
@@ -200,9 +184,10 @@ std::string sweep_axis_svg(const SweepPlotData& d, size_t key) {
         "font-family='sans-serif'>\n<rect width='100%' height='100%' fill='white'/>\n"
         "<text x='10' y='22' font-size='16' font-weight='bold'>Each figure of merit against "
         "{}</text>\n<text x='10' y='40' font-size='12' fill='#555'>{}</text>\n",
-        width, height, esc(d.keys[key]),
-        esc(others.empty() ? "one point per value"
-                           : "one line per value of " + others + ", labelled at its right end"));
+        width, height, escape_xml(d.keys[key]),
+        escape_xml(others.empty()
+                       ? "one point per value"
+                       : "one line per value of " + others + ", labelled at its right end"));
     for (size_t n = 0; n < plotted.size(); ++n) {
         const size_t f = plotted[n];
         std::vector<Series> series(labels.size());
@@ -278,15 +263,15 @@ std::string sweep_pareto_svg(const SweepPlotData& d, size_t a, size_t b, bool a_
         "<text x='10' y='22' font-size='16' font-weight='bold'>Pareto front: {} against {}"
         "</text>\n<text x='10' y='40' font-size='12' fill='#555'>every point grey; the {} "
         "points no other point beats on both, in colour, joined and labelled</text>\n",
-        W, H, esc(d.figure_names[b]), esc(d.figure_names[a]), front.size());
+        W, H, escape_xml(d.figure_names[b]), escape_xml(d.figure_names[a]), front.size());
     svg += fmt::format(
         "<line x1='{0}' y1='{1}' x2='{2}' y2='{1}' stroke='#888'/>\n"
         "<line x1='{0}' y1='{3}' x2='{0}' y2='{1}' stroke='#888'/>\n"
         "<text x='{4}' y='{5}' font-size='12' text-anchor='middle'>{6} ({7})</text>\n"
         "<text x='20' y='{8}' font-size='12' transform='rotate(-90 20 {8})' "
         "text-anchor='middle'>{9} ({10})</text>\n",
-        left, bottom, right, top, (left + right) / 2, H - 18, esc(d.figure_names[a]), dir(a_higher),
-        (top + bottom) / 2, esc(d.figure_names[b]), dir(b_higher));
+        left, bottom, right, top, (left + right) / 2, H - 18, escape_xml(d.figure_names[a]),
+        dir(a_higher), (top + bottom) / 2, escape_xml(d.figure_names[b]), dir(b_higher));
     for (int t = 0; t <= 2; ++t) {
         const double vx = xlo + (xhi - xlo) * (0.08 + 0.84 * t / 2.0);
         const double vy = ylo + (yhi - ylo) * (0.08 + 0.84 * t / 2.0);
@@ -294,8 +279,8 @@ std::string sweep_pareto_svg(const SweepPlotData& d, size_t a, size_t b, bool a_
             "<text x='{:.1f}' y='{:.1f}' font-size='10' text-anchor='middle' fill='#555'>{}"
             "</text>\n<text x='{:.1f}' y='{:.1f}' font-size='10' text-anchor='end' "
             "fill='#555'>{}</text>\n",
-            X(vx), bottom + 14, esc(format_figure(vx, d.figure_percent[a])), left - 4, Y(vy) + 3,
-            esc(format_figure(vy, d.figure_percent[b])));
+            X(vx), bottom + 14, escape_xml(format_figure(vx, d.figure_percent[a])), left - 4,
+            Y(vy) + 3, escape_xml(format_figure(vy, d.figure_percent[b])));
     }
     for (size_t p = 0; p < pts.size(); ++p)
         if (std::isfinite(pts[p].first) && std::isfinite(pts[p].second))
@@ -310,7 +295,7 @@ std::string sweep_pareto_svg(const SweepPlotData& d, size_t a, size_t b, bool a_
             "<circle cx='{:.1f}' cy='{:.1f}' r='5' fill='#e15759'/>\n<text x='{:.1f}' y='{:.1f}' "
             "font-size='10' fill='#333'>{}</text>\n",
             X(pts[p].first), Y(pts[p].second), X(pts[p].first) + 8, Y(pts[p].second) - 6,
-            esc(point_label(d, p, d.keys.size())));
+            escape_xml(point_label(d, p, d.keys.size())));
     return svg + "</svg>\n";
 }
 
