@@ -16,6 +16,8 @@ packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohm
           librsvg2-bin)
 # The test command also fuzzes the input readers (scripts/fuzz.sh): clang and its libFuzzer.
 [ "$mode" != test ] || packages+=(clang libclang-rt-14-dev)
+# ...and renders rtsim report's page in a real browser.
+[ "$mode" != test ] || packages+=(chromium)
 sudo_cmd=""
 [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
 apt_updated=0

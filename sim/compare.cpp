@@ -249,7 +249,7 @@ std::string comparison_svg(const Comparison& c) {
     for (const auto& run : c.runs)
         series = series && run.stats.contains("time_series") &&
                  run.stats["time_series"].contains("l2_to_l1_gbps");
-    const double bars_h = 60 + c.runs.size() * (bar_h + 8) + 40;
+    const double bars_h = 60 + c.runs.size() * (bar_h + 8) + 56;  // a legend of up to 2 rows
     const double height = bars_h + (series ? 2 * 200 + 30 : 0);
     const std::vector<std::string> causes = stall_causes();
     std::string svg = fmt::format(
@@ -275,10 +275,14 @@ std::string comparison_svg(const Comparison& c) {
             x += bar_w * share;
         }
     }
-    const double legend_y = 44 + c.runs.size() * (bar_h + 8) + 14;
+    double legend_y = 44 + c.runs.size() * (bar_h + 8) + 14;
     double legend_x = 10;
     for (size_t k = 0; k < causes.size(); ++k) {
         const std::string name = stall_cause_label(causes[k]);
+        if (legend_x + 13 + 7.0 * double(name.size()) > 670) {  // on to a second row
+            legend_x = 10;
+            legend_y += 16;
+        }
         svg += fmt::format("<rect x='{}' y='{}' width='10' height='10' fill='{}'/>\n", legend_x,
                            legend_y - 9, stall_colour(k, causes.size()));
         svg += fmt::format("<text x='{}' y='{}'>{}</text>\n", legend_x + 13, legend_y, name);

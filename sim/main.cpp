@@ -10,6 +10,7 @@
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/list_cmd.h"
+#include "sim/report.h"
 #include "sim/run.h"
 #include "sim/sweep.h"
 #include "sim/trace_cmd.h"
@@ -92,6 +93,18 @@ int main_impl(int argc, char** argv) {
                             "Also draw stall shares (and bandwidth per window, when every run "
                             "recorded sim.window_cycles) as SVG");
 
+    rtsim::ReportOptions report;
+    CLI::App* report_cmd = app.add_subcommand(
+        "report", "One self-contained HTML page for a run, a comparison of runs, or a sweep");
+    report_cmd
+        ->add_option("paths", report.paths,
+                     "Run folders or stats.json files (a comparison when several), or one sweep "
+                     "folder")
+        ->required();
+    report_cmd->add_option("--labels", report.labels, "A label per run (default A, B, C, ...)")
+        ->delimiter(',');
+    report_cmd->add_option("-o,--out", report.out_path, "The HTML file to write")
+        ->capture_default_str();
     rtsim::SweepOptions sweep;
     CLI::App* sweep_cmd = app.add_subcommand(
         "sweep", "Simulate one workload on every combination of config values; one results table");
@@ -169,6 +182,7 @@ int main_impl(int argc, char** argv) {
         if (*info_cmd) return rtsim::trace_info_command(info_path, info_json);
         if (*compare_cmd) return rtsim::compare_command(compare);
         if (*sweep_cmd) return rtsim::sweep_command(sweep);
+        if (*report_cmd) return rtsim::report_command(report);
         if (*list_cmd) return rtsim::list_command(list_kind, list_json);
         if (*dram_cmd) return rtsim::dram_command(dram);
         if (*cfg_cmd) {
