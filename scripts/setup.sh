@@ -16,8 +16,9 @@ packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohm
           librsvg2-bin)
 # The test command also fuzzes the input readers (scripts/fuzz.sh): clang and its libFuzzer.
 [ "$mode" != test ] || packages+=(clang libclang-rt-14-dev)
-# ...and renders rtsim report's page in a real browser.
-[ "$mode" != test ] || packages+=(chromium)
+# ...renders rtsim report's page in a real browser, and runs a sweep through a one-node Slurm
+# cluster it starts (scripts/slurm_local.sh).
+[ "$mode" != test ] || packages+=(chromium slurm-wlm munge)
 sudo_cmd=""
 [ "$(id -u)" -eq 0 ] || sudo_cmd="sudo"
 apt_updated=0

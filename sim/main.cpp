@@ -123,6 +123,19 @@ int main_impl(int argc, char** argv) {
                      "plots/pareto.svg draws, e.g. 'cycles,energy per ray (nJ)'")
         ->delimiter(',')
         ->expected(2);
+    sweep_cmd->add_flag("--slurm", sweep.slurm,
+                        "Submit the points as one Slurm job array (sbatch), a task per point; the "
+                        "job script goes to OUT/slurm/");
+    sweep_cmd->add_option("--partition", sweep.partition, "--slurm: the partition");
+    sweep_cmd->add_option("--time", sweep.time_limit, "--slurm: each task's time limit");
+    sweep_cmd->add_option("--mem", sweep.mem, "--slurm: each task's memory");
+    sweep_cmd->add_option("--max-parallel", sweep.max_parallel, "--slurm: tasks running at once");
+    sweep_cmd->add_flag("--wait", sweep.wait, "--slurm: wait for the job, then collect the table");
+    sweep_cmd->add_flag("--collect", sweep.collect,
+                        "Write the table from OUT's points once all finished; else name those "
+                        "that did not");
+    sweep_cmd->add_option("--point", sweep.point, "Run one point of the sweep (a Slurm task)")
+        ->group("");
     sweep_cmd->add_flag("--resume", sweep.resume,
                         "Finish the sweep in --out: points that already ran with the same "
                         "arguments are not run again");

@@ -415,8 +415,144 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
 
 }  // namespace
 
+namespace {
+
+std::string shell_quoted(const std::string& s) {
+    std::string q = "'";
+    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
+    return q + "'";
+}
+
+// The points of `plan` that have no finished run in out_dir, and why (the first line of the
+// run's stderr, or that it never ran).
+std::vector<std::pair<size_t, std::string>> unfinished_points(const SweepPlan& plan,
+                                                              const std::string& out_dir) {
+    std::vector<std::pair<size_t, std::string>> out;
+    for (size_t i = 0; i < plan.points.size(); ++i) {
+        const fs::path dir = fs::path(out_dir) / plan.points[i].name;
+        if (finished_before(dir, plan.points[i].run_args)) continue;
+        const std::string why = first_line_of(dir / "stderr.txt");
+        out.push_back(
+            {i, fs::exists(dir / "run.json") && !why.empty()
+                    ? why
+                    : (fs::exists(dir / "run.json") ? "did not finish (killed or cancelled)"
+                                                    : "did not run")});
+    }
+    return out;
+}
+
+// One point, as an array task runs it: the same child run and folder as a local sweep's.
+int run_one_point(const SweepPlan& plan, const std::string& out_dir, int index) {
+    if (index < 0 || size_t(index) >= plan.points.size())
+        throw InputError(
+            fmt::format("--point: expected 0 to {}, got {}", plan.points.size() - 1, index));
+    const pid_t pid = spawn_point(out_dir, plan.points[size_t(index)]);
+    if (pid < 0) throw std::runtime_error("sweep: cannot start the point's run");
+    int st = 0;
+    while (waitpid(pid, &st, 0) < 0)
+        if (errno != EINTR) throw std::runtime_error("sweep: lost the point's run");
+    return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+}
+
+// The job script (out_dir/slurm/sweep.sbatch), a task per listed point; returns its path.
+std::string write_job_script(const SweepOptions& opt, const std::string& out_dir,
+                             const std::vector<size_t>& points) {
+    const fs::path dir = fs::absolute(out_dir);
+    fs::create_directories(dir / "slurm");
+    std::string array;
+    for (size_t i : points) array += (array.empty() ? "" : ",") + std::to_string(i);
+    if (opt.max_parallel > 0) array += "%" + std::to_string(opt.max_parallel);
+    std::string script = fmt::format(
+        "#!/bin/sh\n"
+        "# rtsim sweep {} through Slurm: one array task per point, each running it as the local\n"
+        "# sweep does (its folder under {}). Written by rtsim sweep --slurm; resubmit by hand\n"
+        "# with sbatch, or with rtsim sweep --slurm --resume for only what is missing.\n"
+        "#SBATCH --job-name=rtsim-sweep\n#SBATCH --array={}\n#SBATCH "
+        "--output={}/slurm/task-%a.out\n"
+        "#SBATCH --cpus-per-task=1\n",
+        opt.path, dir.string(), array, dir.string());
+    if (!opt.partition.empty()) script += "#SBATCH --partition=" + opt.partition + "\n";
+    if (!opt.time_limit.empty()) script += "#SBATCH --time=" + opt.time_limit + "\n";
+    if (!opt.mem.empty()) script += "#SBATCH --mem=" + opt.mem + "\n";
+    script +=
+        fmt::format("exec {} sweep {} --out {} --point \"$SLURM_ARRAY_TASK_ID\"\n",
+                    shell_quoted(fs::canonical("/proc/self/exe").string()),
+                    shell_quoted(fs::absolute(opt.path).string()), shell_quoted(dir.string()));
+    const std::string path = (dir / "slurm" / "sweep.sbatch").string();
+    write_file_atomically(path, script);
+    return path;
+}
+
+// Runs a command, returning its exit status and what it printed on stdout.
+int capture(const std::string& cmd, std::string& out) {
+    out.clear();
+    FILE* p = popen(cmd.c_str(), "r");
+    if (!p) return -1;
+    char buf[512];
+    while (fgets(buf, sizeof buf, p)) out += buf;
+    const int st = pclose(p);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+}
+
+// The table once every point finished; otherwise names each that did not, and returns 1.
+int collect(const SweepOptions& opt, const SweepPlan& plan, const std::string& out_dir) {
+    const auto missing = unfinished_points(plan, out_dir);
+    if (!missing.empty()) {
+        std::fprintf(stderr, "rtsim: sweep: %zu of %zu points did not finish under %s:\n",
+                     missing.size(), plan.points.size(), out_dir.c_str());
+        for (const auto& [i, why] : missing)
+            std::fprintf(stderr, "  %s: %s\n", plan.points[i].name.c_str(), why.c_str());
+        std::fprintf(stderr,
+                     "rtsim: sweep: no table written; rerun them with --slurm --resume -o %s\n",
+                     out_dir.c_str());
+        return 1;
+    }
+    write_results(opt, plan, out_dir, 0);
+    return 0;
+}
+
+int submit(const SweepOptions& opt, const SweepPlan& plan, const std::string& out_dir) {
+    std::vector<size_t> points;
+    if (opt.resume)
+        for (const auto& [i, why] : unfinished_points(plan, out_dir)) points.push_back(i);
+    else
+        for (size_t i = 0; i < plan.points.size(); ++i) points.push_back(i);
+    if (points.empty()) return collect(opt, plan, out_dir);
+    const std::string script = write_job_script(opt, out_dir, points);
+    std::string out;
+    const int st = capture(
+        fmt::format("sbatch --parsable{} {} 2>&1", opt.wait ? " --wait" : "", shell_quoted(script)),
+        out);
+    while (!out.empty() && (out.back() == '\n' || out.back() == '\r')) out.pop_back();
+    const std::string job = out.substr(0, out.find(';'));
+    if (!opt.wait || job.empty() || job.find_first_not_of("0123456789") != std::string::npos) {
+        if (st != 0)
+            throw std::runtime_error(fmt::format("sweep: sbatch {} failed: {}", script, out));
+        write_file_atomically((fs::path(out_dir) / "slurm" / "job_id").string(), job + "\n");
+        fmt::print(
+            "submitted job {} ({} points) with {}; collect with: rtsim sweep {} --collect "
+            "-o {}\n",
+            job, points.size(), script, opt.path, out_dir);
+        return 0;
+    }
+    // --wait: sbatch returned when the job ended (non-zero if a task failed); the folders say.
+    write_file_atomically((fs::path(out_dir) / "slurm" / "job_id").string(), job + "\n");
+    return collect(opt, plan, out_dir);
+}
+
+}  // namespace
+
 int sweep_command(const SweepOptions& opt) {
     if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
+    if ((opt.collect || opt.point >= 0) && opt.out_dir.empty())
+        throw InputError(fmt::format("{}: needs --out, the sweep's folder",
+                                     opt.collect ? "--collect" : "--point"));
+    if (opt.max_parallel < 0)
+        throw InputError(
+            fmt::format("--max-parallel: expected 0 or more, got {}", opt.max_parallel));
+    if (!opt.slurm && (opt.wait || !opt.partition.empty() || !opt.time_limit.empty() ||
+                       !opt.mem.empty() || opt.max_parallel > 0))
+        throw InputError("--wait, --partition, --time, --mem and --max-parallel need --slurm");
     if (opt.resume && opt.out_dir.empty())
         throw InputError("--resume: needs --out, the folder of the sweep to finish");
     if (opt.resume && !fs::is_directory(opt.out_dir))
@@ -429,6 +565,9 @@ int sweep_command(const SweepOptions& opt) {
     fs::create_directories(out_dir, ec);
     if (ec)
         throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
+    if (opt.point >= 0) return run_one_point(plan, out_dir, opt.point);
+    if (opt.collect) return collect(opt, plan, out_dir);
+    if (opt.slurm) return submit(opt, plan, out_dir);
     const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume, opt.quiet);
     write_results(opt, plan, out_dir, skipped);
     return 0;

@@ -30,6 +30,14 @@ struct SweepOptions {
     // (stats.json beside a run.json with the same arguments) are not run again.
     bool resume = false;
     bool quiet = false;  // no progress line (it is shown on a terminal only anyway)
+    // Through Slurm: one job array, a task per point (sbatch); the job script is written to
+    // out_dir/slurm/. `wait`: until the job ends, then collect. `collect`: the table from the
+    // points' folders, naming every point that did not finish. `point`: run that point only
+    // (what each array task runs). With `resume`, only missing or failed points are submitted.
+    bool slurm = false, wait = false, collect = false;
+    std::string partition, time_limit, mem;
+    int max_parallel = 0;  // tasks at once (the array's %K); 0: Slurm's choice
+    int point = -1;
     // Two figure names (as the table names them) to draw the Pareto front of; overrides the
     // file's "pareto".
     std::vector<std::string> pareto;
