@@ -134,7 +134,11 @@ int main_impl(int argc, char** argv) {
     sweep_cmd->add_flag("--collect", sweep.collect,
                         "Write the table from OUT's points once all finished; else name those "
                         "that did not");
-    sweep_cmd->add_option("--point", sweep.point, "Run one point of the sweep (a Slurm task)")
+    sweep_cmd
+        ->add_option("--points-per-task", sweep.points_per_task,
+                     "--slurm: points each array task runs in turn (for short runs)")
+        ->capture_default_str();
+    sweep_cmd->add_option("--task", sweep.task, "Run one array task's points (what Slurm runs)")
         ->group("");
     sweep_cmd->add_flag("--resume", sweep.resume,
                         "Finish the sweep in --out: points that already ran with the same "

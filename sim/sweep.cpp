@@ -441,43 +441,55 @@ std::vector<std::pair<size_t, std::string>> unfinished_points(const SweepPlan& p
     return out;
 }
 
-// One point, as an array task runs it: the same child run and folder as a local sweep's.
-int run_one_point(const SweepPlan& plan, const std::string& out_dir, int index) {
-    if (index < 0 || size_t(index) >= plan.points.size())
-        throw InputError(
-            fmt::format("--point: expected 0 to {}, got {}", plan.points.size() - 1, index));
-    const pid_t pid = spawn_point(out_dir, plan.points[size_t(index)]);
-    if (pid < 0) throw std::runtime_error("sweep: cannot start the point's run");
-    int st = 0;
-    while (waitpid(pid, &st, 0) < 0)
-        if (errno != EINTR) throw std::runtime_error("sweep: lost the point's run");
-    return WIFEXITED(st) ? WEXITSTATUS(st) : 128;
+// One array task: its points (task * per .. task * per + per - 1) in turn, each as the local sweep
+// runs it (the same child run and folder); points already finished are not run again. Returns 1
+// if any failed.
+int run_task(const SweepPlan& plan, const std::string& out_dir, int task, int per) {
+    const size_t first = size_t(task) * size_t(per);
+    if (task < 0 || first >= plan.points.size())
+        throw InputError(fmt::format("--task: expected 0 to {} ({} points, {} per task), got {}",
+                                     (plan.points.size() - 1) / size_t(per), plan.points.size(),
+                                     per, task));
+    int status = 0;
+    for (size_t i = first; i < std::min(plan.points.size(), first + size_t(per)); ++i) {
+        const SweepPoint& p = plan.points[i];
+        if (finished_before(fs::path(out_dir) / p.name, p.run_args)) continue;
+        const pid_t pid = spawn_point(out_dir, p);
+        if (pid < 0) throw std::runtime_error("sweep: cannot start the run of " + p.name);
+        int st = 0;
+        while (waitpid(pid, &st, 0) < 0)
+            if (errno != EINTR) throw std::runtime_error("sweep: lost the run of " + p.name);
+        if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) status = 1;
+    }
+    return status;
 }
 
-// The job script (out_dir/slurm/sweep.sbatch), a task per listed point; returns its path.
+// The job script (out_dir/slurm/sweep.sbatch), an array task per listed task; returns its path.
 std::string write_job_script(const SweepOptions& opt, const std::string& out_dir,
-                             const std::vector<size_t>& points) {
+                             const std::vector<size_t>& tasks) {
     const fs::path dir = fs::absolute(out_dir);
     fs::create_directories(dir / "slurm");
     std::string array;
-    for (size_t i : points) array += (array.empty() ? "" : ",") + std::to_string(i);
+    for (size_t i : tasks) array += (array.empty() ? "" : ",") + std::to_string(i);
     if (opt.max_parallel > 0) array += "%" + std::to_string(opt.max_parallel);
     std::string script = fmt::format(
         "#!/bin/sh\n"
-        "# rtsim sweep {} through Slurm: one array task per point, each running it as the local\n"
-        "# sweep does (its folder under {}). Written by rtsim sweep --slurm; resubmit by hand\n"
-        "# with sbatch, or with rtsim sweep --slurm --resume for only what is missing.\n"
+        "# rtsim sweep {} through Slurm: array task K runs points K*{} to K*{}+{}, each as the\n"
+        "# local sweep does (its folder under {}). Written by rtsim sweep --slurm; resubmit by\n"
+        "# hand with sbatch, or with rtsim sweep --slurm --resume for only what is missing.\n"
         "#SBATCH --job-name=rtsim-sweep\n#SBATCH --array={}\n#SBATCH "
         "--output={}/slurm/task-%a.out\n"
         "#SBATCH --cpus-per-task=1\n",
-        opt.path, dir.string(), array, dir.string());
+        opt.path, opt.points_per_task, opt.points_per_task, opt.points_per_task - 1, dir.string(),
+        array, dir.string());
     if (!opt.partition.empty()) script += "#SBATCH --partition=" + opt.partition + "\n";
     if (!opt.time_limit.empty()) script += "#SBATCH --time=" + opt.time_limit + "\n";
     if (!opt.mem.empty()) script += "#SBATCH --mem=" + opt.mem + "\n";
-    script +=
-        fmt::format("exec {} sweep {} --out {} --point \"$SLURM_ARRAY_TASK_ID\"\n",
-                    shell_quoted(fs::canonical("/proc/self/exe").string()),
-                    shell_quoted(fs::absolute(opt.path).string()), shell_quoted(dir.string()));
+    script += fmt::format(
+        "exec {} sweep {} --out {} --points-per-task {} --task \"$SLURM_ARRAY_TASK_ID\"\n",
+        shell_quoted(fs::canonical("/proc/self/exe").string()),
+        shell_quoted(fs::absolute(opt.path).string()), shell_quoted(dir.string()),
+        opt.points_per_task);
     const std::string path = (dir / "slurm" / "sweep.sbatch").string();
     write_file_atomically(path, script);
     return path;
@@ -512,13 +524,17 @@ int collect(const SweepOptions& opt, const SweepPlan& plan, const std::string& o
 }
 
 int submit(const SweepOptions& opt, const SweepPlan& plan, const std::string& out_dir) {
-    std::vector<size_t> points;
+    // The tasks holding the points to run (all, or with --resume those not finished).
+    const size_t per = size_t(opt.points_per_task);
+    std::vector<size_t> points, tasks;
     if (opt.resume)
         for (const auto& [i, why] : unfinished_points(plan, out_dir)) points.push_back(i);
     else
         for (size_t i = 0; i < plan.points.size(); ++i) points.push_back(i);
     if (points.empty()) return collect(opt, plan, out_dir);
-    const std::string script = write_job_script(opt, out_dir, points);
+    for (size_t i : points)
+        if (tasks.empty() || tasks.back() != i / per) tasks.push_back(i / per);
+    const std::string script = write_job_script(opt, out_dir, tasks);
     std::string out;
     const int st = capture(
         fmt::format("sbatch --parsable{} {} 2>&1", opt.wait ? " --wait" : "", shell_quoted(script)),
@@ -544,15 +560,21 @@ int submit(const SweepOptions& opt, const SweepPlan& plan, const std::string& ou
 
 int sweep_command(const SweepOptions& opt) {
     if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
-    if ((opt.collect || opt.point >= 0) && opt.out_dir.empty())
+    if ((opt.collect || opt.task >= 0) && opt.out_dir.empty())
         throw InputError(fmt::format("{}: needs --out, the sweep's folder",
-                                     opt.collect ? "--collect" : "--point"));
+                                     opt.collect ? "--collect" : "--task"));
+    if (opt.points_per_task < 1)
+        throw InputError(
+            fmt::format("--points-per-task: expected 1 or more, got {}", opt.points_per_task));
     if (opt.max_parallel < 0)
         throw InputError(
             fmt::format("--max-parallel: expected 0 or more, got {}", opt.max_parallel));
-    if (!opt.slurm && (opt.wait || !opt.partition.empty() || !opt.time_limit.empty() ||
-                       !opt.mem.empty() || opt.max_parallel > 0))
-        throw InputError("--wait, --partition, --time, --mem and --max-parallel need --slurm");
+    if (!opt.slurm &&
+        (opt.wait || !opt.partition.empty() || !opt.time_limit.empty() || !opt.mem.empty() ||
+         opt.max_parallel > 0 || (opt.points_per_task != 1 && opt.task < 0)))
+        throw InputError(
+            "--wait, --partition, --time, --mem, --max-parallel and --points-per-task need "
+            "--slurm");
     if (opt.resume && opt.out_dir.empty())
         throw InputError("--resume: needs --out, the folder of the sweep to finish");
     if (opt.resume && !fs::is_directory(opt.out_dir))
@@ -565,7 +587,7 @@ int sweep_command(const SweepOptions& opt) {
     fs::create_directories(out_dir, ec);
     if (ec)
         throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
-    if (opt.point >= 0) return run_one_point(plan, out_dir, opt.point);
+    if (opt.task >= 0) return run_task(plan, out_dir, opt.task, opt.points_per_task);
     if (opt.collect) return collect(opt, plan, out_dir);
     if (opt.slurm) return submit(opt, plan, out_dir);
     const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume, opt.quiet);

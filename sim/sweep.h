@@ -32,12 +32,13 @@ struct SweepOptions {
     bool quiet = false;  // no progress line (it is shown on a terminal only anyway)
     // Through Slurm: one job array, a task per point (sbatch); the job script is written to
     // out_dir/slurm/. `wait`: until the job ends, then collect. `collect`: the table from the
-    // points' folders, naming every point that did not finish. `point`: run that point only
+    // points' folders, naming every point that did not finish. `task`: run that task's points
     // (what each array task runs). With `resume`, only missing or failed points are submitted.
     bool slurm = false, wait = false, collect = false;
     std::string partition, time_limit, mem;
-    int max_parallel = 0;  // tasks at once (the array's %K); 0: Slurm's choice
-    int point = -1;
+    int max_parallel = 0;     // tasks at once (the array's %K); 0: Slurm's choice
+    int points_per_task = 1;  // points one task runs in turn (several for short runs)
+    int task = -1;            // run task `task`'s points (what each array task runs)
     // Two figure names (as the table names them) to draw the Pareto front of; overrides the
     // file's "pareto".
     std::vector<std::string> pareto;

@@ -75,6 +75,15 @@ TEST(Slurm, ASweepThroughSlurmMatchesTheLocalOneAndResumesACancelledTask) {
     EXPECT_NE(script.find("#SBATCH --array=0,1,2,3%2"), std::string::npos) << script;
     EXPECT_TRUE(fs::exists(remote / "slurm" / "task-3.out"));
 
+    // Short runs, several points per task: 4 points in tasks of 3 are tasks 0 and 1.
+    const fs::path grouped = work_dir() / "sw_grouped";
+    r = run_rtsim(fmt::format("sweep -q '{}' --slurm --wait --points-per-task 3 -o '{}'",
+                              file.string(), grouped.string()));
+    ASSERT_EQ(r.status, 0) << r.out << r.err;
+    EXPECT_NE(slurp(grouped / "slurm" / "sweep.sbatch").find("#SBATCH --array=0,1\n"),
+              std::string::npos);
+    EXPECT_EQ(table_of(grouped), table_of(local));
+
     // One task at a time; task 2 cancelled while it waits: --collect names it and writes no
     // table; --resume submits that point alone and the table is complete.
     const fs::path cut = work_dir() / "sw_cancel";
