@@ -245,12 +245,18 @@ void line_chart(std::string& svg, const Comparison& c, const char* series, const
 
 std::string comparison_svg(const Comparison& c) {
     const double x0 = 110, bar_w = 520, bar_h = 22;
-    bool series = !c.runs.empty();
-    for (const auto& run : c.runs)
-        series = series && run.stats.contains("time_series") &&
-                 run.stats["time_series"].contains("l2_to_l1_gbps");
+    // Each chart when every run recorded its series.
+    auto all_have = [&](const char* name) {
+        bool all = !c.runs.empty();
+        for (const auto& run : c.runs)
+            all =
+                all && run.stats.contains("time_series") && run.stats["time_series"].contains(name);
+        return all;
+    };
+    const bool series = all_have("l2_to_l1_gbps") && all_have("dram_gbps");
+    const bool util = all_have("box_unit_utilization");
     const double bars_h = 60 + c.runs.size() * (bar_h + 8) + 56;  // a legend of up to 2 rows
-    const double height = bars_h + (series ? 2 * 200 + 30 : 0);
+    const double height = bars_h + (series ? 2 * 200 + 30 : 0) + (util ? 200 : 0);
     const std::vector<std::string> causes = stall_causes();
     std::string svg = fmt::format(
         "<svg xmlns='http://www.w3.org/2000/svg' width='680' height='{:.0f}' "
@@ -292,6 +298,9 @@ std::string comparison_svg(const Comparison& c) {
         line_chart(svg, c, "l2_to_l1_gbps", "L2 -> L1 GB/s per window", bars_h + 30);
         line_chart(svg, c, "dram_gbps", "DRAM GB/s per window", bars_h + 230);
     }
+    if (util)
+        line_chart(svg, c, "box_unit_utilization", "Box unit utilisation per window",
+                   bars_h + 30 + (series ? 400 : 0));
     svg += "</svg>\n";
     return svg;
 }

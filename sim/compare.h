@@ -48,7 +48,7 @@ std::string format_table(const std::vector<std::vector<std::string>>& rows, bool
 std::string format_comparison(const Comparison& c);
 nlohmann::json comparison_json(const Comparison& c);
 // An SVG drawing: each run's stall shares as a stacked bar; when every run recorded a time series
-// (sim.window_cycles), its L2->L1 and DRAM bandwidth per window as lines.
+// (sim.window_cycles), its L2->L1 and DRAM bandwidth and box-unit utilisation per window as lines.
 std::string comparison_svg(const Comparison& c);
 
 int compare_command(const CompareOptions& opt);

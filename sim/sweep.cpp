@@ -535,6 +535,9 @@ int submit(const SweepOptions& opt, const SweepPlan& plan, const std::string& ou
     for (size_t i : points)
         if (tasks.empty() || tasks.back() != i / per) tasks.push_back(i / per);
     const std::string script = write_job_script(opt, out_dir, tasks);
+    // For rtsim sweep --collect DIR: which sweep the folder holds.
+    write_file_atomically((fs::path(out_dir) / "slurm" / "sweep_file").string(),
+                          fs::absolute(opt.path).string() + "\n");
     std::string out;
     const int st = capture(
         fmt::format("sbatch --parsable{} {} 2>&1", opt.wait ? " --wait" : "", shell_quoted(script)),
@@ -558,7 +561,20 @@ int submit(const SweepOptions& opt, const SweepPlan& plan, const std::string& ou
 
 }  // namespace
 
-int sweep_command(const SweepOptions& opt) {
+int sweep_command(const SweepOptions& given) {
+    SweepOptions opt = given;
+    // rtsim sweep --collect DIR: the sweep file is the one submitted from DIR.
+    if (opt.collect && opt.out_dir.empty() && fs::is_directory(opt.path)) {
+        opt.out_dir = opt.path;
+        const fs::path note = fs::path(opt.path) / "slurm" / "sweep_file";
+        std::string file = first_line_of(note);
+        if (file.empty())
+            throw InputError(fmt::format(
+                "{}: no slurm/sweep_file (not submitted with --slurm); give the sweep file and "
+                "-o {}",
+                opt.path, opt.path));
+        opt.path = file;
+    }
     if (opt.jobs < 1) throw InputError(fmt::format("-j: expected 1 or more, got {}", opt.jobs));
     if ((opt.collect || opt.task >= 0) && opt.out_dir.empty())
         throw InputError(fmt::format("{}: needs --out, the sweep's folder",

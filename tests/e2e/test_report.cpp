@@ -61,7 +61,8 @@ std::string png_pixels(const std::string& png) {
 }  // namespace
 
 TEST(Report, OneRunShowsItsConfigFiguresStallsCachesAndEnergy) {
-    const fs::path run = run_to("rep_one", "--rays primary,ao --res 48x48");
+    const fs::path run =
+        run_to("rep_one", "--rays primary,ao --res 48x48 --set sim.window_cycles=500");
     const fs::path html_path = work_dir() / "one.html";
     const Result r =
         run_rtsim(fmt::format("report '{}' -o '{}'", run.string(), html_path.string()));
@@ -80,6 +81,9 @@ TEST(Report, OneRunShowsItsConfigFiguresStallsCachesAndEnergy) {
     EXPECT_NE(html.find("<td>l2</td>"), std::string::npos);
     EXPECT_NE(html.find("<td>box_unit</td>"), std::string::npos);  // an energy block
     EXPECT_NE(html.find("Ray-slot cycles by stall cause"), std::string::npos);
+    // Bandwidth and utilisation over time (the run kept a time series).
+    EXPECT_NE(html.find("DRAM GB/s per window"), std::string::npos);
+    EXPECT_NE(html.find("Box unit utilisation per window"), std::string::npos);
 }
 
 TEST(Report, AComparisonShowsRatiosDifferencesAndIntervals) {

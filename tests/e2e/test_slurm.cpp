@@ -99,7 +99,7 @@ TEST(Slurm, ASweepThroughSlurmMatchesTheLocalOneAndResumesACancelledTask) {
         "done; exit 1",
         job);
     ASSERT_EQ(std::system(wait_cmd.c_str()), 0) << "the job did not end";
-    r = run_rtsim(fmt::format("sweep '{}' --collect -o '{}'", file.string(), cut.string()));
+    r = run_rtsim(fmt::format("sweep --collect '{}'", cut.string()));  // the folder alone
     EXPECT_EQ(r.status, 1);
     EXPECT_NE(r.err.find("1 of 4 points did not finish"), std::string::npos) << r.err;
     EXPECT_NE(r.err.find("002_"), std::string::npos) << r.err;

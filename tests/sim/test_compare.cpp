@@ -136,4 +136,9 @@ TEST(Compare, DrawsStallSharesAndBandwidthOverTime) {
                                {"dram_gbps", {0.5, 0.25, 0.0}}};
     const std::string lines = comparison_svg(compare_runs({{"A", "a", a}, {"B", "b", b}}));
     EXPECT_EQ(count_of(lines, "<polyline"), 4u);  // two charts, a line per run
+    // With the box units' utilisation per window too: a third chart.
+    for (json* s : {&a, &b}) (*s)["time_series"]["box_unit_utilization"] = {0.5, 0.75, 0.25};
+    const std::string util = comparison_svg(compare_runs({{"A", "a", a}, {"B", "b", b}}));
+    EXPECT_EQ(count_of(util, "<polyline"), 6u);
+    EXPECT_NE(util.find("Box unit utilisation per window"), std::string::npos);
 }
