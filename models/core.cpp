@@ -262,12 +262,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
         if (s.pos == s.work.steps.size()) {  // its hit records are due (then it leaves)
             if (beyond(t)) return t;
             if (const uint32_t bytes = hit_record_size(s.work)) {
-                const Cycle free = write_buffer_free_at(t);
-                if (free > t) {  // every entry busy: try again when one frees
-                    stall_cycles[kWriteBuffer] += free - t;
-                    set_ready(i, free);
-                    continue;
-                }
+                if (wait_for_write_entry(i, t)) continue;
                 count_hit_records(bytes);
                 post_write(hit_record_address(s.work.ray_id), bytes, t);
             }
@@ -294,31 +289,21 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             // fetches the popped entry's node). Both reach the shared levels.
             ShortStack after = s.stack;
             const StackTraffic traffic = after.before(st);
-            if (traffic.any()) {
-                if (beyond(t)) return t;
-                if (traffic.spill_entries) {
-                    const Cycle free = write_buffer_free_at(t);
-                    if (free > t) {  // every entry busy: the step waits for one
-                        stall_cycles[kWriteBuffer] += free - t;
-                        set_ready(i, free);
-                        continue;
-                    }
-                    post_write(stack_address(i, traffic.spill_from), count_stack_spill(traffic), t);
-                }
-                s.stack = after;
-                s.stack_pos = s.pos;
-                if (traffic.refill_entries) {
-                    count_stack_refill(traffic);
-                    const Cycle back =
-                        local_->access(stack_address(i, traffic.refill_from),
-                                       traffic.refill_entries * params_.stack_entry_bytes, t);
-                    stall_cycles[kStack] += back - t;
-                    set_ready(i, back);
-                    continue;
-                }
-            } else {
-                s.stack = after;
-                s.stack_pos = s.pos;
+            if (traffic.any() && beyond(t)) return t;
+            if (traffic.spill_entries) {
+                if (wait_for_write_entry(i, t)) continue;  // the step waits, its stack unchanged
+                post_write(stack_address(i, traffic.spill_from), count_stack_spill(traffic), t);
+            }
+            s.stack = after;
+            s.stack_pos = s.pos;
+            if (traffic.refill_entries) {
+                count_stack_refill(traffic);
+                const Cycle back =
+                    local_->access(stack_address(i, traffic.refill_from),
+                                   traffic.refill_entries * params_.stack_entry_bytes, t);
+                stall_cycles[kStack] += back - t;
+                set_ready(i, back);
+                continue;
             }
         }
         // Nodes and triangles interleave unpredictably: what differs is looked up by kind.

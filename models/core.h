@@ -312,6 +312,15 @@ class Core : public sc_core::sc_module {
         if (write_buffer_.empty()) return t;
         return std::max(t, *std::min_element(write_buffer_.begin(), write_buffer_.end()));
     }
+    // Whether slot `slot`'s write at t finds every entry busy: then the slot is charged the wait
+    // and tries again when the first entry frees.
+    bool wait_for_write_entry(size_t slot, Cycle t) {
+        const Cycle free = write_buffer_free_at(t);
+        if (free <= t) return false;
+        stall_cycles[kWriteBuffer] += free - t;
+        set_ready(slot, free);
+        return true;
+    }
     // Posts a write at t, which has found an entry free (write_buffer_free_at(t) == t).
     void post_write(uint64_t addr, uint32_t bytes, Cycle t) {
         const Cycle accepted = local_->write(addr, bytes, t);
