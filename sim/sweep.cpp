@@ -22,6 +22,7 @@
 #include "sim/interrupt.h"
 #include "sim/progress.h"
 #include "sim/run.h"
+#include "sim/shell.h"
 #include "sim/sweep_plot.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
@@ -416,12 +417,6 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
 }  // namespace
 
 namespace {
-
-std::string shell_quoted(const std::string& s) {
-    std::string q = "'";
-    for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-    return q + "'";
-}
 
 // The points of `plan` that have no finished run in out_dir, and why (the first line of the
 // run's stderr, or that it never ran).

@@ -9,6 +9,7 @@
 #include <map>
 
 #include "sim/figures.h"
+#include "sim/shell.h"
 #include "sim/svg.h"
 #include "workloads/output_file.h"
 
@@ -319,11 +320,6 @@ std::vector<std::string> write_sweep_plots(const std::string& out_dir, const Swe
     const bool rsvg = std::system("command -v rsvg-convert >/dev/null 2>&1") == 0;
     if (!rsvg) png_note = "no PNGs: rsvg-convert (Debian's librsvg2-bin) is not installed";
     std::vector<std::string> written;
-    auto quoted = [](const std::string& s) {
-        std::string q = "'";
-        for (char ch : s) q += ch == '\'' ? std::string("'\\''") : std::string(1, ch);
-        return q + "'";
-    };
     for (const auto& [stem, content] : svgs) {
         if (content.empty()) continue;
         const std::string svg_path = (dir / (stem + ".svg")).string();
@@ -332,8 +328,8 @@ std::vector<std::string> write_sweep_plots(const std::string& out_dir, const Swe
         if (!rsvg) continue;
         const std::string png_path = (dir / (stem + ".png")).string();
         const std::string tmp = png_path + ".tmp";
-        const std::string cmd =
-            "rsvg-convert -b white -o " + quoted(tmp) + " " + quoted(svg_path) + " 2>/dev/null";
+        const std::string cmd = "rsvg-convert -b white -o " + shell_quoted(tmp) + " " +
+                                shell_quoted(svg_path) + " 2>/dev/null";
         if (std::system(cmd.c_str()) == 0) {
             fs::rename(tmp, png_path);
             written.push_back(png_path);
