@@ -234,13 +234,7 @@ std::string runs_report_html(const std::vector<std::string>& paths,
 
 std::string sweep_report_html(const std::string& dir) {
     const fs::path results = fs::path(dir) / "results.json";
-    json r;
-    try {
-        r = json::parse(slurp(results));
-    } catch (const json::exception& e) {
-        throw InputError(
-            fmt::format("{}: not a sweep's results.json ({})", results.string(), e.what()));
-    }
+    const json r = read_json_file(results.string(), "a sweep's results.json");
     if (!r.is_object() || !r.contains("points") || !r["points"].is_array() || !r.contains("keys"))
         throw InputError(
             fmt::format("{}: not a sweep's results.json (no keys and points)", results.string()));
