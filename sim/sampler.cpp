@@ -50,21 +50,24 @@ void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
 bool Sampler::fast_forward(const RayWork& work) {
     current_ = index_;
     index_ += work.rays;
-    current_work_ = work.steps.size() + work.rays;
-    work_total_ += current_work_;
-    current_new_ = 0;
-    if (!touched_.empty())
-        for (const Step& s : work.steps) {
+    Aux& a = current_aux_;
+    a.fill(0);
+    a[kWork] = work.steps.size() + work.rays;
+    a[kRays] = work.rays;
+    for (const Step& s : work.steps) {
+        a[kNodeSteps] += s.kind == StepKind::Node;
+        if (!touched_.empty()) {
             const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_;
             for (uint64_t line = s.addr >> line_shift_; line <= last; ++line) {
                 const uint64_t k = line - first_line_;
                 if (line < first_line_ || k / 64 >= touched_.size()) continue;
                 const uint64_t bit = uint64_t(1) << (k % 64);
-                current_new_ += (touched_[k / 64] & bit) == 0;
+                a[kNewLines] += (touched_[k / 64] & bit) == 0;
                 touched_[k / 64] |= bit;
             }
         }
-    new_total_ += current_new_;
+    }
+    for (size_t k = 0; k < kAuxiliaries; ++k) total_aux_[k] += a[k];
     if (detailed_ray(current_)) {
         detailed_ += work.rays;
         return false;
@@ -103,7 +106,7 @@ void Sampler::handed_out(Cycle now) {
     const uint64_t unit = current_ / params_.unit_rays;
     const bool first_of_unit = current_ % params_.unit_rays == 0;
     // The ray after the measured unit closes it.
-    if (open_ && (unit != open_unit_)) close_unit(unit_work_, unit_new_, now);
+    if (open_ && (unit != open_unit_)) close_unit(unit_aux_, now);
     if (first_of_unit && measured_unit(unit)) {
         open_ = true;
         open_unit_ = unit;
@@ -111,13 +114,10 @@ void Sampler::handed_out(Cycle now) {
         const auto& e = counters_.entries();
         open_counts_.resize(e.size());
         for (size_t c = 0; c < e.size(); ++c) open_counts_[c] = *e[c].value;
-        unit_work_ = 0;
-        unit_new_ = 0;
+        unit_aux_.fill(0);
     }
-    if (open_) {
-        unit_work_ += current_work_;
-        unit_new_ += current_new_;
-    }
+    if (open_)
+        for (size_t k = 0; k < kAuxiliaries; ++k) unit_aux_[k] += current_aux_[k];
 }
 
 void Sampler::finish() {
@@ -125,14 +125,16 @@ void Sampler::finish() {
     // The frame ended inside a measured unit: it counts up to its last ray's hand-out (the
     // rays before that one; the drain after it is added separately).
     const uint64_t start = open_unit_ * params_.unit_rays;
-    if (index_ > start + 1)
-        close_unit(unit_work_ - current_work_, unit_new_ - current_new_, last_handout_);
+    if (index_ > start + 1) {
+        Aux before_last = unit_aux_;
+        for (size_t k = 0; k < kAuxiliaries; ++k) before_last[k] -= current_aux_[k];
+        close_unit(before_last, last_handout_);
+    }
     open_ = false;
 }
 
-void Sampler::close_unit(uint64_t work, uint64_t fresh, Cycle end) {
-    work_.push_back(double(work));
-    new_.push_back(double(fresh));
+void Sampler::close_unit(const Aux& aux, Cycle end) {
+    for (size_t k = 0; k < kAuxiliaries; ++k) aux_[k].push_back(double(aux[k]));
     // Signed: cores take work within a horizon of each other, so hand-out cycles are not
     // strictly in order (differences telescope over the frame).
     cycles_.push_back(double(end) - double(open_cycle_));
@@ -163,7 +165,7 @@ json Sampler::report(Cycle end_cycle) {
                 {"first_unit", params_.stratified ? pick(0) : first_unit_},
                 {"units", units},
                 {"units_measured", cycles_.size()},
-                {"work", work_total_},
+                {"work", total_aux_[kWork]},
                 {"rays", index_},
                 {"rays_detailed", detailed_},
                 {"detailed_share", index_ ? double(detailed_) / double(index_) : 0.0},
@@ -177,13 +179,12 @@ json Sampler::report(Cycle end_cycle) {
     }
     // The work the hand-out times span: all but the last ray's (whose hand-out ends the span;
     // the drain after it is measured).
-    const double work = double(work_total_ - current_work_);
-    const double fresh = double(new_total_ - current_new_);
-    out["new_lines"] = new_total_;
-    // Totals by regression on both auxiliaries (the ratio to work when no lines are counted).
-    auto total = [&](const std::vector<double>& y) {
-        return regression_total(y, work_, new_, work, fresh, units);
-    };
+    std::vector<Auxiliary> aux(kAuxiliaries);
+    for (size_t k = 0; k < kAuxiliaries; ++k)
+        aux[k] = {aux_[k], double(total_aux_[k] - current_aux_[k])};
+    out["new_lines"] = total_aux_[kNewLines];
+    // Totals by regression on the auxiliaries (sim/sampling.h says which it fits).
+    auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
     out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
     json counters = json::object();
     const auto& e = counters_.entries();

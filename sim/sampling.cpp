@@ -140,58 +140,88 @@ Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>&
     return e;
 }
 
-Estimate regression_total(const std::vector<double>& y, const std::vector<double>& x1,
-                          const std::vector<double>& x2, double total_x1, double total_x2,
+Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence) {
-    if (y.size() != x1.size() || y.size() != x2.size())
-        throw std::invalid_argument("regression_total: y, x1 and x2 differ in size");
+    if (aux.empty()) throw std::invalid_argument("regression_total: no auxiliary");
+    for (const Auxiliary& a : aux)
+        if (a.x.size() != y.size())
+            throw std::invalid_argument("regression_total: y and an auxiliary differ in size");
     Estimate e;
     e.confidence = confidence;
     e.units = y.size();
     e.population = population;
-    // Weighted least squares with the residual variance proportional to x1, the ratio
-    // estimator's model (with x2 = 0 the fit is sum(y) / sum(x1)).
-    double s11 = 0, s12 = 0, s22 = 0, s1y = 0, s2y = 0;
-    for (size_t i = 0; i < y.size(); ++i) {
-        const double w = x1[i] > 0 ? 1.0 / x1[i] : 1.0;
-        s11 += w * x1[i] * x1[i];
-        s12 += w * x1[i] * x2[i];
-        s22 += w * x2[i] * x2[i];
-        s1y += w * x1[i] * y[i];
-        s2y += w * x2[i] * y[i];
+    const size_t n_units = y.size(), k_all = aux.size();
+    // Weighted normal equations over every auxiliary, the weight 1 / x_0 (the ratio
+    // estimator's variance model: with one auxiliary the fit is sum(y) / sum(x_0)).
+    std::vector<double> m(k_all * k_all, 0.0), v(k_all, 0.0);
+    for (size_t i = 0; i < n_units; ++i) {
+        const double w = aux[0].x[i] > 0 ? 1.0 / aux[0].x[i] : 1.0;
+        for (size_t j = 0; j < k_all; ++j) {
+            v[j] += w * aux[j].x[i] * y[i];
+            for (size_t k = 0; k <= j; ++k) m[j * k_all + k] += w * aux[j].x[i] * aux[k].x[i];
+        }
     }
-    // Two regressors when they are not (nearly) collinear and enough units measured; else one.
-    const double det = s11 * s22 - s12 * s12;
-    double b1 = 0, b2 = 0;
-    int params = 0;
-    // Below 10 units the second auxiliary is left out: its fit has too few degrees of freedom.
-    // (Intervals from fewer than about 30 units under-cover either way: bench_sampled.py.)
-    if (y.size() >= kMinRegressionUnits && s22 > 0 && det > 1e-9 * s11 * s22) {
-        b1 = (s1y * s22 - s2y * s12) / det;
-        b2 = (s2y * s11 - s1y * s12) / det;
-        params = 2;
-    } else if (s11 > 0) {
-        b1 = s1y / s11;
-        params = 1;
-    } else {
+    // Cholesky factor of the fitted auxiliaries' block, grown one auxiliary at a time: one whose
+    // remaining pivot is (nearly) zero adds nothing the others do not, and is left out.
+    std::vector<size_t> fitted;
+    std::vector<double> l;  // row-major, fitted.size() squared
+    for (size_t j = 0; j < k_all; ++j) {
+        const double diag = m[j * k_all + j];
+        if (j > 0 && (n_units < kMinRegressionUnits * j || diag <= 0)) continue;
+        const size_t p = fitted.size();
+        std::vector<double> row(p + 1, 0.0);
+        for (size_t a = 0; a < p; ++a) {
+            const size_t ka = fitted[a];
+            double s = j > ka ? m[j * k_all + ka] : m[ka * k_all + j];
+            for (size_t b = 0; b < a; ++b) s -= row[b] * l[a * p + b];
+            row[a] = s / l[a * p + a];
+        }
+        double pivot = diag;
+        for (size_t a = 0; a < p; ++a) pivot -= row[a] * row[a];
+        if (!(pivot > 1e-9 * diag)) {
+            if (j == 0) break;
+            continue;
+        }
+        row[p] = std::sqrt(pivot);
+        std::vector<double> grown((p + 1) * (p + 1), 0.0);
+        for (size_t a = 0; a < p; ++a)
+            for (size_t b = 0; b <= a; ++b) grown[a * (p + 1) + b] = l[a * p + b];
+        for (size_t b = 0; b <= p; ++b) grown[p * (p + 1) + b] = row[b];
+        l = std::move(grown);
+        fitted.push_back(j);
+    }
+    if (fitted.empty() || fitted[0] != 0) {  // the first auxiliary is zero in every unit
         e.half_width = std::numeric_limits<double>::infinity();
         return e;
     }
-    e.value = b1 * total_x1 + b2 * total_x2;
-    const double n = double(y.size());
-    if (y.size() <= size_t(params)) {
-        e.half_width = y.size() == population ? 0.0 : std::numeric_limits<double>::infinity();
+    // Solve L L^T b = v over the fitted auxiliaries.
+    const size_t p = fitted.size();
+    std::vector<double> b(p);
+    for (size_t a = 0; a < p; ++a) {
+        double s = v[fitted[a]];
+        for (size_t c = 0; c < a; ++c) s -= l[a * p + c] * b[c];
+        b[a] = s / l[a * p + a];
+    }
+    for (size_t a = p; a-- > 0;) {
+        double s = b[a];
+        for (size_t c = a + 1; c < p; ++c) s -= l[c * p + a] * b[c];
+        b[a] = s / l[a * p + a];
+    }
+    for (size_t a = 0; a < p; ++a) e.value += b[a] * aux[fitted[a]].total;
+    if (n_units <= p) {
+        e.half_width = n_units == population ? 0.0 : std::numeric_limits<double>::infinity();
         return e;
     }
     double ss = 0;
-    for (size_t i = 0; i < y.size(); ++i) {
-        const double r = y[i] - b1 * x1[i] - b2 * x2[i];
+    for (size_t i = 0; i < n_units; ++i) {
+        double r = y[i];
+        for (size_t a = 0; a < p; ++a) r -= b[a] * aux[fitted[a]].x[i];
         ss += r * r;
     }
-    const double N = double(population);
+    const double n = double(n_units), N = double(population);
     const double fpc = N > 0 ? std::max(0.0, 1.0 - n / N) : 1.0;
-    const double variance = N * N * fpc * ss / (n - params) / n;
-    e.half_width = student_t_quantile(0.5 + confidence / 2.0, n - params) * std::sqrt(variance);
+    const double variance = N * N * fpc * ss / (n - double(p)) / n;
+    e.half_width = student_t_quantile(0.5 + confidence / 2.0, n - double(p)) * std::sqrt(variance);
     return e;
 }
 

@@ -43,15 +43,23 @@ Estimate mean_estimate(const std::vector<double>& x, uint64_t population, double
 Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>& x,
                         uint64_t population, double confidence = 0.95);
 
-// The population total of y from n of N units by regression through the origin on two auxiliary
-// figures whose population totals X1, X2 are known (Cochran 1977, ch. 7; Sarndal et al. 1992,
-// the GREG estimator): y ~ b1 x1 + b2 x2 fitted on the measured units by least squares weighted
-// for a residual variance proportional to x1 (the ratio estimator's model), total =
-// b1 X1 + b2 X2, its variance N^2 (1 - n/N) s_e^2 / n from the residuals, t with n - 2 degrees of
-// freedom. With x2 zero everywhere, or fewer than 10 units, it is the ratio estimator's total
-// on x1. `value` is the total.
-Estimate regression_total(const std::vector<double>& y, const std::vector<double>& x1,
-                          const std::vector<double>& x2, double total_x1, double total_x2,
+// An auxiliary figure of a sample: its value in each measured unit and its population total
+// (known for every unit, as a unit's rays and steps are known before timing).
+struct Auxiliary {
+    std::vector<double> x;
+    double total = 0;
+};
+
+// The population total of y from n of N units by regression through the origin on auxiliary
+// figures whose population totals are known (Cochran 1977, ch. 7; Sarndal et al. 1992, the GREG
+// estimator): y ~ sum_k b_k x_k fitted on the measured units by least squares weighted for a
+// residual variance proportional to the first auxiliary (the ratio estimator's model), total =
+// sum_k b_k X_k, its variance N^2 (1 - n/N) s_e^2 / n from the residuals, t with n - p degrees of
+// freedom for p auxiliaries fitted. The first auxiliary is always fitted; auxiliary k (k >= 1)
+// only with at least 10 k measured units (fewer leave too few degrees of freedom per
+// coefficient), and not when it is zero in every unit or (nearly) a combination of those
+// before it. With one auxiliary it is the ratio estimator's total. `value` is the total.
+Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence = 0.95);
 
 // A stratum of a stratified sample: its measured units' pairs and how many units it has.
