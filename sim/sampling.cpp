@@ -1,14 +1,46 @@
 #include "sim/sampling.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 namespace rtsim {
 
 namespace {
 
 constexpr size_t kMinRegressionUnits = 10;
+
+// Solves the p x p system m x = v (row-major m) by Gaussian elimination with partial pivoting;
+// false when it is (nearly) singular. Regression fits have p of 4 or fewer.
+bool solve_small(std::vector<double> m, std::vector<double> v, std::vector<double>& x) {
+    const size_t p = v.size();
+    double scale = 0;
+    for (double a : m) scale = std::max(scale, std::fabs(a));
+    for (size_t c = 0; c < p; ++c) {
+        size_t best = c;
+        for (size_t r = c + 1; r < p; ++r)
+            if (std::fabs(m[r * p + c]) > std::fabs(m[best * p + c])) best = r;
+        if (!(std::fabs(m[best * p + c]) > 1e-12 * scale)) return false;
+        if (best != c) {
+            for (size_t k = 0; k < p; ++k) std::swap(m[c * p + k], m[best * p + k]);
+            std::swap(v[c], v[best]);
+        }
+        for (size_t r = c + 1; r < p; ++r) {
+            const double f = m[r * p + c] / m[c * p + c];
+            for (size_t k = c; k < p; ++k) m[r * p + k] -= f * m[c * p + k];
+            v[r] -= f * v[c];
+        }
+    }
+    x.assign(p, 0.0);
+    for (size_t c = p; c-- > 0;) {
+        double s = v[c];
+        for (size_t k = c + 1; k < p; ++k) s -= m[c * p + k] * x[k];
+        x[c] = s / m[c * p + c];
+    }
+    return true;
+}
 
 // Continued fraction for the regularised incomplete beta I_x(a, b) (modified Lentz), valid and
 // quickly convergent for x < (a + 1) / (a + b + 2).
@@ -194,33 +226,67 @@ Estimate regression_total(const std::vector<double>& y, const std::vector<Auxili
         e.half_width = std::numeric_limits<double>::infinity();
         return e;
     }
-    // Solve L L^T b = v over the fitted auxiliaries.
+    // The fitted auxiliaries' normal equations, and their solution.
     const size_t p = fitted.size();
-    std::vector<double> b(p);
+    std::vector<double> mf(p * p), vf(p);
     for (size_t a = 0; a < p; ++a) {
-        double s = v[fitted[a]];
-        for (size_t c = 0; c < a; ++c) s -= l[a * p + c] * b[c];
-        b[a] = s / l[a * p + a];
+        vf[a] = v[fitted[a]];
+        for (size_t c = 0; c < p; ++c) {
+            const size_t ka = fitted[a], kc = fitted[c];
+            mf[a * p + c] = ka >= kc ? m[ka * k_all + kc] : m[kc * k_all + ka];
+        }
     }
-    for (size_t a = p; a-- > 0;) {
-        double s = b[a];
-        for (size_t c = a + 1; c < p; ++c) s -= l[c * p + a] * b[c];
-        b[a] = s / l[a * p + a];
-    }
-    for (size_t a = 0; a < p; ++a) e.value += b[a] * aux[fitted[a]].total;
+    std::vector<double> coef;
+    solve_small(mf, vf, coef);
+    auto total_of = [&](const std::vector<double>& c) {
+        double t = 0;
+        for (size_t a = 0; a < p; ++a) t += c[a] * aux[fitted[a]].total;
+        return t;
+    };
+    e.value = total_of(coef);
     if (n_units <= p) {
         e.half_width = n_units == population ? 0.0 : std::numeric_limits<double>::infinity();
         return e;
     }
-    double ss = 0;
-    for (size_t i = 0; i < n_units; ++i) {
-        double r = y[i];
-        for (size_t a = 0; a < p; ++a) r -= b[a] * aux[fitted[a]].x[i];
-        ss += r * r;
+    // The variance by the delete-one jackknife of the total (Sarndal et al. 1992, 11.5): each
+    // unit left out in turn, the fit redone. The residuals' formula, N^2 (1 - n/N) s_e^2 / n,
+    // reads a unit of high leverage (one of a few heavy units) through its small fitted residual
+    // and was too narrow: on a 1080p camel frame of primary rays, 1 unit in 10, its 95% intervals
+    // held the full run's cycles in 80% of 200 samples, the jackknife's in 92% (bunny: 92% and
+    // 94%).
+    std::vector<double> replicate(n_units), mi(p * p), vi(p), ci;
+    double mean = 0;
+    bool singular = false;
+    for (size_t i = 0; i < n_units && !singular; ++i) {
+        const double w = aux[0].x[i] > 0 ? 1.0 / aux[0].x[i] : 1.0;
+        for (size_t a = 0; a < p; ++a) {
+            const double xa = aux[fitted[a]].x[i];
+            vi[a] = vf[a] - w * xa * y[i];
+            for (size_t c = 0; c < p; ++c)
+                mi[a * p + c] = mf[a * p + c] - w * xa * aux[fitted[c]].x[i];
+        }
+        singular = !solve_small(mi, vi, ci);
+        replicate[i] = singular ? 0.0 : total_of(ci);
+        mean += replicate[i];
     }
     const double n = double(n_units), N = double(population);
     const double fpc = N > 0 ? std::max(0.0, 1.0 - n / N) : 1.0;
-    const double variance = N * N * fpc * ss / (n - double(p)) / n;
+    double variance = 0;
+    if (!singular) {
+        mean /= n;
+        for (double t : replicate) variance += (t - mean) * (t - mean);
+        variance *= fpc * (n - 1.0) / n;
+    } else {
+        // A unit the fit cannot do without (the only one where an auxiliary moves): the
+        // residuals' formula.
+        double ss = 0;
+        for (size_t i = 0; i < n_units; ++i) {
+            double r = y[i];
+            for (size_t a = 0; a < p; ++a) r -= coef[a] * aux[fitted[a]].x[i];
+            ss += r * r;
+        }
+        variance = N * N * fpc * ss / (n - double(p)) / n;
+    }
     e.half_width = student_t_quantile(0.5 + confidence / 2.0, n - double(p)) * std::sqrt(variance);
     return e;
 }

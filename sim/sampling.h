@@ -54,11 +54,13 @@ struct Auxiliary {
 // figures whose population totals are known (Cochran 1977, ch. 7; Sarndal et al. 1992, the GREG
 // estimator): y ~ sum_k b_k x_k fitted on the measured units by least squares weighted for a
 // residual variance proportional to the first auxiliary (the ratio estimator's model), total =
-// sum_k b_k X_k, its variance N^2 (1 - n/N) s_e^2 / n from the residuals, t with n - p degrees of
-// freedom for p auxiliaries fitted. The first auxiliary is always fitted; auxiliary k (k >= 1)
-// only with at least 10 k measured units (fewer leave too few degrees of freedom per
-// coefficient), and not when it is zero in every unit or (nearly) a combination of those
-// before it. With one auxiliary it is the ratio estimator's total. `value` is the total.
+// sum_k b_k X_k, its variance by the delete-one jackknife of that total with the finite-
+// population correction (1 - n/N) (the residuals' N^2 (1 - n/N) s_e^2 / n when leaving out a unit
+// leaves the fit singular), t with n - p degrees of freedom for p auxiliaries fitted. The first
+// auxiliary is always fitted; auxiliary k (k >= 1) only with at least 10 k measured units (fewer
+// leave too few degrees of freedom per coefficient), and not when it is zero in every unit or
+// (nearly) a combination of those before it. With one auxiliary it is the ratio estimator's total.
+// `value` is the total.
 Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence = 0.95);
 
