@@ -39,6 +39,12 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
                         "DRAMsim3 or Ramulator");
     rtsim::add_bvh_cache_option(run_cmd, run.bvh_cache);
     run_cmd
+        ->add_option("--tracer-threads", run.tracer_threads,
+                     "Threads that generate and trace the rays of a generated workload (default "
+                     "1). Every simulated figure is the same for any count; a sampled run, which "
+                     "traces every ray but times few, waits for them")
+        ->check(CLI::Range(1, 256));
+    run_cmd
         ->add_option("--target-error", run.target_error_pct,
                      "With sim.fidelity=sampled: the 95% interval wanted on the frame's cycles "
                      "and DRAM bytes, in percent; a pilot sample sizes the rest")

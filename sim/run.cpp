@@ -98,7 +98,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
               {"workload", workload_summary(rg, w.gen->ao_length())}};
     const bool packets = TraversalModeRegistry::at(cfg.typed.traversal.mode).packets;
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,
-                                                     packets ? cfg.typed.traversal.packet_size : 0);
+                                                     packets ? cfg.typed.traversal.packet_size : 0,
+                                                     opt.tracer_threads);
     return w;
 }
 

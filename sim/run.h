@@ -24,6 +24,7 @@ struct RunOptions {
     std::string bvh_cache;        // --bvh-cache: "off", a folder, or empty for the default
     double target_error_pct = 0;  // --target-error (sim.fidelity = sampled)
     bool quiet = false;
+    int tracer_threads = 1;      // --tracer-threads: threads generating and tracing rays
     std::string mem_trace_path;  // --mem-trace: write the requests that reach DRAM here
     // Also run the same rays with ideal memory and unlimited units (a child rtsim process) and
     // report achieved / bound. `argv` is this process's command line, to repeat it.

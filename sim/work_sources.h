@@ -7,6 +7,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <exception>
 #include <mutex>
 #include <string>
 #include <systemc>
@@ -22,6 +23,7 @@
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/packet.h"
+#include "workloads/parallel.h"
 #include "workloads/raygen.h"
 #include "workloads/trace_file.h"
 #include "workloads/tracer.h"
@@ -246,13 +248,22 @@ class PrefetchingSource : public CountingSource {
 };
 
 // Rays from the generator, traced a batch of tiles at a time: only about two batches of rays
-// hold step streams at any time.
+// hold step streams at any time. With `threads` > 1, tiles are generated and traced that many at
+// a time, on the helper thread and threads - 1 more (a sampled run traces every ray but times a
+// few: the functional side is what it waits for). The stream is the same for any thread count:
+// tiles are handed on in order, ray ids numbered through the frame as one thread would, and a
+// batch is whole tiles up to kBatchRays rays as before (packets never span batches).
 class GeneratedWorkSource : public PrefetchingSource {
   public:
     // packet_size > 0: runs of consecutive rays of one kind are traced as packets of up to
     // that many rays, each packet one work item.
-    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0)
-        : PrefetchingSource(progress, "tiles"), bvh_(bvh), gen_(gen), packet_size_(packet_size) {
+    GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0,
+                        int threads = 1)
+        : PrefetchingSource(progress, "tiles"),
+          bvh_(bvh),
+          gen_(gen),
+          packet_size_(packet_size),
+          threads_(std::max(1, threads)) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
@@ -262,25 +273,12 @@ class GeneratedWorkSource : public PrefetchingSource {
     void fill(Batch& b) override {
         b.records.clear();  // steps are moved in from the tracer: nothing to reuse
         constexpr size_t kBatchRays = 4096;
-        std::vector<GeneratedRay> rays;
+        std::vector<GeneratedRay> rays;  // packet mode: the batch's rays, traced below
         bool more = true;
-        while (rays.size() < kBatchRays && (more = gen_.next_tile(rays))) ++tiles_done_;
-        if (packet_size_ > 0) {
-            fill_packets(rays, b);
-        } else {
-            b.records.resize(rays.size());
-            for (size_t i = 0; i < rays.size(); ++i) {
-                TraceRecord& r = b.records[i];
-                r.ray_id = rays[i].id;
-                r.kind = rays[i].kind;
-                if (rays[i].traced) {  // the generator traced it already, for its hit
-                    r.steps = std::move(rays[i].steps);
-                    r.prim = rays[i].prim;
-                } else {
-                    r.prim = trace_ray(bvh_, rays[i].ray, rays[i].query, &r.steps).prim;
-                }
-            }
-        }
+        while ((packet_size_ > 0 ? rays.size() : b.records.size()) < kBatchRays &&
+               (more = take_tile(b.records, rays)))
+            ++tiles_done_;
+        if (packet_size_ > 0) fill_packets(rays, b);
         b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());
         b.last = !more;
     }
@@ -308,10 +306,74 @@ class GeneratedWorkSource : public PrefetchingSource {
         }
     }
 
+    // A generated tile: its rays, or (without packets) their traces. Ray ids count from 0 in
+    // the tile until it is handed on.
+    struct Tile {
+        std::vector<GeneratedRay> rays;
+        std::vector<TraceRecord> records;
+    };
+
+    // Hands on the next tile, its ray ids numbered on through the frame: its records to
+    // `records`, or (packets) its rays to `rays`. False when every tile is done.
+    bool take_tile(std::vector<TraceRecord>& records, std::vector<GeneratedRay>& rays) {
+        if (ready_pos_ == ready_.size() && !generate_tiles()) return false;
+        Tile& t = ready_[ready_pos_++];
+        for (TraceRecord& r : t.records) {
+            r.ray_id += next_id_;
+            records.push_back(std::move(r));
+        }
+        for (GeneratedRay& g : t.rays) {
+            g.id += next_id_;
+            rays.push_back(std::move(g));
+        }
+        next_id_ += uint32_t(t.records.size() + t.rays.size());
+        return true;
+    }
+
+    // The next tiles, threads_ x kTilesPerThread of them (fewer at the end), generated (and
+    // traced) on threads_ threads, a tile at a time to whichever is free.
+    bool generate_tiles() {
+        constexpr int kTilesPerThread = 8;  // a few ms of tracing between joins
+        const int first = next_tile_,
+                  count = std::min(threads_ * kTilesPerThread, gen_.tile_count() - next_tile_);
+        if (count <= 0) return false;
+        next_tile_ += count;
+        ready_.assign(size_t(count), Tile{});
+        ready_pos_ = 0;
+        parallel_blocks(size_t(count), 1, threads_, [&](size_t begin, size_t end) {
+            for (size_t k = begin; k < end; ++k) {
+                Tile& t = ready_[k];
+                gen_.generate_tile(first + int(k), t.rays);
+                if (packet_size_ > 0) continue;
+                t.records.resize(t.rays.size());
+                for (size_t i = 0; i < t.rays.size(); ++i) {
+                    TraceRecord& r = t.records[i];
+                    GeneratedRay& g = t.rays[i];
+                    r.ray_id = g.id;
+                    r.kind = g.kind;
+                    if (g.traced) {  // the generator traced it already, for its hit
+                        r.steps = std::move(g.steps);
+                        r.prim = g.prim;
+                    } else {
+                        r.prim = trace_ray(bvh_, g.ray, g.query, &r.steps).prim;
+                    }
+                }
+                t.rays.clear();
+            }
+        });
+        return true;
+    }
+
     const Bvh& bvh_;
     RayGenerator& gen_;
     int packet_size_;
-    int tiles_done_ = 0;  // touched by the helper thread only
+    int threads_;
+    // Touched by the helper thread only (and the tile threads it starts and joins).
+    int tiles_done_ = 0;
+    int next_tile_ = 0;        // the first tile not generated yet
+    uint32_t next_id_ = 0;     // the id of the next ray handed on
+    std::vector<Tile> ready_;  // generated, from ready_pos_ on not yet handed on
+    size_t ready_pos_ = 0;
 };
 
 // Rays replayed from a trace file, a chunk at a time.

@@ -231,8 +231,16 @@ bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
 
 bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
     if (next_tile_ >= tiles_x_ * tiles_y_) return false;
-    const int tx = next_tile_ % tiles_x_, ty = next_tile_ / tiles_x_;
-    ++next_tile_;
+    const size_t first = out.size();
+    generate_tile(next_tile_++, out);
+    for (size_t i = first; i < out.size(); ++i) out[i].id += next_id_;
+    next_id_ += uint32_t(out.size() - first);
+    return true;
+}
+
+uint32_t RayGenerator::generate_tile(int index, std::vector<GeneratedRay>& out) const {
+    const size_t first = out.size();
+    const int tx = index % tiles_x_, ty = index / tiles_x_;
     const int x0 = tx * opt_.tile_size, y0 = ty * opt_.tile_size;
     const int x1 = std::min(x0 + opt_.tile_size, opt_.width);
     const int y1 = std::min(y0 + opt_.tile_size, opt_.height);
@@ -241,7 +249,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
     auto emit = [&](const Ray& r, RayKind kind, HitQuery q) {
         GeneratedRay& g = out.emplace_back();
         g.ray = r;
-        g.id = next_id_++;
+        g.id = uint32_t(out.size() - 1 - first);
         g.kind = kind;
         g.query = q;
     };
@@ -324,7 +332,7 @@ bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
             current.swap(next);
         }
     }
-    return true;
+    return uint32_t(out.size() - first);
 }
 
 }  // namespace rtsim

@@ -83,6 +83,10 @@ class RayGenerator {
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
     // Appends the next tile's rays to out; false when every tile is done.
     bool next_tile(std::vector<GeneratedRay>& out);
+    // Appends tile `index`'s rays (0 <= index < tile_count()) to out, their ids numbered from 0
+    // within the tile (next_tile numbers them on through the frame); returns how many. Tiles are
+    // independent: several threads may generate tiles at once.
+    uint32_t generate_tile(int index, std::vector<GeneratedRay>& out) const;
     // Rays the generator traces to find hits keep their step streams (see GeneratedRay).
     void set_record_steps(bool record) { record_steps_ = record; }
     int tile_count() const { return tiles_x_ * tiles_y_; }

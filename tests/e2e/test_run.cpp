@@ -117,6 +117,25 @@ TEST(Run, SameInputsGiveIdenticalSimulatedStats) {
     EXPECT_NE(sa["total_cycles"], sc["total_cycles"]);
 }
 
+// Tiles generated and traced on several threads hand on the same stream: every simulated figure
+// is the one thread's, in a sampled run (which also reads each ray's steps and id for its
+// auxiliaries and hit records) and in packet mode (whose packets end at batch edges).
+TEST(Run, AnyTracerThreadCountGivesIdenticalStats) {
+    const std::string common = "run -q --rays primary,ao,diffuse --diffuse-depth 2 --res 96x64 ";
+    for (const std::string extra : {"--set sim.fidelity=sampled --set sim.sample_unit_rays=128 "
+                                    "--set core.hit_record_bytes=16",
+                                    "--set traversal.mode=packet"}) {
+        const fs::path a = work_dir() / "one", b = work_dir() / "three";
+        ASSERT_EQ(run_rtsim(common + extra + " -o '" + a.string() + "'").status, 0);
+        ASSERT_EQ(run_rtsim(common + extra + " --tracer-threads 3 -o '" + b.string() + "'").status,
+                  0);
+        EXPECT_EQ(without_host(stats_of(a)), without_host(stats_of(b))) << extra;
+        fs::remove_all(a);
+        fs::remove_all(b);
+    }
+    EXPECT_EQ(run_rtsim("run --tracer-threads 0").status, 2);
+}
+
 TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
     // Caches far smaller than the bunny's 5.5 MiB BVH: every L2 miss is one line from DRAM,
     // and every L1 miss is one L2 access.
