@@ -12,6 +12,7 @@
 #include "workloads/packet.h"
 #include "workloads/parallel.h"
 #include "workloads/ray_file.h"
+#include "workloads/tile_queue.h"
 #include "workloads/trace_file.h"
 #include "workloads/tracer.h"
 
@@ -106,7 +107,10 @@ class TraceJob {
           scene_(load_scene(opt.workload.scene)),
           bvh_(build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
           threads_(resolve_threads(opt.threads)) {
-        if (!reader_) gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
+        if (!reader_) {
+            gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
+            tiles_ = std::make_unique<TileQueue>(*gen_, threads_);  // tiles generated in parallel
+        }
         open_outputs();
     }
 
@@ -162,7 +166,7 @@ class TraceJob {
             return true;
         }
         generated_.clear();
-        while (generated_.size() < kBatchRays && gen_->next_tile(generated_)) {
+        while (generated_.size() < kBatchRays && tiles_->next(generated_)) {
         }
         for (const GeneratedRay& g : generated_) batch_.add(g.ray, g.query, g.id, g.kind);
         return !generated_.empty();
@@ -310,6 +314,7 @@ class TraceJob {
 
     Batch batch_;
     std::vector<Ray> file_rays_;
+    std::unique_ptr<TileQueue> tiles_;
     std::vector<GeneratedRay> generated_;
     std::vector<Hit> results_;
     std::vector<TraceCounters> counters_;

@@ -23,8 +23,8 @@
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/packet.h"
-#include "workloads/parallel.h"
 #include "workloads/raygen.h"
+#include "workloads/tile_queue.h"
 #include "workloads/trace_file.h"
 #include "workloads/tracer.h"
 
@@ -263,7 +263,10 @@ class GeneratedWorkSource : public PrefetchingSource {
           bvh_(bvh),
           gen_(gen),
           packet_size_(packet_size),
-          threads_(std::max(1, threads)) {
+          tiles_(
+              gen, threads,
+              packet_size > 0 ? std::function<void(std::vector<GeneratedRay>&)>()
+                              : [this](std::vector<GeneratedRay>& rays) { trace_all(rays); }) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
@@ -273,13 +276,23 @@ class GeneratedWorkSource : public PrefetchingSource {
     void fill(Batch& b) override {
         b.records.clear();  // steps are moved in from the tracer: nothing to reuse
         constexpr size_t kBatchRays = 4096;
-        std::vector<GeneratedRay> rays;  // packet mode: the batch's rays, traced below
+        std::vector<GeneratedRay> rays;
         bool more = true;
-        while ((packet_size_ > 0 ? rays.size() : b.records.size()) < kBatchRays &&
-               (more = take_tile(b.records, rays)))
-            ++tiles_done_;
-        if (packet_size_ > 0) fill_packets(rays, b);
-        b.progress = double(tiles_done_) / std::max(1, gen_.tile_count());
+        while (rays.size() < kBatchRays && (more = tiles_.next(rays))) {
+        }
+        if (packet_size_ > 0) {
+            fill_packets(rays, b);
+        } else {
+            b.records.resize(rays.size());
+            for (size_t i = 0; i < rays.size(); ++i) {
+                TraceRecord& r = b.records[i];
+                r.ray_id = rays[i].id;
+                r.kind = rays[i].kind;
+                r.steps = std::move(rays[i].steps);
+                r.prim = rays[i].prim;
+            }
+        }
+        b.progress = double(tiles_.tiles_handed_on()) / std::max(1, gen_.tile_count());
         b.last = !more;
     }
 
@@ -306,74 +319,19 @@ class GeneratedWorkSource : public PrefetchingSource {
         }
     }
 
-    // A generated tile: its rays, or (without packets) their traces. Ray ids count from 0 in
-    // the tile until it is handed on.
-    struct Tile {
-        std::vector<GeneratedRay> rays;
-        std::vector<TraceRecord> records;
-    };
-
-    // Hands on the next tile, its ray ids numbered on through the frame: its records to
-    // `records`, or (packets) its rays to `rays`. False when every tile is done.
-    bool take_tile(std::vector<TraceRecord>& records, std::vector<GeneratedRay>& rays) {
-        if (ready_pos_ == ready_.size() && !generate_tiles()) return false;
-        Tile& t = ready_[ready_pos_++];
-        for (TraceRecord& r : t.records) {
-            r.ray_id += next_id_;
-            records.push_back(std::move(r));
-        }
-        for (GeneratedRay& g : t.rays) {
-            g.id += next_id_;
-            rays.push_back(std::move(g));
-        }
-        next_id_ += uint32_t(t.records.size() + t.rays.size());
-        return true;
-    }
-
-    // The next tiles, threads_ x kTilesPerThread of them (fewer at the end), generated (and
-    // traced) on threads_ threads, a tile at a time to whichever is free.
-    bool generate_tiles() {
-        constexpr int kTilesPerThread = 8;  // a few ms of tracing between joins
-        const int first = next_tile_,
-                  count = std::min(threads_ * kTilesPerThread, gen_.tile_count() - next_tile_);
-        if (count <= 0) return false;
-        next_tile_ += count;
-        ready_.assign(size_t(count), Tile{});
-        ready_pos_ = 0;
-        parallel_blocks(size_t(count), 1, threads_, [&](size_t begin, size_t end) {
-            for (size_t k = begin; k < end; ++k) {
-                Tile& t = ready_[k];
-                gen_.generate_tile(first + int(k), t.rays);
-                if (packet_size_ > 0) continue;
-                t.records.resize(t.rays.size());
-                for (size_t i = 0; i < t.rays.size(); ++i) {
-                    TraceRecord& r = t.records[i];
-                    GeneratedRay& g = t.rays[i];
-                    r.ray_id = g.id;
-                    r.kind = g.kind;
-                    if (g.traced) {  // the generator traced it already, for its hit
-                        r.steps = std::move(g.steps);
-                        r.prim = g.prim;
-                    } else {
-                        r.prim = trace_ray(bvh_, g.ray, g.query, &r.steps).prim;
-                    }
-                }
-                t.rays.clear();
+    // Traces the rays the generator did not (on a tile thread): every ray then has its steps.
+    void trace_all(std::vector<GeneratedRay>& rays) const {
+        for (GeneratedRay& g : rays)
+            if (!g.traced) {
+                g.prim = trace_ray(bvh_, g.ray, g.query, &g.steps).prim;
+                g.traced = true;
             }
-        });
-        return true;
     }
 
     const Bvh& bvh_;
     RayGenerator& gen_;
     int packet_size_;
-    int threads_;
-    // Touched by the helper thread only (and the tile threads it starts and joins).
-    int tiles_done_ = 0;
-    int next_tile_ = 0;        // the first tile not generated yet
-    uint32_t next_id_ = 0;     // the id of the next ray handed on
-    std::vector<Tile> ready_;  // generated, from ready_pos_ on not yet handed on
-    size_t ready_pos_ = 0;
+    TileQueue tiles_;  // used by the helper thread only (and the tile threads it starts)
 };
 
 // Rays replayed from a trace file, a chunk at a time.
