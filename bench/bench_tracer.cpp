@@ -22,6 +22,7 @@
 #include "workloads/parallel.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
+#include "workloads/tile_queue.h"
 #include "workloads/tracer.h"
 
 using namespace rtsim;
@@ -50,7 +51,8 @@ RaySet make_rays(const Scene& s, const Bvh& bvh, const char* kind, int w, int h)
     o.diffuse_depth = 2;
     RayGenerator gen(s, bvh, o);
     std::vector<GeneratedRay> g;
-    while (gen.next_tile(g)) {
+    TileQueue tiles(gen, 1);
+    while (tiles.next(g)) {
     }
     RaySet set{kind, {}, g.empty() ? HitQuery::Closest : g[0].query};
     for (const GeneratedRay& r : g) set.rays.push_back(r.ray);

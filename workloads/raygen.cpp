@@ -229,15 +229,6 @@ bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
     return true;
 }
 
-bool RayGenerator::next_tile(std::vector<GeneratedRay>& out) {
-    if (next_tile_ >= tiles_x_ * tiles_y_) return false;
-    const size_t first = out.size();
-    generate_tile(next_tile_++, out);
-    for (size_t i = first; i < out.size(); ++i) out[i].id += next_id_;
-    next_id_ += uint32_t(out.size() - first);
-    return true;
-}
-
 uint32_t RayGenerator::generate_tile(int index, std::vector<GeneratedRay>& out) const {
     const size_t first = out.size();
     const int tx = index % tiles_x_, ty = index / tiles_x_;

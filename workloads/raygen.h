@@ -81,11 +81,10 @@ struct GeneratedRay {
 class RayGenerator {
   public:
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
-    // Appends the next tile's rays to out; false when every tile is done.
-    bool next_tile(std::vector<GeneratedRay>& out);
     // Appends tile `index`'s rays (0 <= index < tile_count()) to out, their ids numbered from 0
-    // within the tile (next_tile numbers them on through the frame); returns how many. Tiles are
-    // independent: several threads may generate tiles at once.
+    // within the tile (TileQueue, workloads/tile_queue.h, hands tiles on in order and numbers ids
+    // through the frame); returns how many. Tiles are independent: several threads may generate
+    // tiles at once.
     uint32_t generate_tile(int index, std::vector<GeneratedRay>& out) const;
     // Rays the generator traces to find hits keep their step streams (see GeneratedRay).
     void set_record_steps(bool record) { record_steps_ = record; }
@@ -113,8 +112,7 @@ class RayGenerator {
     float scene_scale_ = 1.0f;  // largest coordinate magnitude (offset_ray_origin)
     Vec3 light_, light_u_, light_v_;
     float ao_length_;
-    int tiles_x_, tiles_y_, next_tile_ = 0;
-    uint32_t next_id_ = 0;
+    int tiles_x_, tiles_y_;
 };
 
 }  // namespace rtsim

@@ -1,6 +1,6 @@
 // Tiles of a frame generated several at a time on `threads` threads and handed on in frame order,
-// their ray ids numbered through the frame exactly as RayGenerator::next_tile numbers them: the
-// ray stream is the same for any thread count.
+// their ray ids numbered through the frame (the tile's first ray follows the last tile's): the ray
+// stream is the same for any thread count.
 #pragma once
 
 #include <algorithm>

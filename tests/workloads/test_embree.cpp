@@ -9,6 +9,7 @@
 #include "workloads/intersect.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
+#include "workloads/tile_queue.h"
 #include "workloads/tracer.h"
 
 using namespace rtsim;
@@ -43,7 +44,8 @@ Agreement compare(const Scene& s, EmbreeScene& e, const BvhBuildOptions& bo,
     RayGenerator gen(s, bvh, o);
     std::vector<GeneratedRay> rays;
     Agreement a;
-    while (gen.next_tile(rays)) {
+    TileQueue tiles(gen, 1);
+    while (tiles.next(rays)) {
         for (const GeneratedRay& g : rays) {
             ++a.rays;
             const Hit ours = trace_ray(bvh, g.ray, g.query);

@@ -2,6 +2,7 @@
 
 #include "workloads/packet.h"
 #include "workloads/raygen.h"
+#include "workloads/tile_queue.h"
 
 using namespace rtsim;
 
@@ -18,7 +19,8 @@ Rays generate(const Scene& s, const Bvh& bvh, const char* kind, int res) {
     o.kinds = parse_ray_kinds(kind, "test");
     RayGenerator g(s, bvh, o);
     std::vector<GeneratedRay> out;
-    while (g.next_tile(out)) {
+    TileQueue tiles(g, 1);
+    while (tiles.next(out)) {
     }
     Rays r;
     for (const auto& x : out) r.rays.push_back(x.ray);

@@ -2,6 +2,7 @@
 
 #include "workloads/error.h"
 #include "workloads/raygen.h"
+#include "workloads/tile_queue.h"
 
 using namespace rtsim;
 
@@ -9,7 +10,8 @@ namespace {
 std::vector<GeneratedRay> all_rays(const Scene& s, const Bvh& bvh, const RayGenOptions& o) {
     RayGenerator g(s, bvh, o);
     std::vector<GeneratedRay> out;
-    while (g.next_tile(out)) {
+    TileQueue tiles(g, 1);
+    while (tiles.next(out)) {
     }
     return out;
 }
@@ -151,7 +153,8 @@ TEST(RayGen, AreaLightSpreadsShadowRays) {
     o.light = LightKind::Area;
     RayGenerator g(s, bvh, o);
     std::vector<GeneratedRay> rays;
-    while (g.next_tile(rays)) {
+    TileQueue tiles(g, 1);
+    while (tiles.next(rays)) {
     }
     ASSERT_GT(rays.size(), 50u);
     float min_x = 1e30f, max_x = -1e30f;
