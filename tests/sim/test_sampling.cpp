@@ -42,6 +42,28 @@ std::vector<size_t> draw(size_t population, size_t n, std::mt19937_64& rng) {
     return idx;
 }
 
+double total(const std::vector<double>& v) {
+    return std::accumulate(v.begin(), v.end(), 0.0);
+}
+
+// n units drawn from a population of figure y and auxiliary columns: the units' y, and per
+// column an auxiliary holding the units' values and the column's population total.
+struct UnitSample {
+    std::vector<double> y;
+    std::vector<Auxiliary> aux;
+};
+UnitSample draw_units(size_t n, std::mt19937_64& rng, const std::vector<double>& y,
+                      const std::vector<const std::vector<double>*>& columns) {
+    UnitSample s;
+    s.aux.resize(columns.size());
+    for (size_t i : draw(y.size(), n, rng)) {
+        s.y.push_back(y[i]);
+        for (size_t k = 0; k < columns.size(); ++k) s.aux[k].x.push_back((*columns[k])[i]);
+    }
+    for (size_t k = 0; k < columns.size(); ++k) s.aux[k].total = total(*columns[k]);
+    return s;
+}
+
 }  // namespace
 
 TEST(Sampling, MeanIntervalsCoverTheTrueMeanAtTheirNominalRate) {
@@ -242,23 +264,16 @@ TEST(Sampling, RegressionOnTwoAuxiliariesCoversAndNarrows) {
         x2[i] = std::floor(first(rng));
         y[i] = std::max(0.0, 0.5 * x1[i] + 64.0 * x2[i] + noise(rng));
     }
-    const double X1 = std::accumulate(x1.begin(), x1.end(), 0.0);
-    const double X2 = std::accumulate(x2.begin(), x2.end(), 0.0);
-    const double truth = std::accumulate(y.begin(), y.end(), 0.0);
+    const double truth = total(y);
     int covered = 0;
     double reg_width = 0, ratio_width = 0;
     const int trials = 1500;
     for (int t = 0; t < trials; ++t) {
-        std::vector<double> ys, a, b;
-        for (size_t i : draw(N, 60, rng)) {
-            ys.push_back(y[i]);
-            a.push_back(x1[i]);
-            b.push_back(x2[i]);
-        }
-        const Estimate e = regression_total(ys, {{a, X1}, {b, X2}}, N);
+        const UnitSample u = draw_units(60, rng, y, {&x1, &x2});
+        const Estimate e = regression_total(u.y, u.aux, N);
         covered += e.lo() <= truth && truth <= e.hi();
         reg_width += e.relative_half_width();
-        ratio_width += ratio_estimate(ys, a, N).relative_half_width();
+        ratio_width += ratio_estimate(u.y, u.aux[0].x, N).relative_half_width();
     }
     EXPECT_GT(double(covered) / trials, 0.93);
     EXPECT_LT(double(covered) / trials, 0.975);
@@ -289,32 +304,18 @@ TEST(Sampling, RegressionOnFourAuxiliariesCoversAndNarrows) {
         work[i] = rays[i] + node[i] + tri;
         y[i] = 8.0 * rays[i] + 2.0 * node[i] + 20.0 * tri + 64.0 * fresh[i] + noise(rng);
     }
-    auto sum = [](const std::vector<double>& v) {
-        return std::accumulate(v.begin(), v.end(), 0.0);
-    };
-    const double truth = sum(y);
+    const double truth = total(y);
     int covered = 0;
     double four = 0, two = 0, three = 0;
     const int trials = 1500;
     for (int t = 0; t < trials; ++t) {
-        std::vector<Auxiliary> a(4);
-        std::vector<double> ys;
-        for (size_t i : draw(N, 80, rng)) {
-            ys.push_back(y[i]);
-            a[0].x.push_back(work[i]);
-            a[1].x.push_back(fresh[i]);
-            a[2].x.push_back(node[i]);
-            a[3].x.push_back(rays[i]);
-        }
-        a[0].total = sum(work);
-        a[1].total = sum(fresh);
-        a[2].total = sum(node);
-        a[3].total = sum(rays);
-        const Estimate e = regression_total(ys, a, N);
+        const UnitSample u = draw_units(80, rng, y, {&work, &fresh, &node, &rays});
+        const std::vector<Auxiliary>& a = u.aux;
+        const Estimate e = regression_total(u.y, a, N);
         covered += e.lo() <= truth && truth <= e.hi();
         four += e.relative_half_width();
-        two += regression_total(ys, {a[0], a[1]}, N).relative_half_width();
-        three += regression_total(ys, {a[0], a[1], a[2]}, N).relative_half_width();
+        two += regression_total(u.y, {a[0], a[1]}, N).relative_half_width();
+        three += regression_total(u.y, {a[0], a[1], a[2]}, N).relative_half_width();
     }
     EXPECT_GT(double(covered) / trials, 0.93);
     EXPECT_LT(double(covered) / trials, 0.975);
@@ -340,23 +341,12 @@ TEST(Sampling, RegressionIntervalsCoverWithHeavyUnits) {
         fresh[i] = std::floor(20 * load);
         y[i] = 8 * 1024 + 12 * (work[i] - 1024) + 64 * fresh[i] + noise(rng) * 300 * load;
     }
-    auto sum = [](const std::vector<double>& v) {
-        return std::accumulate(v.begin(), v.end(), 0.0);
-    };
-    const double truth = sum(y);
+    const double truth = total(y);
     int covered = 0;
     const int trials = 1000;
     for (int t = 0; t < trials; ++t) {
-        std::vector<Auxiliary> a(2);
-        std::vector<double> ys;
-        for (size_t i : draw(N, 200, rng)) {
-            ys.push_back(y[i]);
-            a[0].x.push_back(work[i]);
-            a[1].x.push_back(fresh[i]);
-        }
-        a[0].total = sum(work);
-        a[1].total = sum(fresh);
-        const Estimate e = regression_total(ys, a, N);
+        const UnitSample u = draw_units(200, rng, y, {&work, &fresh});
+        const Estimate e = regression_total(u.y, u.aux, N);
         covered += e.lo() <= truth && truth <= e.hi();
     }
     // Measured: 90.8% of 1,000 samples of 200 units; the residuals' formula on the same samples
