@@ -164,6 +164,9 @@ def main(argv=None):
     ap.add_argument("--adaptive-starts", type=int, default=5)
     ap.add_argument("--full-repeats", type=int, default=3)
     ap.add_argument("--unit-rays", type=int, default=1024)
+    ap.add_argument("--skip", action="store_true",
+                    help="the skip design (sim.sample_fast_forward=skip: units of tiles, tiles "
+                         "far from a measured unit never traced); writes sampled_skip.*")
     ap.add_argument("--set", action="append", default=[],
                     help="KEY=VALUE config override for the sampled runs (repeatable)")
     ap.add_argument("-j", type=int, default=2)
@@ -180,7 +183,11 @@ def main(argv=None):
         if w not in WORKLOADS:
             sys.exit(f"bench_sampled: unknown workload {w} (known: {', '.join(WORKLOADS)})")
     sets = [a for kv in args.set for a in ("--set", kv)]
+    if args.skip:
+        sets += ["--set", "sim.sample_fast_forward=skip"]
+    name = "sampled_skip" if args.skip else "sampled"
 
+    profiles = {}
     with tempfile.TemporaryDirectory() as tmp:
         def frame(scene, wl, res=args.res):
             return ["--scene", SCENES[scene], "--res", res, "--bvh-cache",
@@ -210,10 +217,18 @@ def main(argv=None):
             st = run_stats(args.rtsim, frame(scene, wl) + extra, out, "bench_sampled")
             return st
 
-        # The BVH cache is filled first, so no timed run builds a tree.
+        # The BVH cache is filled first, so no timed run builds a tree; in the skip design, each
+        # frame's profile too (what it cost is listed).
         for scene in scenes:
             run_stats(args.rtsim, frame(scene, "primary", "8x8"),
                       os.path.join(tmp, "warm-" + scene), "bench_sampled")
+        if args.skip:
+            for scene in scenes:
+                for wl in workloads:
+                    st = run_stats(args.rtsim, frame(scene, wl) + ["--set", "sim.fidelity=sampled"]
+                                   + sets, os.path.join(tmp, f"profile-{scene}-{wl}"),
+                                   "bench_sampled")
+                    profiles[(scene, wl)] = st["sampling"]["profile"]["seconds"]
         jobs = []
         for scene in scenes:
             for wl in workloads:
@@ -285,7 +300,11 @@ def main(argv=None):
             cells.append(cell)
 
     lines = ["# Sampled simulation against the full run (scripts/bench_sampled.py)", "",
-             f"{args.res}, units of {args.unit_rays} rays, {args.design} design; workloads: "
+             (f"{args.res}, sim.sample_fast_forward=skip (units of tiles, tiles far from a "
+              "measured unit never traced; each frame's profile computed by its first sampled "
+              "run and cached for the others, its cost listed below the tables)"
+              if args.skip else f"{args.res}, units of {args.unit_rays} rays")
+             + f", {args.design} design; workloads: "
              "primary; ao (2 AO rays per primary hit, primaries not simulated); diffuse (1 "
              "bounce); path2 (2-bounce diffuse path). Each cell's frame runs once in full (the "
              "fast model), then sampled at 1 unit in P "
@@ -345,14 +364,24 @@ def main(argv=None):
             f"({100 * min(x['coverage'] for x in dr):.0f}%) | "
             f"{statistics.mean(m['speedup'] for m in ms):.2f} "
             f"({min(m['speedup'] for m in ms):.2f}) |")
-    lines += ["", "Plot: sampled_pareto.svg (host seconds against the cycles' mean absolute "
+    if profiles:
+        lines += ["", "Frame profiles (the skip design's; computed once per frame by an untimed "
+                  "sampled run before the timed ones, which all loaded it from the cache; on all "
+                  "host cores):", "",
+                  "| scene | workload | profile s | full run host s |", "|---|---|---|---|"]
+        for c in cells:
+            lines.append(f"| {c['scene']} | {c['workload']} | "
+                         f"{profiles[(c['scene'], c['workload'])]:.2f} | "
+                         f"{c['full']['host_s']:.2f} |")
+            c["profile_s"] = profiles[(c["scene"], c["workload"])]
+    lines += ["", f"Plot: {name}_pareto.svg (host seconds against the cycles' mean absolute "
               "error; the dashed line is the Pareto front)."]
     text = "\n".join(lines) + "\n"
-    write_results(args.out, "sampled", text,
+    write_results(args.out, name, text,
                   {"res": args.res, "unit_rays": args.unit_rays, "periods": periods,
                    "design": args.design,
                    "target_errors": targets, "cells": cells})
-    svg_plot(cells, os.path.join(args.out, "sampled_pareto.svg"))
+    svg_plot(cells, os.path.join(args.out, name + "_pareto.svg"))
     print(text)
 
 

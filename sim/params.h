@@ -38,6 +38,10 @@ struct SimParams {
     int64_t sample_first_unit = -1;  // -1: drawn from the seed
     std::string sample_design = "stratified";
     uint64_t sample_seed = 0;  // 0: the workload's seed
+    // "warm": every ray traced, the unmeasured ones warm the caches; "skip": units are tiles,
+    // and tiles far from a measured unit are never generated or traced.
+    std::string sample_fast_forward = "warm";
+    uint64_t sample_unit_tiles = 16, sample_warm_tiles = 0, sample_warmup_tiles = 8;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

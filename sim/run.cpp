@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <memory>
 #include <systemc>
+#include <thread>
 
 #include "models/calendar.h"
 #include "models/dram_device.h"
@@ -22,6 +23,7 @@
 #include "sim/mem_trace.h"
 #include "sim/run_report.h"
 #include "sim/work_sources.h"
+#include "workloads/bvh_cache.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 #include "workloads/trace_file.h"
@@ -70,10 +72,39 @@ struct Workload {
     std::unique_ptr<RayGenerator> gen;
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
+    std::unique_ptr<FrameProfile> profile;  // a sampled run's skip design
     const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
 };
 
-Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progress) {
+// The addresses rays fetch from (the nodes and triangles), whose lines sampled runs count.
+uint64_t sampled_range_begin(const BvhLayout& L) {
+    return std::min(L.node_base_addr, L.tri_base_addr);
+}
+uint64_t sampled_range_end(const BvhLayout& L) {
+    return std::max(L.node_base_addr + L.node_bytes_total(), L.tri_base_addr + L.tri_bytes_total());
+}
+
+// A sampled run's plan from the config (the seed defaults to the workload's).
+SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
+    const SimParams& s = cfg.typed.sim;
+    SamplingParams sp;
+    sp.unit_rays = s.sample_unit_rays;
+    sp.period_units = s.sample_period_units;
+    sp.warmup_rays = s.sample_warmup_rays;
+    sp.seed = s.sample_seed ? s.sample_seed : opt.workload.gen.seed;
+    sp.first_unit = s.sample_first_unit;
+    sp.stratified = s.sample_design == "stratified";
+    sp.skip = s.sample_fast_forward == "skip";
+    sp.unit_tiles = s.sample_unit_tiles;
+    sp.warm_tiles = s.sample_warm_tiles;
+    sp.warmup_tiles = s.sample_warmup_tiles;
+    return sp;
+}
+
+// `sampling`: a sampled run's plan; in the skip design the frame's tile count is filled in, and
+// the source generates only the tiles the design wants.
+Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progress,
+                          SamplingParams* sampling) {
     Workload w;
     if (!opt.trace_path.empty()) {
         w.reader = std::make_unique<TraceReader>(opt.trace_path);
@@ -97,9 +128,32 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
               {"bvh", bvh_summary(*w.bvh)},
               {"workload", workload_summary(rg, w.gen->ao_length())}};
     const bool packets = TraversalModeRegistry::at(cfg.typed.traversal.mode).packets;
+    std::function<bool(int)> want_tile;
+    if (sampling && sampling->skip) {
+        // The profile traces the whole frame once, on every host core (nothing else runs yet).
+        const BvhLayout& L = w.bvh->layout;
+        w.gen->set_record_steps(true);
+        // Keyed by what the rays' steps depend on: the scene's content and the BVH build (the
+        // BVH cache's key), the tree as laid out and traversed, and the generator's settings.
+        BvhLayout sizes;
+        sizes.node_size_bytes = cfg.typed.node_size_bytes;
+        sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
+        const std::string key = fmt::format(
+            "v1 bvh={:016x} {} {} tile_size={}", bvh_cache_key(*w.scene, cfg.typed.bvh, sizes),
+            json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump(), rg.tile_size);
+        w.profile = std::make_unique<FrameProfile>(
+            profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, sampled_range_begin(L),
+                                 sampled_range_end(L), uint32_t(cfg.typed.l1.line_bytes),
+                                 int(std::max(1u, std::thread::hardware_concurrency())), key,
+                                 resolve_bvh_cache_dir(opt.bvh_cache)));
+        sampling->tiles = uint64_t(w.gen->tile_count());
+        want_tile = [design = SampleDesign(*sampling)](int tile) {
+            return design.wants_tile(uint64_t(tile));
+        };
+    }
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,
                                                      packets ? cfg.typed.traversal.packet_size : 0,
-                                                     opt.tracer_threads);
+                                                     opt.tracer_threads, std::move(want_tile));
     return w;
 }
 
@@ -156,9 +210,16 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
         plan["met"] = target_met(sampling, target_pct);
         sampling["target"] = std::move(plan);
     }
+    // The skip design traced part of the frame; its profile counted every ray.
+    if (sampling.contains("total_rays")) {
+        out["rays"]["traced"] = out["rays"]["total"];
+        out["rays"]["total"] = uint64_t(sampling["total_rays"].get<double>());
+    }
     if (sampling.contains("total_cycles")) {
         const json& c = sampling["total_cycles"];
         const double cycles = c["value"].get<double>();
+        // The skip design traces only part of the frame: its rays are estimated too, and the
+        // rate's interval is that of rays per cycle in the measured units.
         const double rays = double(out["rays"]["total"].get<uint64_t>());
         const double seconds = cycles / hz;
         const double rate = seconds > 0 ? rays / seconds : 0.0;
@@ -190,8 +251,16 @@ int run_command(const RunOptions& opt) {
             cfg.typed.sim.fidelity));
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
+    const bool sampled = cfg.typed.sim.fidelity == "sampled";
+    SamplingParams sp;
+    json plan;  // --target-error: the pilot and the period it chose
+    if (sampled) {
+        sp = sampling_params(opt, cfg);
+        // Before the workload: the skip design generates only the tiles the period wants.
+        if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
+    }
     const auto t_prepare = Clock::now();
-    Workload w = prepare_workload(opt, cfg, progress);
+    Workload w = prepare_workload(opt, cfg, progress, sampled ? &sp : nullptr);
     // After the workload: a scene or trace refused (or a reader stopped by its watchdog) leaves
     // no output folder behind.
     const std::string out_dir = make_out_dir(opt);
@@ -209,25 +278,15 @@ int run_command(const RunOptions& opt) {
         };
     Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
-    json plan;  // --target-error: the pilot and the period it chose
-    if (cfg.typed.sim.fidelity == "sampled") {
-        SamplingParams sp;
-        sp.unit_rays = cfg.typed.sim.sample_unit_rays;
-        sp.period_units = cfg.typed.sim.sample_period_units;
-        sp.warmup_rays = cfg.typed.sim.sample_warmup_rays;
-        sp.seed = cfg.typed.sim.sample_seed ? cfg.typed.sim.sample_seed : opt.workload.gen.seed;
-        sp.first_unit = cfg.typed.sim.sample_first_unit;
-        sp.stratified = cfg.typed.sim.sample_design == "stratified";
-        if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
+    if (sampled) {
         sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
         std::vector<const Core*> cores;
         for (const auto& core : chip.cores) cores.push_back(core.get());
         sampler->set_write_warming(std::move(cores));
         const BvhLayout& L = w.layout();
-        sampler->set_line_range(std::min(L.node_base_addr, L.tri_base_addr),
-                                std::max(L.node_base_addr + L.node_bytes_total(),
-                                         L.tri_base_addr + L.tri_bytes_total()),
+        sampler->set_line_range(sampled_range_begin(L), sampled_range_end(L),
                                 uint32_t(cfg.typed.l1.line_bytes));
+        if (w.profile) sampler->set_profile(w.profile.get(), chip.l2.get());
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

@@ -138,8 +138,13 @@ void print_run_summary(const json& out, const std::string& stats_path) {
         bv.value("builder", std::string("?")), bv.value("width", 0),
         bv.value("node_format", std::string("?")), bv.value("nodes", 0), bv.value("leaves", 0),
         bv.value("max_depth", 0), bv.value("sah_cost", 0.0), bv.value("bytes", 0.0) / 1048576.0);
-    fmt::print("  rays     {} ({}), {} steps\n", out["rays"]["total"].get<uint64_t>(), kinds,
-               out["rays"]["steps"].get<uint64_t>());
+    if (out["rays"].contains("traced"))  // the skip design: kinds and steps of the traced rays
+        fmt::print("  rays     {} (traced {}: {}), {} steps\n",
+                   out["rays"]["total"].get<uint64_t>(), out["rays"]["traced"].get<uint64_t>(),
+                   kinds, out["rays"]["steps"].get<uint64_t>());
+    else
+        fmt::print("  rays     {} ({}), {} steps\n", out["rays"]["total"].get<uint64_t>(), kinds,
+                   out["rays"]["steps"].get<uint64_t>());
     fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n",
                out["total_cycles"].get<uint64_t>(), out["simulated_seconds"].get<double>() * 1e3,
                out["clock_ghz"].get<double>(), out["rays_per_second"].get<double>() / 1e6);
@@ -155,11 +160,18 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                        c["half_width_pct"].get<double>());
         }
         fmt::print("\n");
+        const bool skip = sm.value("fast_forward", std::string()) == "skip";
+        if (skip)
+            fmt::print("  skipped  {:.1f}% of rays traced; frame profile {} ({:.2f} s)\n",
+                       100 * sm.value("traced_share", 0.0),
+                       sm["profile"].value("cache", std::string("?")),
+                       sm["profile"].value("seconds", 0.0));
         if (sm.value("units_measured", 0) < 30)
             fmt::print(
                 "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "
                 "nominal 95% in bench/results/sampled.md): lower sim.sample_period_units or "
-                "sim.sample_unit_rays\n");
+                "sim.{}\n",
+                skip ? "sample_unit_tiles" : "sample_unit_rays");
         if (sm.contains("target")) {
             const json& t = sm["target"];
             fmt::print(

@@ -10,24 +10,51 @@ namespace rtsim {
 
 using nlohmann::json;
 
-Sampler::Sampler(const SamplingParams& params,
-                 std::vector<std::array<MemoryPort*, kStepKinds>> ports,
-                 const StatsRegistry& counters)
-    : params_(params), ports_(std::move(ports)), counters_(counters) {
+SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
     std::mt19937_64 rng(params_.seed ^ 0x5a3b1e5d);
     first_unit_ = params_.first_unit >= 0
                       ? uint64_t(params_.first_unit) % params_.period_units
                       : std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
-    deltas_.resize(counters_.entries().size());
 }
 
-uint64_t Sampler::pick(uint64_t stratum) const {
+uint64_t SampleDesign::pick(uint64_t stratum) const {
     // splitmix64 of (seed, stratum): independent, uniform picks, the same for a seed.
     uint64_t z = (params_.seed ^ 0x9e3779b97f4a7c15ull) + stratum * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
     z ^= z >> 31;
-    return z % params_.period_units;
+    uint64_t size = params_.period_units;
+    // The skip design knows the frame's units: a last, shorter stratum draws among the units it
+    // has (the expansion needs a measured unit in every stratum).
+    if (params_.skip) size = std::min(size, units() - stratum * params_.period_units);
+    return z % std::max<uint64_t>(1, size);
+}
+
+bool SampleDesign::measured_unit(uint64_t unit) const {
+    return unit % params_.period_units ==
+           (params_.stratified ? pick(unit / params_.period_units) : first_unit_);
+}
+
+SampleDesign::TileRole SampleDesign::tile_role(uint64_t tile) const {
+    const uint64_t per = params_.unit_tiles, unit = tile / per, pos = tile % per;
+    if (measured_unit(unit)) return TileRole::Measured;
+    // The tile right after a measured unit: its first ray's hand-out closes the unit.
+    if (pos == 0 && unit > 0 && measured_unit(unit - 1)) return TileRole::After;
+    // The tiles before the next measured unit: detailed warm-up, then functional warming.
+    const uint64_t reach = params_.warmup_tiles + params_.warm_tiles;
+    for (uint64_t u = unit + 1; (u * per - tile) <= reach && u < units(); ++u)
+        if (measured_unit(u)) {
+            const uint64_t ahead = u * per - tile;  // tiles until it starts
+            return ahead <= params_.warmup_tiles ? TileRole::Warmup : TileRole::Warming;
+        }
+    return TileRole::Skipped;
+}
+
+Sampler::Sampler(const SamplingParams& params,
+                 std::vector<std::array<MemoryPort*, kStepKinds>> ports,
+                 const StatsRegistry& counters)
+    : params_(params), design_(params), ports_(std::move(ports)), counters_(counters) {
+    deltas_.resize(counters_.entries().size());
 }
 
 bool Sampler::detailed_ray(uint64_t i) const {
@@ -41,34 +68,50 @@ bool Sampler::detailed_ray(uint64_t i) const {
 }
 
 void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
-    line_shift_ = uint64_t(__builtin_ctz(line_bytes));
-    first_line_ = base >> line_shift_;
-    const uint64_t lines = end > base ? ((end - 1) >> line_shift_) - first_line_ + 1 : 0;
-    touched_.assign((lines + 63) / 64, 0);
+    lines_ = LineTracker(base, end, line_bytes);
 }
 
-bool Sampler::fast_forward(const RayWork& work) {
+void Sampler::replay_first_touches(uint64_t tile) {
+    if (!profile_ || !l2_) return;
+    const FrameProfile& p = *profile_;
+    tile = std::min<uint64_t>(tile, p.first_touch_start.size() - 1);
+    if (tile <= replayed_tiles_) return;
+    for (uint32_t i = p.first_touch_start[replayed_tiles_]; i < p.first_touch_start[tile]; ++i)
+        l2_->warm(p.line_base + uint64_t(p.first_touches[i]) * p.line_bytes, p.line_bytes);
+    replayed_tiles_ = tile;
+}
+
+bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
     current_ = index_;
     index_ += work.rays;
-    Aux& a = current_aux_;
-    a.fill(0);
-    a[kWork] = work.steps.size() + work.rays;
-    a[kRays] = work.rays;
-    for (const Step& s : work.steps) {
-        a[kNodeSteps] += s.kind == StepKind::Node;
-        if (!touched_.empty()) {
-            const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_;
-            for (uint64_t line = s.addr >> line_shift_; line <= last; ++line) {
-                const uint64_t k = line - first_line_;
-                if (line < first_line_ || k / 64 >= touched_.size()) continue;
-                const uint64_t bit = uint64_t(1) << (k % 64);
-                a[kNewLines] += (touched_[k / 64] & bit) == 0;
-                touched_[k / 64] |= bit;
-            }
+    bool detailed;
+    if (params_.skip) {
+        const uint64_t t = uint64_t(std::max<int64_t>(tile, 0));
+        const uint64_t unit = t / params_.unit_tiles;
+        const bool new_tile = tile != last_tile_;
+        tiles_traced_ += new_tile;
+        // Tiles of a unit come together; a warming unit may start part-way.
+        current_first_ = last_tile_ < 0 || unit != current_unit_;
+        current_unit_ = unit;
+        last_tile_ = tile;
+        // The tiles skipped since the last traced one fetched their first lines before it.
+        if (new_tile) {
+            replay_first_touches(t);
+            replayed_tiles_ = t + 1;
         }
+        using Role = SampleDesign::TileRole;
+        const Role role = design_.tile_role(t);
+        detailed =
+            role == Role::Measured || role == Role::Warmup || (role == Role::After && new_tile);
+    } else {
+        current_unit_ = current_ / params_.unit_rays;
+        current_first_ = current_ % params_.unit_rays == 0;
+        detailed = detailed_ray(current_);
     }
+    Aux& a = current_aux_;
+    a = ray_auxiliaries(work, lines_, [](uint64_t) {});
     for (size_t k = 0; k < kAuxiliaries; ++k) total_aux_[k] += a[k];
-    if (detailed_ray(current_)) {
+    if (detailed) {
         detailed_ += work.rays;
         return false;
     }
@@ -103,8 +146,8 @@ void Sampler::warm_writes(const Core& core, const RayWork& work) const {
 
 void Sampler::handed_out(Cycle now) {
     last_handout_ = std::max(last_handout_, now);
-    const uint64_t unit = current_ / params_.unit_rays;
-    const bool first_of_unit = current_ % params_.unit_rays == 0;
+    const uint64_t unit = current_unit_;
+    const bool first_of_unit = current_first_;
     // The ray after the measured unit closes it.
     if (open_ && (unit != open_unit_)) close_unit(unit_aux_, now);
     if (first_of_unit && measured_unit(unit)) {
@@ -124,8 +167,7 @@ void Sampler::finish() {
     if (!open_) return;
     // The frame ended inside a measured unit: it counts up to its last ray's hand-out (the
     // rays before that one; the drain after it is added separately).
-    const uint64_t start = open_unit_ * params_.unit_rays;
-    if (index_ > start + 1) {
+    if (unit_aux_[kRays] > current_aux_[kRays]) {
         Aux before_last = unit_aux_;
         for (size_t k = 0; k < kAuxiliaries; ++k) before_last[k] -= current_aux_[k];
         close_unit(before_last, last_handout_);
@@ -135,6 +177,7 @@ void Sampler::finish() {
 
 void Sampler::close_unit(const Aux& aux, Cycle end) {
     for (size_t k = 0; k < kAuxiliaries; ++k) aux_[k].push_back(double(aux[k]));
+    unit_index_.push_back(open_unit_);
     // Signed: cores take work within a horizon of each other, so hand-out cycles are not
     // strictly in order (differences telescope over the frame).
     cycles_.push_back(double(end) - double(open_cycle_));
@@ -157,12 +200,13 @@ json estimate_json(const Estimate& e, double scale, double offset = 0) {
 
 json Sampler::report(Cycle end_cycle) {
     finish();
+    if (params_.skip) return skip_report(json::object(), end_cycle);
     const uint64_t units = (index_ + params_.unit_rays - 1) / params_.unit_rays;
     json out = {{"unit_rays", params_.unit_rays},
                 {"period_units", params_.period_units},
                 {"warmup_rays", params_.warmup_rays},
                 {"design", params_.stratified ? "stratified" : "systematic"},
-                {"first_unit", params_.stratified ? pick(0) : first_unit_},
+                {"first_unit", params_.stratified ? design_.pick(0) : design_.first_unit()},
                 {"units", units},
                 {"units_measured", cycles_.size()},
                 {"work", total_aux_[kWork]},
@@ -192,6 +236,75 @@ json Sampler::report(Cycle end_cycle) {
         double sum = 0;
         for (double d : deltas_[c]) sum += d;
         if (sum == 0) continue;  // a counter that never moved in a measured unit
+        counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
+    }
+    out["counters"] = counters;
+    out["figures"] = figures(units);
+    return out;
+}
+
+json Sampler::skip_report(json out, Cycle end_cycle) {
+    const uint64_t units = design_.units(), period = params_.period_units;
+    if (!profile_ || profile_->units.size() != units)
+        throw std::logic_error("Sampler: the skip design needs the frame's profile");
+    // A measured unit that handed out no ray (its tiles' pixels missed the scene, so no
+    // secondary rays) took no cycles and moved no counter: it enters as zeros, in unit order.
+    for (uint64_t h = 0; h * period < units; ++h) {
+        const uint64_t u =
+            h * period + (params_.stratified ? design_.pick(h) : design_.first_unit());
+        if (u >= units || std::find(unit_index_.begin(), unit_index_.end(), u) != unit_index_.end())
+            continue;
+        const size_t at = size_t(std::lower_bound(unit_index_.begin(), unit_index_.end(), u) -
+                                 unit_index_.begin());
+        unit_index_.insert(unit_index_.begin() + long(at), u);
+        for (auto& a : aux_) a.insert(a.begin() + long(at), 0.0);
+        cycles_.insert(cycles_.begin() + long(at), 0.0);
+        for (auto& d : deltas_) d.insert(d.begin() + long(at), 0.0);
+    }
+    out = {{"fast_forward", "skip"},
+           {"unit_tiles", params_.unit_tiles},
+           {"period_units", period},
+           {"warm_tiles", params_.warm_tiles},
+           {"warmup_tiles", params_.warmup_tiles},
+           {"design", params_.stratified ? "stratified" : "systematic"},
+           {"first_unit", params_.stratified ? design_.pick(0) : design_.first_unit()},
+           {"units", units},
+           {"units_measured", cycles_.size()},
+           {"tiles", params_.tiles},
+           {"tiles_traced", tiles_traced_},
+           {"rays_traced", index_},
+           {"rays_detailed", detailed_},
+           {"simulated_cycles", end_cycle},
+           {"drain_cycles", end_cycle - last_handout_}};
+    if (cycles_.size() < 2) {
+        out["note"] =
+            "fewer than 2 measured units: no estimates (a frame shorter than two "
+            "sampling periods; lower sim.sample_period_units or sample_unit_tiles)";
+        return out;
+    }
+    // The units' auxiliaries come from the frame's profile (the skip run's own first fetches
+    // are not the frame's), their totals too.
+    std::vector<Auxiliary> aux(kAuxiliaries);
+    for (size_t k = 0; k < kAuxiliaries; ++k) {
+        aux[k].x.resize(cycles_.size());
+        for (size_t i = 0; i < cycles_.size(); ++i)
+            aux[k].x[i] = double(profile_->units[unit_index_[i]][k]);
+        for (const Aux& u : profile_->units) aux[k].total += double(u[k]);
+    }
+    const double rays = aux[kRays].total;
+    out["total_rays"] = rays;
+    out["new_lines"] = aux[kNewLines].total;
+    out["detailed_share"] = rays > 0 ? double(detailed_) / rays : 0.0;
+    out["traced_share"] = rays > 0 ? double(index_) / rays : 0.0;
+    out["profile"] = {{"seconds", profile_->seconds}, {"cache", profile_->cache}};
+    auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
+    out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
+    json counters = json::object();
+    const auto& e = counters_.entries();
+    for (size_t c = 0; c < e.size(); ++c) {
+        double sum = 0;
+        for (double d : deltas_[c]) sum += d;
+        if (sum == 0) continue;
         counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
     }
     out["counters"] = counters;

@@ -15,8 +15,20 @@
 // hand-out. Units of background pixels and units of dense geometry differ in cycles many times
 // over, far less in cycles per step: a ratio to work alone has a far narrower interval than a
 // ratio to rays (on a 96x96 bunny frame, 13 measured units: +-42% over rays).
+//
+// Tracing every ray bounds the speed-up: the fast model costs about what the functional tracer
+// does (bench/results/sampled_estimators.md). With skip = true (sim.sample_fast_forward = skip)
+// units are groups of unit_tiles tiles of the image instead, and a tile far from a measured unit
+// is never generated or traced: only the warm_tiles before each measured unit warm the caches
+// functionally, and the warmup_tiles right before it run in detail unmeasured. What the skipped
+// tiles would have told comes from the frame's profile (sim/frame_profile.h), computed once per
+// frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
+// tile fetched first in the frame, which are loaded into the L2 where the tile would have run.
+// Without the profile the totals could only be expanded from the measured units (+-20-50% on
+// 1080p frames at 1 in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <nlohmann/json.hpp>
@@ -26,6 +38,7 @@
 #include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "sim/frame_profile.h"
 #include "workloads/step.h"
 
 namespace rtsim {
@@ -40,6 +53,32 @@ struct SamplingParams {
     // fixed stride can alias with the image: 1080p rows of 240 tiles against a stride of 160
     // tiles put every measured unit in 3 column bands). Systematic: every period_units-th.
     bool stratified = true;
+    // Skip design (above): units of unit_tiles tiles of a frame of `tiles` tiles.
+    bool skip = false;
+    uint64_t unit_tiles = 16, warm_tiles = 0, warmup_tiles = 8, tiles = 0;
+};
+
+// Which units a sample measures, and in the skip design what becomes of each tile; a value
+// type, so the work source's helper thread can ask it which tiles to generate.
+class SampleDesign {
+  public:
+    explicit SampleDesign(const SamplingParams& params);
+    bool measured_unit(uint64_t unit) const;
+    uint64_t first_unit() const { return first_unit_; }
+    // Stratified design: the unit measured in stratum k (a hash of the seed and k).
+    uint64_t pick(uint64_t stratum) const;
+    // Skip design: what becomes of tile t.
+    enum class TileRole { Skipped, Warming, Warmup, Measured, After };
+    TileRole tile_role(uint64_t tile) const;
+    bool wants_tile(uint64_t tile) const { return tile_role(tile) != TileRole::Skipped; }
+    // Skip design: units in the frame.
+    uint64_t units() const {
+        return (params_.tiles + params_.unit_tiles - 1) / std::max<uint64_t>(1, params_.unit_tiles);
+    }
+
+  private:
+    SamplingParams params_;
+    uint64_t first_unit_ = 0;
 };
 
 class Sampler {
@@ -51,7 +90,8 @@ class Sampler {
 
     // The next ray of the stream (work.rays of them: a packet counts its rays): true if it is
     // fast-forwarded (its fetches have warmed the caches and no core is to run it).
-    bool fast_forward(const RayWork& work);
+    // `tile`: the tile the ray came from (the skip design's units are tiles).
+    bool fast_forward(const RayWork& work, int64_t tile = -1);
     // Fast-forwarded rays also warm what the traversal writes (stack spills and refills, hit
     // records) through each core's local memory, as the cores in `cores` would make them.
     void set_write_warming(std::vector<const Core*> cores) { write_cores_ = std::move(cores); }
@@ -61,6 +101,12 @@ class Sampler {
     // touches of lines are then counted, a second auxiliary figure (DRAM traffic follows new
     // lines far more than work: compulsory misses).
     void set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes);
+    // Skip design: the frame's profile (its units' auxiliaries and first-fetched lines), and the
+    // L2 that is loaded with the lines the frame fetched before each unit the run reaches.
+    void set_profile(const FrameProfile* profile, MemoryPort* l2) {
+        profile_ = profile;
+        l2_ = l2;
+    }
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
@@ -85,46 +131,59 @@ class Sampler {
     // rays (an intercept per ray). On 1080p bunny frames, fitting all four rather than the
     // first two narrows a unit's residual from 27% to 20% of its cycles (primary rays) and from
     // 7.1% to 6.8% (AO).
-    enum AuxIndex { kWork, kNewLines, kNodeSteps, kRays, kAuxiliaries };
-    using Aux = std::array<uint64_t, kAuxiliaries>;
+    enum {
+        kWork = kAuxWork,
+        kNewLines = kAuxNewLines,
+        kNodeSteps = kAuxNodeSteps,
+        kRays = kAuxRays
+    };
+    using Aux = AuxFigures;
+    // Skip design: loads the L2 with the lines the frame fetched first in the tiles skipped
+    // before `tile`.
+    void replay_first_touches(uint64_t tile);
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
     // from its start to `end`.
     void close_unit(const Aux& aux, Cycle end);
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
-    bool measured_unit(uint64_t unit) const {
-        return unit % params_.period_units ==
-               (params_.stratified ? pick(unit / params_.period_units) : first_unit_);
-    }
-    // Stratified design: the unit measured in stratum k (a hash of the seed and k).
-    uint64_t pick(uint64_t stratum) const;
+    bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.
     bool detailed_ray(uint64_t i) const;
+    // Skip design: each total as the strata's expansion.
+    nlohmann::json skip_report(nlohmann::json out, Cycle end_cycle);
 
     SamplingParams params_;
+    SampleDesign design_;
     std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
     const StatsRegistry& counters_;
-    uint64_t first_unit_ = 0;
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail
     size_t next_core_ = 0;   // whose memories the next fast-forwarded ray warms
     std::vector<const Core*> write_cores_;
     void warm_writes(const Core& core, const RayWork& work) const;
     uint64_t current_ = 0;  // index of the ray just judged
+    // The ray just judged: its unit, and whether it is the first of it.
+    uint64_t current_unit_ = 0;
+    bool current_first_ = false;
+    int64_t last_tile_ = -1;     // skip design: the tile of the ray before
+    uint64_t tiles_traced_ = 0;  // skip design
     // The measured unit in progress: its start cycle and counters.
     bool open_ = false;
     uint64_t open_unit_ = 0;
     Cycle open_cycle_ = 0;
     std::vector<uint64_t> open_counts_;
     Cycle last_handout_ = 0;
-    uint64_t first_line_ = 0, line_shift_ = 6;
-    std::vector<uint64_t> touched_;  // a bit per line of the range: fetched before
-    Aux total_aux_{};                // of every ray judged
-    Aux current_aux_{};              // of the ray just judged
-    Aux unit_aux_{};                 // of the open unit's rays handed out so far
+    LineTracker lines_;
+    const FrameProfile* profile_ = nullptr;
+    MemoryPort* l2_ = nullptr;
+    uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed: fetched before
+    Aux total_aux_{};              // of every ray judged
+    Aux current_aux_{};            // of the ray just judged
+    Aux unit_aux_{};               // of the open unit's rays handed out so far
     // Per measured unit: its auxiliaries, cycles, and each counter's change.
     std::array<std::vector<double>, kAuxiliaries> aux_;
+    std::vector<uint64_t> unit_index_;
     std::vector<double> cycles_;
     std::vector<std::vector<double>> deltas_;  // [counter][unit]
 };

@@ -52,7 +52,7 @@ class CountingSource : public RayWorkSource {
             hits_by_kind[static_cast<int>(work.kind)] += hit;
             steps += work.steps.size();
             // A sampled run fast-forwards most rays here: they warm the caches, no core runs them.
-            if (!sampler_ || !sampler_->fast_forward(work)) break;
+            if (!sampler_ || !sampler_->fast_forward(work, current_tile())) break;
         }
         if (sampler_) sampler_->handed_out(now);
         return true;
@@ -80,6 +80,8 @@ class CountingSource : public RayWorkSource {
 
   protected:
     Sampler* sampler_ = nullptr;
+    // The tile the work item produce() filled last came from (-1: not known, a trace replay).
+    virtual int64_t current_tile() const { return -1; }
     // Fills the next work item (a ray, or a packet of work.rays rays); `hits`: how many hit.
     virtual bool produce(RayWork& work, uint32_t& hits) = 0;
 
@@ -126,6 +128,8 @@ class PrefetchingSource : public CountingSource {
         // Packet mode: per record (a packet), its rays and how many of them hit.
         std::vector<uint8_t> packet_rays;
         std::vector<uint32_t> packet_hits;
+        // Per record, the tile it came from (filled when a sampled run skips tiles).
+        std::vector<uint32_t> tiles;
         double progress = 0;  // fraction of the work done once this batch is used
         bool last = false;    // nothing follows
         std::string error;
@@ -191,12 +195,14 @@ class PrefetchingSource : public CountingSource {
         work.steps.swap(r.steps);
         work.rays = 1;
         hits = r.prim != kInvalidPrim;
+        if (pos_ <= batch_.tiles.size()) tile_ = batch_.tiles[pos_ - 1];
         if (pos_ <= batch_.packet_hits.size()) {
             work.rays = batch_.packet_rays[pos_ - 1];
             hits = batch_.packet_hits[pos_ - 1];
         }
         return true;
     }
+    int64_t current_tile() const override { return tile_; }
 
   private:
     // The helper thread: fills a batch whenever one is requested, until stopped.
@@ -238,6 +244,7 @@ class PrefetchingSource : public CountingSource {
     const char* unit_;
     Batch batch_;
     size_t pos_ = 0;
+    int64_t tile_ = -1;
     bool outstanding_ = false;  // a batch was requested and not taken yet (simulation thread)
     std::thread helper_;
     std::mutex mutex_;  // guards what follows
@@ -256,16 +263,20 @@ class GeneratedWorkSource : public PrefetchingSource {
   public:
     // packet_size > 0: runs of consecutive rays of one kind are traced as packets of up to
     // that many rays, each packet one work item.
+    // `want_tile` (optional): tiles it refuses are never generated (a sampled run's skip design),
+    // and each ray's tile is then passed on with it.
     GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0,
-                        int threads = 1)
+                        int threads = 1, std::function<bool(int)> want_tile = {})
         : PrefetchingSource(progress, "tiles"),
           bvh_(bvh),
           gen_(gen),
           packet_size_(packet_size),
+          record_tiles_(bool(want_tile)),
           tiles_(
               gen, threads,
               packet_size > 0 ? std::function<void(std::vector<GeneratedRay>&)>()
-                              : [this](std::vector<GeneratedRay>& rays) { trace_all(rays); }) {
+                              : [this](std::vector<GeneratedRay>& rays) { trace_all(rays); },
+              std::move(want_tile)) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
@@ -276,9 +287,10 @@ class GeneratedWorkSource : public PrefetchingSource {
         b.records.clear();  // steps are moved in from the tracer: nothing to reuse
         constexpr size_t kBatchRays = 4096;
         std::vector<GeneratedRay> rays;
+        b.tiles.clear();
         bool more = true;
-        while (rays.size() < kBatchRays && (more = tiles_.next(rays))) {
-        }
+        while (rays.size() < kBatchRays && (more = tiles_.next(rays)))
+            if (record_tiles_) b.tiles.resize(rays.size(), uint32_t(tiles_.last_tile()));
         if (packet_size_ > 0) {
             fill_packets(rays, b);
         } else {
@@ -330,6 +342,7 @@ class GeneratedWorkSource : public PrefetchingSource {
     const Bvh& bvh_;
     RayGenerator& gen_;
     int packet_size_;
+    bool record_tiles_;
     TileQueue tiles_;  // used by the helper thread only (and the tile threads it starts)
 };
 

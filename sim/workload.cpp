@@ -124,6 +124,12 @@ void check_config_combination(const Config& cfg, const std::string& trace_path) 
             "sim.fidelity=sampled: not yet with traversal.mode={} (a treelet ray buffer admits "
             "rays ahead of the cores, a packet spans unit boundaries)",
             mode.name));
+    if (cfg.typed.sim.fidelity == "sampled" && cfg.typed.sim.sample_fast_forward == "skip" &&
+        !trace_path.empty())
+        throw InputError(fmt::format(
+            "{}: sim.sample_fast_forward=skip skips tiles before they are traced and needs rays "
+            "generated on the fly; a trace replay samples with sim.sample_fast_forward=warm",
+            trace_path));
     if (!mode.replays_traces && !trace_path.empty())
         throw InputError(
             fmt::format("{}: a trace records single-ray traversal; traversal.mode={} needs rays "

@@ -23,7 +23,9 @@ RTSIM_REGISTER(FidelityEntry,
                 "the fast model on one unit of rays in sim.sample_period_units, the rest "
                 "fast-forwarded with functional cache warming; totals estimated with 95% "
                 "confidence intervals (stats.json sampling)",
-                {"sample_unit_rays", "sample_period_units", "sample_warmup_rays"},
+                {"sample_unit_rays", "sample_period_units", "sample_warmup_rays",
+                 "sample_fast_forward", "sample_unit_tiles", "sample_warm_tiles",
+                 "sample_warmup_tiles"},
                 &make_fast})
 
 }  // namespace rtsim

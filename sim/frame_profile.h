@@ -1,0 +1,103 @@
+// A frame's functional profile for sampled runs that skip tiles (sim.sample_fast_forward = skip,
+// sim/sampler.h): per unit of tiles, what the functional tracer knows of its rays before timing
+// (the regression's auxiliaries: work, first-touched lines, node steps, rays) and the lines it
+// fetches first in the frame (per tile). A skip run regresses on the units' auxiliaries as a run
+// that traces every ray does, and loads the L2 with the lines the tiles it skips fetched first,
+// where they would have (so the L2 holds what it held in the full run when the frame's footprint
+// fits), without tracing those tiles. The profile depends on the frame and the BVH layout, not on
+// the chip, so a sweep computes it once per frame (FrameProfileCache) and every design point reuses
+// it.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "workloads/bvh.h"
+#include "workloads/raygen.h"
+#include "workloads/step.h"
+
+namespace rtsim {
+
+// Which lines of [base, end) rays have fetched, at line granularity: a ray's first touches of
+// lines in the frame (compulsory misses, which DRAM traffic follows).
+class LineTracker {
+  public:
+    LineTracker() = default;
+    LineTracker(uint64_t base, uint64_t end, uint32_t line_bytes);
+    bool empty() const { return touched_.empty(); }
+    // Marks the lines the step fetches; calls new_line(line index from the range's start) for
+    // each line not fetched before, and returns how many there were.
+    template <class F>
+    uint64_t touch(const Step& s, F&& new_line) {
+        if (touched_.empty()) return 0;
+        uint64_t fresh = 0;
+        const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_;
+        for (uint64_t line = s.addr >> line_shift_; line <= last; ++line) {
+            const uint64_t k = line - first_line_;
+            if (line < first_line_ || k / 64 >= touched_.size()) continue;
+            const uint64_t bit = uint64_t(1) << (k % 64);
+            if ((touched_[k / 64] & bit) == 0) {
+                ++fresh;
+                new_line(k);
+            }
+            touched_[k / 64] |= bit;
+        }
+        return fresh;
+    }
+    uint64_t touch(const Step& s) {
+        return touch(s, [](uint64_t) {});
+    }
+    // The byte address of line k of the range.
+    uint64_t address(uint64_t k) const { return (first_line_ + k) << line_shift_; }
+    uint32_t line_bytes() const { return uint32_t(1) << line_shift_; }
+
+  private:
+    uint64_t first_line_ = 0, line_shift_ = 6;
+    std::vector<uint64_t> touched_;  // a bit per line of the range
+};
+
+// What a run knows of every ray before timing, summed over a unit: the sampled regression's
+// auxiliaries, in the order they are fitted (sim/sampling.h).
+enum AuxIndex { kAuxWork, kAuxNewLines, kAuxNodeSteps, kAuxRays, kAuxiliaries };
+using AuxFigures = std::array<uint64_t, kAuxiliaries>;
+
+// A ray's auxiliaries, marking its lines in `lines` (its new lines are the ones it fetched first).
+template <class F>
+AuxFigures ray_auxiliaries(const RayWork& work, LineTracker& lines, F&& new_line) {
+    AuxFigures a{};
+    a[kAuxWork] = work.steps.size() + work.rays;
+    a[kAuxRays] = work.rays;
+    for (const Step& s : work.steps) {
+        a[kAuxNodeSteps] += s.kind == StepKind::Node;
+        a[kAuxNewLines] += lines.touch(s, new_line);
+    }
+    return a;
+}
+
+struct FrameProfile {
+    uint64_t unit_tiles = 0;
+    uint32_t line_bytes = 0;
+    uint64_t line_base = 0;                   // byte address of line 0
+    std::vector<AuxFigures> units;            // per unit of unit_tiles tiles
+    std::vector<uint32_t> first_touch_start;  // per tile, where its lines start in first_touches
+    std::vector<uint32_t> first_touches;      // line indices, in the order the frame fetched them
+    double seconds = 0;                       // host time to compute (or load) it
+    std::string cache;                        // "off", "hit", "built", "rebuilt: why"
+};
+
+// Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)
+// at line_bytes.
+FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
+                           uint64_t base, uint64_t end, uint32_t line_bytes, int threads);
+
+// profile_frame through an on-disk cache in `dir` (empty: none), the BVH cache's folder. `key`
+// names everything the profile depends on besides the unit and line sizes and the range (the
+// scene's content, the BVH and its layout, the ray generator's settings); an entry whose
+// checksum, key or structure is wrong is recomputed and stored over, never used.
+FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
+                                  uint64_t base, uint64_t end, uint32_t line_bytes, int threads,
+                                  const std::string& key, const std::string& dir);
+
+}  // namespace rtsim

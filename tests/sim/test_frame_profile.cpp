@@ -1,0 +1,182 @@
+// The skip design of sampled runs (sim.sample_fast_forward = skip): which tiles it traces, and the
+// frame profile it regresses on and replays into the L2.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <string>
+
+#include "sim/frame_profile.h"
+#include "sim/sampler.h"
+#include "workloads/tile_queue.h"
+#include "workloads/tracer.h"
+
+using namespace rtsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+SamplingParams skip_params() {
+    SamplingParams p;
+    p.skip = true;
+    p.stratified = false;
+    p.period_units = 3;
+    p.first_unit = 1;
+    p.unit_tiles = 2;
+    p.warm_tiles = 2;
+    p.warmup_tiles = 1;
+    p.tiles = 12;
+    return p;
+}
+
+}  // namespace
+
+// Units of 2 tiles, every third from unit 1: units 1 and 4 (tiles 2-3 and 8-9) are measured.
+// Written out by hand: the tile after each measured unit closes it (4, 10), one tile before it
+// runs in detail (1, 7), the two before those warm the caches (0; 5 and 6), the rest is skipped.
+TEST(SkipDesign, TileRolesByHand) {
+    using R = SampleDesign::TileRole;
+    const SampleDesign d(skip_params());
+    const R want[12] = {R::Warming, R::Warmup, R::Measured, R::Measured, R::After, R::Warming,
+                        R::Warming, R::Warmup, R::Measured, R::Measured, R::After, R::Skipped};
+    for (uint64_t t = 0; t < 12; ++t) EXPECT_EQ(int(d.tile_role(t)), int(want[t])) << "tile " << t;
+    EXPECT_EQ(d.units(), 6u);
+    EXPECT_FALSE(d.wants_tile(11));
+}
+
+// A stratified skip design draws its last, shorter stratum among the units it has: every stratum
+// then holds exactly one measured unit, whatever the seed.
+TEST(SkipDesign, EveryStratumHasOneMeasuredUnit) {
+    SamplingParams p = skip_params();
+    p.stratified = true;
+    p.first_unit = -1;
+    p.period_units = 4;
+    p.tiles = 2 * 10;  // 10 units: strata of 4, 4 and 2
+    for (uint64_t seed = 1; seed <= 200; ++seed) {
+        p.seed = seed;
+        const SampleDesign d(p);
+        for (uint64_t h = 0; h < 3; ++h) {
+            int measured = 0;
+            for (uint64_t u = 4 * h; u < std::min<uint64_t>(10, 4 * h + 4); ++u)
+                measured += d.measured_unit(u);
+            EXPECT_EQ(measured, 1) << "seed " << seed << " stratum " << h;
+        }
+    }
+}
+
+namespace {
+
+struct Frame {
+    Scene scene = load_scene("builtin:cornell");
+    Bvh bvh = build_bvh(scene, BvhBuildOptions());
+    RayGenOptions options() const {
+        RayGenOptions o;
+        o.width = 40;
+        o.height = 24;  // 5 x 3 tiles of 8x8
+        o.kinds = parse_ray_kinds("primary,ao", "test");
+        return o;
+    }
+    uint64_t base() const { return std::min(bvh.layout.node_base_addr, bvh.layout.tri_base_addr); }
+    uint64_t end() const {
+        const BvhLayout& L = bvh.layout;
+        return std::max(L.node_base_addr + L.node_bytes_total(),
+                        L.tri_base_addr + L.tri_bytes_total());
+    }
+};
+
+}  // namespace
+
+// The profile against an independent count: every ray of the frame traced one tile at a time, its
+// lines gathered in a std::set in frame order.
+TEST(FrameProfile, CountsWhatTheFrameTracesAndFetchesFirst) {
+    const Frame f;
+    RayGenerator gen(f.scene, f.bvh, f.options());
+    gen.set_record_steps(true);
+    const uint64_t unit_tiles = 2;
+    const FrameProfile p = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 1);
+    ASSERT_EQ(p.units.size(), 8u);  // 15 tiles in units of 2
+    ASSERT_EQ(p.first_touch_start.size(), 16u);
+
+    std::set<uint64_t> seen;
+    std::vector<uint64_t> rays(p.units.size()), steps(p.units.size()), fresh(p.units.size());
+    for (int t = 0; t < gen.tile_count(); ++t) {
+        std::vector<GeneratedRay> tile;
+        gen.generate_tile(t, tile);
+        uint64_t tile_fresh = 0;
+        for (GeneratedRay& g : tile) {
+            if (!g.traced) trace_ray(f.bvh, g.ray, g.query, &g.steps);
+            rays[size_t(t) / unit_tiles] += 1;
+            steps[size_t(t) / unit_tiles] += g.steps.size();
+            for (const Step& s : g.steps)
+                for (uint64_t a = s.addr / 64; a <= (s.addr + s.size_bytes - 1) / 64; ++a)
+                    tile_fresh += seen.insert(a).second;
+        }
+        fresh[size_t(t) / unit_tiles] += tile_fresh;
+        EXPECT_EQ(p.first_touch_start[size_t(t) + 1] - p.first_touch_start[size_t(t)], tile_fresh)
+            << "tile " << t;
+    }
+    for (size_t u = 0; u < p.units.size(); ++u) {
+        EXPECT_EQ(p.units[u][kAuxRays], rays[u]) << u;
+        EXPECT_EQ(p.units[u][kAuxWork], steps[u] + rays[u]) << u;
+        EXPECT_EQ(p.units[u][kAuxNewLines], fresh[u]) << u;
+    }
+    // The first touches are the frame's distinct lines, each once.
+    ASSERT_EQ(p.first_touches.size(), seen.size());
+    std::set<uint64_t> replayed;
+    for (uint32_t k : p.first_touches) replayed.insert((p.line_base + uint64_t(k) * 64) / 64);
+    EXPECT_EQ(replayed, seen);
+    // The same profile on two threads.
+    const FrameProfile q = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 2);
+    EXPECT_EQ(q.units, p.units);
+    EXPECT_EQ(q.first_touches, p.first_touches);
+}
+
+// The profile cache: stored, then served; a damaged, truncated or foreign entry is recomputed
+// and stored over, never used.
+TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
+    const Frame f;
+    RayGenerator gen(f.scene, f.bvh, f.options());
+    gen.set_record_steps(true);
+    const fs::path dir = fs::path(::testing::TempDir()) / "rtsim_profile_cache";
+    fs::remove_all(dir);
+    auto get = [&](const std::string& key) {
+        return profile_frame_cached(gen, f.bvh, 2, f.base(), f.end(), 64, 1, key, dir.string());
+    };
+    const FrameProfile built = get("a");
+    EXPECT_EQ(built.cache, "built");
+    const FrameProfile hit = get("a");
+    EXPECT_EQ(hit.cache, "hit");
+    EXPECT_EQ(hit.units, built.units);
+    EXPECT_EQ(hit.first_touch_start, built.first_touch_start);
+    EXPECT_EQ(hit.first_touches, built.first_touches);
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
+    ASSERT_EQ(files.size(), 1u);
+    const fs::path entry = files[0];
+    auto bytes = [](const fs::path& p) {
+        std::ifstream in(p, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    auto put = [](const fs::path& p, const std::string& s) {
+        std::ofstream(p, std::ios::binary | std::ios::trunc) << s;
+    };
+    const std::string good = bytes(entry);
+    std::string flipped = good;
+    flipped[flipped.size() / 2] ^= 0x10;
+    put(entry, flipped);
+    EXPECT_EQ(get("a").cache, "rebuilt: checksum mismatch");
+    EXPECT_EQ(bytes(entry), good);  // stored over
+    put(entry, good.substr(0, good.size() / 3));
+    EXPECT_EQ(get("a").cache.rfind("rebuilt: ", 0), 0u);
+    // Another key's valid entry under this key's name.
+    get("b");
+    std::string other;
+    for (const auto& e : fs::directory_iterator(dir))
+        if (e.path() != entry) other = bytes(e.path());
+    ASSERT_FALSE(other.empty());
+    put(entry, other);
+    EXPECT_EQ(get("a").cache, "rebuilt: key mismatch");
+    EXPECT_EQ(get("a").cache, "hit");
+    fs::remove_all(dir);
+}
