@@ -1,15 +1,12 @@
 #include "sim/frame_profile.h"
 
-#include <unistd.h>
-
 #include <fmt/format.h>
+#include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
+#include "workloads/cache_entry.h"
 #include "workloads/tile_queue.h"
 #include "workloads/trace_file.h"
 #include "workloads/tracer.h"
@@ -67,70 +64,20 @@ namespace fs = std::filesystem;
 
 constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '1'};
 
-// Bytes appended and read back in one order; a read past the end or a bad count is an unusable
-// entry.
-struct Unusable {
-    std::string why;
-};
-
-template <class T>
-void put(std::string& out, const T& v) {
-    out.append(reinterpret_cast<const char*>(&v), sizeof v);
-}
-template <class T>
-void put_vec(std::string& out, const std::vector<T>& v) {
-    put(out, uint64_t(v.size()));
-    out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-}
-
-class Reader {
-  public:
-    explicit Reader(const std::string& s) : p_(s.data()), end_(s.data() + s.size()) {}
-    template <class T>
-    T get() {
-        T v;
-        take(&v, sizeof v);
-        return v;
-    }
-    template <class T>
-    void get_vec(std::vector<T>& v) {
-        const uint64_t n = get<uint64_t>();
-        if (n > uint64_t(end_ - p_) / sizeof(T)) throw Unusable{"truncated"};
-        v.resize(size_t(n));
-        take(v.data(), size_t(n) * sizeof(T));
-    }
-    bool done() const { return p_ == end_; }
-
-  private:
-    void take(void* dst, size_t n) {
-        if (n > size_t(end_ - p_)) throw Unusable{"truncated"};
-        if (n) std::memcpy(dst, p_, n);
-        p_ += n;
-    }
-    const char* p_;
-    const char* end_;
-};
-
-uint64_t fnv(const std::string& s) {
-    uint64_t h = 1469598103934665603ull;
-    for (unsigned char c : s) {
-        h ^= c;
-        h *= 1099511628211ull;
-    }
-    return h;
-}
+using Unusable = CacheEntryUnusable;
 
 std::string serialize(const FrameProfile& p, const std::string& key) {
-    std::string out(kMagic, sizeof kMagic);
-    put_vec(out, std::vector<char>(key.begin(), key.end()));
-    put(out, p.unit_tiles);
-    put(out, p.line_bytes);
-    put(out, p.line_base);
-    put_vec(out, p.units);
-    put_vec(out, p.first_touch_start);
-    put_vec(out, p.first_touches);
-    put(out, crc32(out.data(), out.size()));
-    return out;
+    CacheEntryWriter w;
+    w.bytes().append(kMagic, sizeof kMagic);
+    w.vec(std::vector<char>(key.begin(), key.end()));
+    w.pod(p.unit_tiles);
+    w.pod(p.line_bytes);
+    w.pod(p.line_base);
+    w.vec(p.units);
+    w.vec(p.first_touch_start);
+    w.vec(p.first_touches);
+    w.pod(crc32(w.bytes().data(), w.bytes().size()));
+    return std::move(w.bytes());
 }
 
 FrameProfile deserialize(const std::string& bytes, const std::string& key, uint64_t tiles) {
@@ -139,18 +86,17 @@ FrameProfile deserialize(const std::string& bytes, const std::string& key, uint6
     uint32_t crc;
     std::memcpy(&crc, bytes.data() + bytes.size() - 4, 4);
     if (crc32(bytes.data(), bytes.size() - 4) != crc) throw Unusable{"checksum mismatch"};
-    const std::string body = bytes.substr(sizeof kMagic, bytes.size() - sizeof kMagic - 4);
-    Reader r(body);
+    CacheEntryReader r(bytes.data() + sizeof kMagic, bytes.size() - sizeof kMagic - 4);
     std::vector<char> stored;
-    r.get_vec(stored);
+    r.vec(stored);
     if (std::string(stored.begin(), stored.end()) != key) throw Unusable{"key mismatch"};
     FrameProfile p;
-    p.unit_tiles = r.get<uint64_t>();
-    p.line_bytes = r.get<uint32_t>();
-    p.line_base = r.get<uint64_t>();
-    r.get_vec(p.units);
-    r.get_vec(p.first_touch_start);
-    r.get_vec(p.first_touches);
+    p.unit_tiles = r.pod<uint64_t>();
+    p.line_bytes = r.pod<uint32_t>();
+    p.line_base = r.pod<uint64_t>();
+    r.vec(p.units);
+    r.vec(p.first_touch_start);
+    r.vec(p.first_touches);
     if (!r.done()) throw Unusable{"trailing bytes"};
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
     if (p.unit_tiles == 0 || p.first_touch_start.size() != tiles + 1 ||
@@ -171,44 +117,23 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
     const std::string full_key = fmt::format("{} unit_tiles={} line_bytes={} range={:x}-{:x}", key,
                                              unit_tiles, line_bytes, base, end);
     const std::string path =
-        (fs::path(dir) / fmt::format("profile-{:016x}.bin", fnv(full_key))).string();
-    std::string outcome = "built";
-    {
-        std::ifstream in(path, std::ios::binary);
-        if (in) {
-            std::ostringstream ss;
-            ss << in.rdbuf();
-            try {
-                FrameProfile p = deserialize(ss.str(), full_key, uint64_t(gen.tile_count()));
-                p.cache = "hit";
-                p.seconds =
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-                return p;
-            } catch (const Unusable& u) {
-                outcome = "rebuilt: " + u.why;
-            }
+        (fs::path(dir) /
+         fmt::format("profile-{:016x}.bin", fnv1a(kFnvOffset, full_key.data(), full_key.size())))
+            .string();
+    std::string outcome = "built", bytes;
+    if (read_cache_entry(path, bytes)) {
+        try {
+            FrameProfile p = deserialize(bytes, full_key, uint64_t(gen.tile_count()));
+            p.cache = "hit";
+            p.seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            return p;
+        } catch (const Unusable& u) {
+            outcome = "rebuilt: " + u.why;
         }
     }
     FrameProfile p = profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads);
-    // Written to a temporary file and renamed: concurrent runs never read half an entry. A
-    // folder that cannot be written costs only the store.
-    std::error_code ec;
-    fs::create_directories(dir, ec);
-    const std::string tmp = fmt::format("{}.tmp.{}", path, getpid());
-    const std::string bytes = serialize(p, full_key);
-    bool stored = false;
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        out.write(bytes.data(), std::streamsize(bytes.size()));
-        stored = bool(out);
-    }
-    if (stored) fs::rename(tmp, path, ec);
-    if (!stored || ec) {
-        fs::remove(tmp, ec);
-        std::fprintf(stderr,
-                     "rtsim: warning: %s: cannot write the frame profile (the run goes on)\n",
-                     path.c_str());
-    }
+    store_cache_entry(path, serialize(p, full_key), "frame profile");
     p.cache = outcome;
     p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return p;

@@ -162,10 +162,10 @@ void print_run_summary(const json& out, const std::string& stats_path) {
         fmt::print("\n");
         const bool skip = sm.value("fast_forward", std::string()) == "skip";
         if (skip)
-            fmt::print("  skipped  {:.1f}% of rays traced; frame profile {} ({:.2f} s)\n",
-                       100 * sm.value("traced_share", 0.0),
-                       sm["profile"].value("cache", std::string("?")),
-                       sm["profile"].value("seconds", 0.0));
+            fmt::print(
+                "  traced   {:.1f}% of rays (the rest skipped); frame profile {} ({:.2f} s)\n",
+                100 * sm.value("traced_share", 0.0), sm["profile"].value("cache", std::string("?")),
+                sm["profile"].value("seconds", 0.0));
         if (sm.value("units_measured", 0) < 30)
             fmt::print(
                 "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "

@@ -198,6 +198,19 @@ json estimate_json(const Estimate& e, double scale, double offset = 0) {
 }
 }  // namespace
 
+json Sampler::counter_estimates(
+    const std::function<Estimate(const std::vector<double>&)>& total) const {
+    json counters = json::object();
+    const auto& e = counters_.entries();
+    for (size_t c = 0; c < e.size(); ++c) {
+        double sum = 0;
+        for (double d : deltas_[c]) sum += d;
+        if (sum == 0) continue;  // a counter that never moved in a measured unit
+        counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
+    }
+    return counters;
+}
+
 json Sampler::report(Cycle end_cycle) {
     finish();
     if (params_.skip) return skip_report(json::object(), end_cycle);
@@ -230,15 +243,7 @@ json Sampler::report(Cycle end_cycle) {
     // Totals by regression on the auxiliaries (sim/sampling.h says which it fits).
     auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
     out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
-    json counters = json::object();
-    const auto& e = counters_.entries();
-    for (size_t c = 0; c < e.size(); ++c) {
-        double sum = 0;
-        for (double d : deltas_[c]) sum += d;
-        if (sum == 0) continue;  // a counter that never moved in a measured unit
-        counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
-    }
-    out["counters"] = counters;
+    out["counters"] = counter_estimates(total);
     out["figures"] = figures(units);
     return out;
 }
@@ -299,15 +304,7 @@ json Sampler::skip_report(json out, Cycle end_cycle) {
     out["profile"] = {{"seconds", profile_->seconds}, {"cache", profile_->cache}};
     auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
     out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
-    json counters = json::object();
-    const auto& e = counters_.entries();
-    for (size_t c = 0; c < e.size(); ++c) {
-        double sum = 0;
-        for (double d : deltas_[c]) sum += d;
-        if (sum == 0) continue;
-        counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
-    }
-    out["counters"] = counters;
+    out["counters"] = counter_estimates(total);
     out["figures"] = figures(units);
     return out;
 }

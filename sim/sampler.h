@@ -31,6 +31,7 @@
 #include <algorithm>
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -39,6 +40,7 @@
 #include "models/stats.h"
 #include "models/timing.h"
 #include "sim/frame_profile.h"
+#include "sim/sampling.h"
 #include "workloads/step.h"
 
 namespace rtsim {
@@ -144,6 +146,9 @@ class Sampler {
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
     // from its start to `end`.
     void close_unit(const Aux& aux, Cycle end);
+    // Every counter that moved in a measured unit, its total estimated by `total`.
+    nlohmann::json counter_estimates(
+        const std::function<Estimate(const std::vector<double>&)>& total) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }

@@ -11,6 +11,7 @@
 #include <sstream>
 #include <type_traits>
 
+#include "workloads/cache_entry.h"
 #include "workloads/error.h"
 #include "workloads/trace_file.h"  // crc32
 
@@ -24,65 +25,12 @@ namespace {
 constexpr uint32_t kFormatVersion = 1;
 constexpr char kMagic[8] = {'R', 'T', 'S', 'I', 'M', 'B', 'V', 'H'};
 
-// An entry found unusable, and why.
-struct Unusable {
-    std::string why;
-};
-
-class Writer {
-  public:
-    template <class T>
-    void pod(const T& v) {
-        static_assert(std::is_trivially_copyable_v<T>);
-        out_.append(reinterpret_cast<const char*>(&v), sizeof v);
-    }
-    template <class T>
-    void vec(const std::vector<T>& v) {
-        static_assert(std::is_trivially_copyable_v<T>);
-        pod(uint64_t(v.size()));
-        if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-    }
-    std::string& bytes() { return out_; }
-
-  private:
-    std::string out_;
-};
-
-class Reader {
-  public:
-    Reader(const char* data, size_t size) : p_(data), end_(data + size) {}
-    template <class T>
-    T pod() {
-        T v;
-        take(&v, sizeof v);
-        return v;
-    }
-    template <class T>
-    void vec(std::vector<T>& v) {
-        const uint64_t n = pod<uint64_t>();
-        if (n > uint64_t(end_ - p_) / sizeof(T)) throw Unusable{"truncated"};
-        v.resize(size_t(n));
-        take(v.data(), size_t(n) * sizeof(T));
-    }
-    bool done() const { return p_ == end_; }
-
-  private:
-    void take(void* dst, size_t n) {
-        if (n > size_t(end_ - p_)) throw Unusable{"truncated"};
-        if (n) std::memcpy(dst, p_, n);
-        p_ += n;
-    }
-    const char* p_;
-    const char* end_;
-};
+using Unusable = CacheEntryUnusable;
+using Writer = CacheEntryWriter;
+using Reader = CacheEntryReader;
 
 uint64_t fnv(uint64_t h, const void* data, size_t n) {
-    const auto* p = static_cast<const unsigned char*>(data);
-    for (size_t i = 0; i < n; ++i) {
-        h ^= p[i];
-        h *= 1099511628211ull;
-    }
-    return h;
+    return fnv1a(h, data, n);
 }
 
 // Calls f with every BvhBuildOptions field the build reads, in one order: the key hashes them,
@@ -209,28 +157,6 @@ Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& w
     return b;
 }
 
-// Writes through a temporary file and a rename, so a concurrent reader (another sweep point)
-// sees the old entry, no entry or the whole new one.
-void store(const std::string& path, const std::string& bytes) {
-    std::error_code ec;
-    fs::create_directories(fs::path(path).parent_path(), ec);
-    const std::string tmp = fmt::format("{}.tmp.{}", path, getpid());
-    {
-        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-        out.write(bytes.data(), std::streamsize(bytes.size()));
-        if (!out) {
-            fs::remove(tmp, ec);
-            warn(fmt::format("{}: cannot write the BVH cache entry (the run goes on)", path));
-            return;
-        }
-    }
-    fs::rename(tmp, path, ec);
-    if (ec) {
-        fs::remove(tmp, ec);
-        warn(fmt::format("{}: cannot write the BVH cache entry (the run goes on)", path));
-    }
-}
-
 }  // namespace
 
 const char* bvh_cache_outcome_name(BvhCacheOutcome o) {
@@ -288,12 +214,10 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     const uint64_t key = bvh_cache_key(scene, options, layout_sizes);
     st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
     st.outcome = BvhCacheOutcome::Built;
-    std::ifstream in(st.path, std::ios::binary);
-    if (in) {
-        std::stringstream ss;
-        ss << in.rdbuf();
+    std::string bytes;
+    if (read_cache_entry(st.path, bytes)) {
         try {
-            Bvh b = deserialize(ss.str(), key, options);
+            Bvh b = deserialize(bytes, key, options);
             st.outcome = BvhCacheOutcome::Hit;
             st.seconds = seconds();
             b.quality.build_seconds = st.seconds;  // what this run spent to have the tree
@@ -305,9 +229,35 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
         }
     }
     Bvh b = build_bvh(scene, options, layout_sizes);
-    store(st.path, serialize(b, key));
+    store_cache_entry(st.path, serialize(b, key), "BVH cache entry");
     st.seconds = seconds();
     return b;
+}
+
+void store_cache_entry(const std::string& path, const std::string& bytes, const char* what) {
+    std::error_code ec;
+    fs::create_directories(fs::path(path).parent_path(), ec);
+    const std::string tmp = fmt::format("{}.tmp.{}", path, getpid());
+    bool written;
+    {
+        std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+        out.write(bytes.data(), std::streamsize(bytes.size()));
+        written = bool(out);
+    }
+    if (written) fs::rename(tmp, path, ec);
+    if (!written || ec) {
+        fs::remove(tmp, ec);
+        warn(fmt::format("{}: cannot write the {} (the run goes on)", path, what));
+    }
+}
+
+bool read_cache_entry(const std::string& path, std::string& bytes) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return false;
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    bytes = std::move(ss).str();
+    return bool(in) || in.eof();
 }
 
 }  // namespace rtsim

@@ -1,0 +1,85 @@
+// What the on-disk caches (built BVHs, workloads/bvh_cache.h; frame profiles, sim/frame_profile.h)
+// share: an entry's bytes written and read back field by field, a read past the end refused, and
+// an entry stored through a temporary file and a rename.
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace rtsim {
+
+// An entry found unusable, and why (it is then rebuilt and stored over).
+struct CacheEntryUnusable {
+    std::string why;
+};
+
+class CacheEntryWriter {
+  public:
+    template <class T>
+    void pod(const T& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        out_.append(reinterpret_cast<const char*>(&v), sizeof v);
+    }
+    template <class T>
+    void vec(const std::vector<T>& v) {
+        static_assert(std::is_trivially_copyable_v<T>);
+        pod(uint64_t(v.size()));
+        if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    }
+    std::string& bytes() { return out_; }
+
+  private:
+    std::string out_;
+};
+
+class CacheEntryReader {
+  public:
+    CacheEntryReader(const char* data, size_t size) : p_(data), end_(data + size) {}
+    template <class T>
+    T pod() {
+        T v;
+        take(&v, sizeof v);
+        return v;
+    }
+    template <class T>
+    void vec(std::vector<T>& v) {
+        const uint64_t n = pod<uint64_t>();
+        if (n > uint64_t(end_ - p_) / sizeof(T)) throw CacheEntryUnusable{"truncated"};
+        v.resize(size_t(n));
+        take(v.data(), size_t(n) * sizeof(T));
+    }
+    bool done() const { return p_ == end_; }
+
+  private:
+    void take(void* dst, size_t n) {
+        if (n > size_t(end_ - p_)) throw CacheEntryUnusable{"truncated"};
+        if (n) std::memcpy(dst, p_, n);
+        p_ += n;
+    }
+    const char* p_;
+    const char* end_;
+};
+
+// FNV-1a over bytes, continuing from h.
+inline uint64_t fnv1a(uint64_t h, const void* data, size_t n) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (size_t i = 0; i < n; ++i) {
+        h ^= p[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+constexpr uint64_t kFnvOffset = 1469598103934665603ull;
+
+// Writes through a temporary file and a rename, so a concurrent reader (another sweep point)
+// sees the old entry, no entry or the whole new one. A folder that cannot be written only costs
+// the store: a one-line warning naming `what`, and the run goes on.
+void store_cache_entry(const std::string& path, const std::string& bytes, const char* what);
+
+// The file's bytes; false if it cannot be read.
+bool read_cache_entry(const std::string& path, std::string& bytes);
+
+}  // namespace rtsim
