@@ -491,6 +491,26 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
         << sm["counters"]["dram.bytes"];
 }
 
+// --target-error in the skip design: the period is chosen before any tile is generated (the
+// source skips by it), and the intervals come within the target.
+TEST(Sampled, SkipDesignHonoursTargetError) {
+    const fs::path out = work_dir() / "k_target";
+    const Result r = run_rtsim("run --scene " RTSIM_BUNNY_OBJ
+                               " --rays primary,ao --res 192x192 --set sim.fidelity=sampled "
+                               "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
+                               "--set sim.sample_period_units=8 --bvh-cache '" +
+                               (work_dir() / "k_target_cache").string() +
+                               "' --target-error 15 -o '" + out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out)["sampling"];
+    EXPECT_TRUE(s["target"]["met"].get<bool>()) << s["target"];
+    EXPECT_EQ(s["period_units"], s["target"]["period_units"]);
+    EXPECT_LE(s["total_cycles"]["half_width_pct"].get<double>(), 15.0);
+    EXPECT_LE(s["counters"]["dram.bytes"]["half_width_pct"].get<double>(), 15.0);
+    // The pilot (a child run) stored the profile; the run itself loaded it.
+    EXPECT_EQ(s["profile"]["cache"], "hit");
+}
+
 TEST(Sampled, SkipDesignNeedsGeneratedRays) {
     const fs::path rtt = work_dir() / "skip.rtt";
     ASSERT_EQ(run_rtsim("trace -q --res 16x16 -o '" + rtt.string() + "'").status, 0);
