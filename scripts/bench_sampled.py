@@ -277,6 +277,10 @@ def main(argv=None):
                                           sm["counters"].get("dram.bytes", {
                                               "value": 0.0, "lo": 0.0, "hi": 0.0,
                                               "half_width_pct": 0.0}))):
+                        # An unbounded interval is written as null: it holds anything, but
+                        # says nothing, so it counts as a miss with an infinite width.
+                        if est["lo"] is None or est["hi"] is None:
+                            est = dict(est, lo=math.inf, hi=-math.inf, half_width_pct=math.inf)
                         row[name] = {"value": est["value"],
                                      "error_pct": 100.0 * (est["value"] - t) / t,
                                      "half_width_pct": est["half_width_pct"],

@@ -223,7 +223,7 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
         const double rays = double(out["rays"]["total"].get<uint64_t>());
         const double seconds = cycles / hz;
         const double rate = seconds > 0 ? rays / seconds : 0.0;
-        out["total_cycles"] = uint64_t(std::llround(cycles));
+        out["total_cycles"] = uint64_t(std::llround(std::max(0.0, cycles)));
         out["simulated_seconds"] = seconds;
         out["rays_per_second"] = rate;
         // Its interval is the cycles' one, inverted.
@@ -233,7 +233,7 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
             {"value", rate},
             {"lo", lo},
             {"hi", hi},
-            {"half_width_pct", 100.0 * (hi - lo) / 2.0 / rate}};
+            {"half_width_pct", rate > 0 ? 100.0 * (hi - lo) / 2.0 / rate : 0.0}};
     }
     out["sampling"] = std::move(sampling);
 }
