@@ -185,7 +185,7 @@ def main(argv=None):
     sets = [a for kv in args.set for a in ("--set", kv)]
     if args.skip:
         sets += ["--set", "sim.sample_fast_forward=skip"]
-    name = "sampled_skip" if args.skip else "sampled"
+    out_name = "sampled_skip" if args.skip else "sampled"
 
     profiles = {}
     with tempfile.TemporaryDirectory() as tmp:
@@ -378,14 +378,14 @@ def main(argv=None):
                          f"{profiles[(c['scene'], c['workload'])]:.2f} | "
                          f"{c['full']['host_s']:.2f} |")
             c["profile_s"] = profiles[(c["scene"], c["workload"])]
-    lines += ["", f"Plot: {name}_pareto.svg (host seconds against the cycles' mean absolute "
+    lines += ["", f"Plot: {out_name}_pareto.svg (host seconds against the cycles' mean absolute "
               "error; the dashed line is the Pareto front)."]
     text = "\n".join(lines) + "\n"
-    write_results(args.out, name, text,
+    write_results(args.out, out_name, text,
                   {"res": args.res, "unit_rays": args.unit_rays, "periods": periods,
                    "design": args.design,
                    "target_errors": targets, "cells": cells})
-    svg_plot(cells, os.path.join(args.out, name + "_pareto.svg"))
+    svg_plot(cells, os.path.join(args.out, out_name + "_pareto.svg"))
     print(text)
 
 
