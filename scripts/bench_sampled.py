@@ -18,12 +18,15 @@ machine, in this run).
 
 Writes bench/results/sampled.{md,json} and sampled_pareto.svg: host seconds against the cycles'
 mean absolute error, one point per mode and cell, the Pareto front marked. Prints the summary.
+With --skip, the skip design (sim.sample_fast_forward=skip: tiles far from a measured unit are
+never traced; each frame's profile is computed once, untimed, before the timed runs) and
+bench/results/sampled_skip.* instead.
 
     scripts/bench_sampled.py [--rtsim build/rtsim] [--res 1920x1080]
         [--scenes bunny,armadillo,cornell,camel,elephant,homer]
         [--workloads primary,ao,diffuse,path2] [--periods 10,20,100] [--max-starts 100]
         [--target-errors 5] [--adaptive-starts 5] [--full-repeats 3] [-j 2]
-        [--set KEY=VALUE] [--out bench/results]
+        [--set KEY=VALUE] [--skip] [--out bench/results]
 """
 import argparse
 import concurrent.futures
