@@ -9,7 +9,6 @@
 #include "workloads/cache_entry.h"
 #include "workloads/tile_queue.h"
 #include "workloads/trace_file.h"
-#include "workloads/tracer.h"
 
 namespace rtsim {
 
@@ -32,13 +31,8 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
     p.first_touch_start.assign(tiles + 1, 0);
     // The tiles in frame order, traced on the tile threads as a run's work source does.
-    TileQueue queue(gen, threads, [&bvh](std::vector<GeneratedRay>& rays) {
-        for (GeneratedRay& g : rays)
-            if (!g.traced) {
-                g.prim = trace_ray(bvh, g.ray, g.query, &g.steps).prim;
-                g.traced = true;
-            }
-    });
+    TileQueue queue(gen, threads,
+                    [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
     std::vector<GeneratedRay> rays;
     RayWork work;
     auto new_line = [&p](uint64_t k) { p.first_touches.push_back(uint32_t(k)); };

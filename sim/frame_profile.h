@@ -26,7 +26,6 @@ class LineTracker {
   public:
     LineTracker() = default;
     LineTracker(uint64_t base, uint64_t end, uint32_t line_bytes);
-    bool empty() const { return touched_.empty(); }
     // Marks the lines the step fetches; calls new_line(line index from the range's start) for
     // each line not fetched before, and returns how many there were.
     template <class F>
@@ -46,12 +45,8 @@ class LineTracker {
         }
         return fresh;
     }
-    uint64_t touch(const Step& s) {
-        return touch(s, [](uint64_t) {});
-    }
     // The byte address of line k of the range.
     uint64_t address(uint64_t k) const { return (first_line_ + k) << line_shift_; }
-    uint32_t line_bytes() const { return uint32_t(1) << line_shift_; }
 
   private:
     uint64_t first_line_ = 0, line_shift_ = 6;

@@ -138,9 +138,9 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         BvhLayout sizes;
         sizes.node_size_bytes = cfg.typed.node_size_bytes;
         sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
-        const std::string key = fmt::format(
-            "v1 bvh={:016x} {} {} tile_size={}", bvh_cache_key(*w.scene, cfg.typed.bvh, sizes),
-            json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump(), rg.tile_size);
+        const std::string key =
+            fmt::format("v1 bvh={:016x} {} {}", bvh_cache_key(*w.scene, cfg.typed.bvh, sizes),
+                        json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
         w.profile = std::make_unique<FrameProfile>(
             profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, sampled_range_begin(L),
                                  sampled_range_end(L), uint32_t(cfg.typed.l1.line_bytes),
@@ -218,8 +218,6 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
     if (sampling.contains("total_cycles")) {
         const json& c = sampling["total_cycles"];
         const double cycles = c["value"].get<double>();
-        // The skip design traces only part of the frame: its rays are estimated too, and the
-        // rate's interval is that of rays per cycle in the measured units.
         const double rays = double(out["rays"]["total"].get<uint64_t>());
         const double seconds = cycles / hz;
         const double rate = seconds > 0 ? rays / seconds : 0.0;
@@ -284,9 +282,11 @@ int run_command(const RunOptions& opt) {
         for (const auto& core : chip.cores) cores.push_back(core.get());
         sampler->set_write_warming(std::move(cores));
         const BvhLayout& L = w.layout();
-        sampler->set_line_range(sampled_range_begin(L), sampled_range_end(L),
-                                uint32_t(cfg.typed.l1.line_bytes));
-        if (w.profile) sampler->set_profile(w.profile.get(), chip.l2.get());
+        if (w.profile)  // the skip design: the frame's first fetches are the profile's
+            sampler->set_profile(w.profile.get(), chip.l2.get());
+        else
+            sampler->set_line_range(sampled_range_begin(L), sampled_range_end(L),
+                                    uint32_t(cfg.typed.l1.line_bytes));
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

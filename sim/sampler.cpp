@@ -1,5 +1,7 @@
 #include "sim/sampler.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <random>
 
@@ -71,14 +73,15 @@ void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
     lines_ = LineTracker(base, end, line_bytes);
 }
 
-void Sampler::replay_first_touches(uint64_t tile) {
-    if (!profile_ || !l2_) return;
-    const FrameProfile& p = *profile_;
-    tile = std::min<uint64_t>(tile, p.first_touch_start.size() - 1);
-    if (tile <= replayed_tiles_) return;
-    for (uint32_t i = p.first_touch_start[replayed_tiles_]; i < p.first_touch_start[tile]; ++i)
-        l2_->warm(p.line_base + uint64_t(p.first_touches[i]) * p.line_bytes, p.line_bytes);
-    replayed_tiles_ = tile;
+void Sampler::replay_skipped_tiles(uint64_t tile) {
+    if (profile_ && l2_ && tile > replayed_tiles_) {
+        const FrameProfile& p = *profile_;
+        const uint32_t end =
+            p.first_touch_start[std::min<uint64_t>(tile, p.first_touch_start.size() - 1)];
+        for (uint32_t i = p.first_touch_start[replayed_tiles_]; i < end; ++i)
+            l2_->warm(p.line_base + uint64_t(p.first_touches[i]) * p.line_bytes, p.line_bytes);
+    }
+    replayed_tiles_ = tile + 1;
 }
 
 bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
@@ -95,10 +98,7 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         current_unit_ = unit;
         last_tile_ = tile;
         // The tiles skipped since the last traced one fetched their first lines before it.
-        if (new_tile) {
-            replay_first_touches(t);
-            replayed_tiles_ = t + 1;
-        }
+        if (new_tile) replay_skipped_tiles(t);
         using Role = SampleDesign::TileRole;
         const Role role = design_.tile_role(t);
         detailed =
@@ -213,33 +213,71 @@ json Sampler::counter_estimates(
 
 json Sampler::report(Cycle end_cycle) {
     finish();
-    if (params_.skip) return skip_report(json::object(), end_cycle);
-    const uint64_t units = (index_ + params_.unit_rays - 1) / params_.unit_rays;
-    json out = {{"unit_rays", params_.unit_rays},
-                {"period_units", params_.period_units},
-                {"warmup_rays", params_.warmup_rays},
+    const bool skip = params_.skip;
+    const uint64_t units =
+        skip ? design_.units() : (index_ + params_.unit_rays - 1) / params_.unit_rays;
+    if (skip) add_rayless_units(units);
+    json out = {{"period_units", params_.period_units},
                 {"design", params_.stratified ? "stratified" : "systematic"},
                 {"first_unit", params_.stratified ? design_.pick(0) : design_.first_unit()},
                 {"units", units},
                 {"units_measured", cycles_.size()},
-                {"work", total_aux_[kWork]},
-                {"rays", index_},
                 {"rays_detailed", detailed_},
-                {"detailed_share", index_ ? double(detailed_) / double(index_) : 0.0},
                 {"simulated_cycles", end_cycle},
                 {"drain_cycles", end_cycle - last_handout_}};
+    if (skip) {
+        out.update({{"fast_forward", "skip"},
+                    {"unit_tiles", params_.unit_tiles},
+                    {"warm_tiles", params_.warm_tiles},
+                    {"warmup_tiles", params_.warmup_tiles},
+                    {"tiles", params_.tiles},
+                    {"tiles_traced", tiles_traced_},
+                    {"rays_traced", index_}});
+    } else {
+        out.update({{"unit_rays", params_.unit_rays},
+                    {"warmup_rays", params_.warmup_rays},
+                    {"work", total_aux_[kWork]},
+                    {"rays", index_},
+                    {"detailed_share", index_ ? double(detailed_) / double(index_) : 0.0}});
+    }
     if (cycles_.size() < 2) {
-        out["note"] =
+        out["note"] = fmt::format(
             "fewer than 2 measured units: no estimates (a frame shorter than two "
-            "sampling periods; lower sim.sample_period_units or sample_unit_rays)";
+            "sampling periods; lower sim.sample_period_units or sample_unit_{})",
+            skip ? "tiles" : "rays");
         return out;
     }
-    // The work the hand-out times span: all but the last ray's (whose hand-out ends the span;
-    // the drain after it is measured).
     std::vector<Auxiliary> aux(kAuxiliaries);
-    for (size_t k = 0; k < kAuxiliaries; ++k)
-        aux[k] = {aux_[k], double(total_aux_[k] - current_aux_[k])};
-    out["new_lines"] = total_aux_[kNewLines];
+    if (skip) {
+        // The units' auxiliaries come from the frame's profile (the skip run's own first
+        // fetches are not the frame's), their totals too.
+        for (size_t k = 0; k < kAuxiliaries; ++k) {
+            aux[k].x.resize(cycles_.size());
+            for (size_t i = 0; i < cycles_.size(); ++i)
+                aux[k].x[i] = double(profile_->units[unit_index_[i]][k]);
+            for (const Aux& u : profile_->units) aux[k].total += double(u[k]);
+        }
+        const double rays = aux[kRays].total;
+        out["total_rays"] = rays;
+        if (std::all_of(aux[kWork].x.begin(), aux[kWork].x.end(),
+                        [](double x) { return x == 0; })) {
+            // Every measured unit's tiles sent no ray (a 1-in-100 sample of a 1080p camel AO
+            // frame measured 21 units of background): nothing to scale up.
+            out["note"] =
+                "no measured unit ran a ray (the sample missed every tile with work): no "
+                "estimates; lower sim.sample_period_units";
+            return out;
+        }
+        out["detailed_share"] = rays > 0 ? double(detailed_) / rays : 0.0;
+        out["traced_share"] = rays > 0 ? double(index_) / rays : 0.0;
+        out["profile"] = {{"seconds", profile_->seconds}, {"cache", profile_->cache}};
+    } else {
+        // The work the hand-out times span: all but the last ray's (whose hand-out ends the
+        // span; the drain after it is measured).
+        for (size_t k = 0; k < kAuxiliaries; ++k)
+            aux[k] = {aux_[k], double(total_aux_[k] - current_aux_[k])};
+    }
+    out["new_lines"] = aux[kNewLines].total;
     // Totals by regression on the auxiliaries (sim/sampling.h says which it fits).
     auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
     out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
@@ -248,74 +286,25 @@ json Sampler::report(Cycle end_cycle) {
     return out;
 }
 
-json Sampler::skip_report(json out, Cycle end_cycle) {
-    const uint64_t units = design_.units(), period = params_.period_units;
+void Sampler::add_rayless_units(uint64_t units) {
     if (!profile_ || profile_->units.size() != units)
         throw std::logic_error("Sampler: the skip design needs the frame's profile");
     // A measured unit that handed out no ray (its tiles' pixels missed the scene, so no
-    // secondary rays) took no cycles and moved no counter: it enters as zeros, in unit order.
-    for (uint64_t h = 0; h * period < units; ++h) {
-        const uint64_t u =
-            h * period + (params_.stratified ? design_.pick(h) : design_.first_unit());
-        if (u >= units || std::find(unit_index_.begin(), unit_index_.end(), u) != unit_index_.end())
+    // secondary rays) took no cycles and moved no counter: it enters as zeros, in unit order
+    // (unit_index_ is ascending: units close in frame order).
+    size_t at = 0;
+    for (uint64_t u = 0; u < units; ++u) {
+        if (!design_.measured_unit(u)) continue;
+        if (at < unit_index_.size() && unit_index_[at] == u) {
+            ++at;
             continue;
-        const size_t at = size_t(std::lower_bound(unit_index_.begin(), unit_index_.end(), u) -
-                                 unit_index_.begin());
+        }
         unit_index_.insert(unit_index_.begin() + long(at), u);
         for (auto& a : aux_) a.insert(a.begin() + long(at), 0.0);
         cycles_.insert(cycles_.begin() + long(at), 0.0);
         for (auto& d : deltas_) d.insert(d.begin() + long(at), 0.0);
+        ++at;
     }
-    out = {{"fast_forward", "skip"},
-           {"unit_tiles", params_.unit_tiles},
-           {"period_units", period},
-           {"warm_tiles", params_.warm_tiles},
-           {"warmup_tiles", params_.warmup_tiles},
-           {"design", params_.stratified ? "stratified" : "systematic"},
-           {"first_unit", params_.stratified ? design_.pick(0) : design_.first_unit()},
-           {"units", units},
-           {"units_measured", cycles_.size()},
-           {"tiles", params_.tiles},
-           {"tiles_traced", tiles_traced_},
-           {"rays_traced", index_},
-           {"rays_detailed", detailed_},
-           {"simulated_cycles", end_cycle},
-           {"drain_cycles", end_cycle - last_handout_}};
-    if (cycles_.size() < 2) {
-        out["note"] =
-            "fewer than 2 measured units: no estimates (a frame shorter than two "
-            "sampling periods; lower sim.sample_period_units or sample_unit_tiles)";
-        return out;
-    }
-    // The units' auxiliaries come from the frame's profile (the skip run's own first fetches
-    // are not the frame's), their totals too.
-    std::vector<Auxiliary> aux(kAuxiliaries);
-    for (size_t k = 0; k < kAuxiliaries; ++k) {
-        aux[k].x.resize(cycles_.size());
-        for (size_t i = 0; i < cycles_.size(); ++i)
-            aux[k].x[i] = double(profile_->units[unit_index_[i]][k]);
-        for (const Aux& u : profile_->units) aux[k].total += double(u[k]);
-    }
-    const double rays = aux[kRays].total;
-    if (std::all_of(aux[kWork].x.begin(), aux[kWork].x.end(), [](double x) { return x == 0; })) {
-        // Every measured unit's tiles sent no ray (a 1-in-100 sample of a 1080p camel AO frame
-        // measured 21 units of background): nothing to scale up.
-        out["total_rays"] = rays;
-        out["note"] =
-            "no measured unit ran a ray (the sample missed every tile with work): no estimates; "
-            "lower sim.sample_period_units";
-        return out;
-    }
-    out["total_rays"] = rays;
-    out["new_lines"] = aux[kNewLines].total;
-    out["detailed_share"] = rays > 0 ? double(detailed_) / rays : 0.0;
-    out["traced_share"] = rays > 0 ? double(index_) / rays : 0.0;
-    out["profile"] = {{"seconds", profile_->seconds}, {"cache", profile_->cache}};
-    auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
-    out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
-    out["counters"] = counter_estimates(total);
-    out["figures"] = figures(units);
-    return out;
 }
 
 // Per measured unit, the change of the counters named `prefix`...`suffix` (l1[*].hits: "l1[",

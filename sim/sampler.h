@@ -104,7 +104,8 @@ class Sampler {
     // lines far more than work: compulsory misses).
     void set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes);
     // Skip design: the frame's profile (its units' auxiliaries and first-fetched lines), and the
-    // L2 that is loaded with the lines the frame fetched before each unit the run reaches.
+    // L2 that is loaded with the lines skipped tiles fetched first. The run's own line counting
+    // (set_line_range) is then not needed.
     void set_profile(const FrameProfile* profile, MemoryPort* l2) {
         profile_ = profile;
         l2_ = l2;
@@ -140,9 +141,11 @@ class Sampler {
         kRays = kAuxRays
     };
     using Aux = AuxFigures;
-    // Skip design: loads the L2 with the lines the frame fetched first in the tiles skipped
-    // before `tile`.
-    void replay_first_touches(uint64_t tile);
+    // Skip design, at the first ray of traced tile `tile`: loads the L2 with the lines the frame
+    // fetched first in the tiles skipped since the last traced one.
+    void replay_skipped_tiles(uint64_t tile);
+    // Skip design: the measured units that handed out no ray, entered as zeros.
+    void add_rayless_units(uint64_t units);
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
     // from its start to `end`.
     void close_unit(const Aux& aux, Cycle end);
@@ -155,8 +158,6 @@ class Sampler {
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.
     bool detailed_ray(uint64_t i) const;
-    // Skip design: each total as the strata's expansion.
-    nlohmann::json skip_report(nlohmann::json out, Cycle end_cycle);
 
     SamplingParams params_;
     SampleDesign design_;
@@ -182,7 +183,7 @@ class Sampler {
     LineTracker lines_;
     const FrameProfile* profile_ = nullptr;
     MemoryPort* l2_ = nullptr;
-    uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed: fetched before
+    uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     Aux total_aux_{};              // of every ray judged
     Aux current_aux_{};            // of the ray just judged
     Aux unit_aux_{};               // of the open unit's rays handed out so far

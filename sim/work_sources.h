@@ -274,8 +274,9 @@ class GeneratedWorkSource : public PrefetchingSource {
           record_tiles_(bool(want_tile)),
           tiles_(
               gen, threads,
-              packet_size > 0 ? std::function<void(std::vector<GeneratedRay>&)>()
-                              : [this](std::vector<GeneratedRay>& rays) { trace_all(rays); },
+              packet_size > 0
+                  ? std::function<void(std::vector<GeneratedRay>&)>()
+                  : [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); },
               std::move(want_tile)) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
@@ -328,15 +329,6 @@ class GeneratedWorkSource : public PrefetchingSource {
             b.packet_rays.push_back(uint8_t(n));
             b.packet_hits.push_back(hit_count);
         }
-    }
-
-    // Traces the rays the generator did not (on a tile thread): every ray then has its steps.
-    void trace_all(std::vector<GeneratedRay>& rays) const {
-        for (GeneratedRay& g : rays)
-            if (!g.traced) {
-                g.prim = trace_ray(bvh_, g.ray, g.query, &g.steps).prim;
-                g.traced = true;
-            }
     }
 
     const Bvh& bvh_;

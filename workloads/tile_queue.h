@@ -11,8 +11,19 @@
 
 #include "workloads/parallel.h"
 #include "workloads/raygen.h"
+#include "workloads/tracer.h"
 
 namespace rtsim {
+
+// Traces the rays of a tile the generator did not trace already (for their hits), so that every
+// ray has its steps: the per_tile work of a TileQueue that feeds timing models.
+inline void trace_untraced(const Bvh& bvh, std::vector<GeneratedRay>& rays) {
+    for (GeneratedRay& g : rays)
+        if (!g.traced) {
+            g.prim = trace_ray(bvh, g.ray, g.query, &g.steps).prim;
+            g.traced = true;
+        }
+}
 
 class TileQueue {
   public:
