@@ -199,6 +199,13 @@ void Cache::replace_earliest_mshr(Cycle ready) {
     h[slot] = ready;
 }
 
+void Cache::count_first_fills(uint64_t base, uint64_t end) {
+    const uint64_t shift = uint64_t(__builtin_ctz(params_.line_bytes));
+    held_first_line_ = base >> shift;
+    held_lines_ = end > base ? ((end - 1) >> shift) - held_first_line_ + 1 : 0;
+    held_.assign((held_lines_ + 63) / 64, 0);
+}
+
 void Cache::register_stats(StatsRegistry& reg) {
     const std::string block = name();
     reg.add(block, "accesses", &accesses, "line lookups");
@@ -214,6 +221,9 @@ void Cache::register_stats(StatsRegistry& reg) {
             "lookups that touched tag state after a lookup later in simulated time");
     reg.add(block, "mshr_out_of_order", &mshr_out_of_order,
             "misses that took an MSHR after a miss later in simulated time");
+    if (!held_.empty())
+        reg.add(block, "first_fills", &first_fills,
+                "misses on lines of the BVH never held before (compulsory misses; sampled runs)");
     if (level_ == kLevelL1) return;  // the L1s are read-only
     reg.add(block, "write_requests", &write_requests, "writes from the level above");
     reg.add(block, "write_bytes", &write_bytes, "bytes written from the level above");

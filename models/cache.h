@@ -79,6 +79,12 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         return local_fn_(*this, addr, size_bytes, now, ready, breakdown);
     }
     void register_stats(StatsRegistry& reg);  // under this module's name (l1[3].hits)
+    // Counts the first fills of lines in [base, end) (counter first_fills, registered only
+    // then): misses on lines this cache never held, its compulsory misses. A sampled run knows
+    // the frame's total of them (its distinct lines), and each measured unit's own count, timed
+    // as its DRAM traffic is, is the regression's best auxiliary for that traffic. Call before
+    // register_stats.
+    void count_first_fills(uint64_t base, uint64_t end);
     // stats.json "caches" entry: lookups, hits, misses, merged misses, hit rate.
     nlohmann::json report(const ReportContext& ctx) const;
     // The same over several caches (all L1s: "l1_total").
@@ -169,8 +175,20 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // line, bytes; dirty lines written back to the next level on eviction.
     uint64_t write_requests = 0, write_hits = 0, write_misses = 0, write_bytes = 0;
     uint64_t writebacks = 0, writeback_bytes = 0;
+    uint64_t first_fills = 0;  // with count_first_fills: misses on lines never held before
 
   private:
+    // A line filled (by a miss or by warming; `counted`: a counted miss): counts a first fill.
+    void mark_filled(uint64_t line, bool counted) {
+        if (held_.empty()) return;
+        const uint64_t k = line - held_first_line_;
+        if (line < held_first_line_ || k >= held_lines_) return;
+        const uint64_t bit = uint64_t(1) << (k % 64);
+        first_fills += counted && (held_[k / 64] & bit) == 0;
+        held_[k / 64] |= bit;
+    }
+    std::vector<uint64_t> held_;  // count_first_fills: a bit per line of the range, once held
+    uint64_t held_first_line_ = 0, held_lines_ = 0;
     // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
     // FIFO fill order), then their fill cycles; 64 bytes for 4 ways, so a lookup touches one
     // host cache line.

@@ -55,6 +55,7 @@ bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     // The same steps as fill(), in the same order (the random policy draws in victim()).
     const int victim = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
     c.evict(set, victim, c.tags<G>(set)[victim], at, kCount ? kQueueWriteBack : kWarmWriteBack);
+    c.mark_filled(line, kCount);
     if constexpr (kCount) {
         ++c.misses;
         c.fill_bytes += c.params_.line_bytes;
@@ -109,6 +110,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     // Miss: the policy's victim (an invalid way if there is one).
     const int victim = P::template victim<G>(tags<G>(set), stamps<G>(set), repl_);
     evict(set, victim, tags<G>(set)[victim], lookup_done, kSendWriteBack);
+    mark_filled(line_addr, true);
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);

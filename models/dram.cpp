@@ -65,8 +65,7 @@ Cycle Dram::advance(DramRequest& r, Cycle now, bool& done) {
         return column + params_.t_cas_cycles;  // the data is ready for the bus
     }
     const Cycle data_ready = now;
-    const uint32_t bursts = (r.size_bytes + params_.burst_bytes - 1) / params_.burst_bytes;
-    const uint32_t moved = std::max(1u, bursts) * params_.burst_bytes;
+    const uint32_t moved = uint32_t(bytes_moved(r.size_bytes));
     // Reads from different banks reach the bus out of order: the bus is a calendar.
     const auto [bus_start, bus_end] = buses_[channel].transfer(data_ready, moved);
     reads += !r.write;

@@ -67,6 +67,8 @@ class DramModel : public MemoryPort {
     // Requests served after one that arrived later in simulated time (0 for a model that serves
     // in time order by construction).
     virtual uint64_t out_of_order_requests() const = 0;
+    // The bytes a request of size_bytes moves on the bus, counted in "bytes" (whole bursts).
+    virtual uint64_t bytes_moved(uint32_t size_bytes) const = 0;
     virtual void set_series(TimeSeries* bytes) = 0;  // bytes moved per window
     virtual void follow(const TimeFloor* floor) = 0;
 };
@@ -92,6 +94,10 @@ class Dram final : public sc_core::sc_module, public DramModel {
     void register_stats(StatsRegistry& reg) override;
     nlohmann::json report(const ReportContext& ctx) const override;
     uint64_t out_of_order_requests() const override { return bank_out_of_order; }
+    uint64_t bytes_moved(uint32_t size_bytes) const override {
+        return std::max<uint64_t>(1, (size_bytes + params_.burst_bytes - 1) / params_.burst_bytes) *
+               params_.burst_bytes;
+    }
     void set_series(TimeSeries* bytes) override { bytes_series_ = bytes; }
     void follow(const TimeFloor* floor) override {
         for (auto& bus : buses_) bus.follow(floor);

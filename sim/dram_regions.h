@@ -62,6 +62,9 @@ class DramRegions final : public DramModel {
         return r;
     }
     uint64_t out_of_order_requests() const override { return inner_.out_of_order_requests(); }
+    uint64_t bytes_moved(uint32_t size_bytes) const override {
+        return inner_.bytes_moved(size_bytes);
+    }
     void set_series(TimeSeries* bytes) override { inner_.set_series(bytes); }
     void follow(const TimeFloor* floor) override { inner_.follow(floor); }
 

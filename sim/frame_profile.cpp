@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstring>
 #include <filesystem>
+#include <stdexcept>
 
 #include "workloads/cache_entry.h"
 #include "workloads/tile_queue.h"
@@ -15,8 +16,8 @@ namespace rtsim {
 LineTracker::LineTracker(uint64_t base, uint64_t end, uint32_t line_bytes) {
     line_shift_ = uint64_t(__builtin_ctz(line_bytes));
     first_line_ = base >> line_shift_;
-    const uint64_t lines = end > base ? ((end - 1) >> line_shift_) - first_line_ + 1 : 0;
-    touched_.assign((lines + 63) / 64, 0);
+    lines_ = end > base ? ((end - 1) >> line_shift_) - first_line_ + 1 : 0;
+    touched_.assign((lines_ + 63) / 64, 0);
 }
 
 FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
@@ -29,23 +30,37 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     p.line_base = lines.address(0);
     const uint64_t tiles = uint64_t(gen.tile_count());
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
-    p.first_touch_start.assign(tiles + 1, 0);
+    p.tile_line_start.assign(tiles + 1, 0);
+    // Per line of the range, the last tile that fetched it, plus one (0: none yet).
+    const uint64_t shift = uint64_t(__builtin_ctz(line_bytes)), first = base >> shift;
+    std::vector<uint32_t> fetched_by(end > base ? ((end - 1) >> shift) - first + 1 : 0, 0);
     // The tiles in frame order, traced on the tile threads as a run's work source does.
     TileQueue queue(gen, threads,
                     [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
     std::vector<GeneratedRay> rays;
     RayWork work;
-    auto new_line = [&p](uint64_t k) { p.first_touches.push_back(uint32_t(k)); };
     while (queue.next(rays)) {
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
+        const uint32_t stamp = uint32_t(tile + 1);
         for (GeneratedRay& g : rays) {
+            for (const Step& s : g.steps) {
+                const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> shift;
+                for (uint64_t line = s.addr >> shift; line <= last; ++line) {
+                    const uint64_t k = line - first;
+                    if (line < first || k >= fetched_by.size() || fetched_by[k] == stamp) continue;
+                    fetched_by[k] = stamp;
+                    p.tile_lines.push_back(uint32_t(k));
+                }
+            }
             work.rays = 1;
             work.steps.swap(g.steps);
-            const AuxFigures a = ray_auxiliaries(work, lines, new_line);
+            const AuxFigures a = ray_auxiliaries(work, lines, [](uint64_t) {});
             for (size_t k = 0; k < kAuxiliaries; ++k) p.units[u][k] += a[k];
         }
         rays.clear();
-        p.first_touch_start[tile + 1] = uint32_t(p.first_touches.size());
+        if (p.tile_lines.size() > UINT32_MAX)
+            throw std::runtime_error("frame profile: more than 2^32 tile lines (a smaller frame)");
+        p.tile_line_start[tile + 1] = uint32_t(p.tile_lines.size());
     }
     p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     p.cache = "off";
@@ -56,7 +71,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '1'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '2'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -68,8 +83,8 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.pod(p.line_bytes);
     w.pod(p.line_base);
     w.vec(p.units);
-    w.vec(p.first_touch_start);
-    w.vec(p.first_touches);
+    w.vec(p.tile_line_start);
+    w.vec(p.tile_lines);
     w.pod(crc32(w.bytes().data(), w.bytes().size()));
     return std::move(w.bytes());
 }
@@ -89,14 +104,14 @@ FrameProfile deserialize(const std::string& bytes, const std::string& key, uint6
     p.line_bytes = r.pod<uint32_t>();
     p.line_base = r.pod<uint64_t>();
     r.vec(p.units);
-    r.vec(p.first_touch_start);
-    r.vec(p.first_touches);
+    r.vec(p.tile_line_start);
+    r.vec(p.tile_lines);
     if (!r.done()) throw Unusable{"trailing bytes"};
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
-    if (p.unit_tiles == 0 || p.first_touch_start.size() != tiles + 1 ||
+    if (p.unit_tiles == 0 || p.tile_line_start.size() != tiles + 1 ||
         p.units.size() != (tiles + p.unit_tiles - 1) / p.unit_tiles ||
-        p.first_touch_start.front() != 0 || p.first_touch_start.back() != p.first_touches.size() ||
-        !std::is_sorted(p.first_touch_start.begin(), p.first_touch_start.end()))
+        p.tile_line_start.front() != 0 || p.tile_line_start.back() != p.tile_lines.size() ||
+        !std::is_sorted(p.tile_line_start.begin(), p.tile_line_start.end()))
         throw Unusable{"inconsistent contents"};
     return p;
 }

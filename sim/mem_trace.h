@@ -33,6 +33,9 @@ class MemTraceRecorder final : public DramModel {
     void register_stats(StatsRegistry& reg) override { inner_.register_stats(reg); }
     nlohmann::json report(const ReportContext& ctx) const override { return inner_.report(ctx); }
     uint64_t out_of_order_requests() const override { return inner_.out_of_order_requests(); }
+    uint64_t bytes_moved(uint32_t size_bytes) const override {
+        return inner_.bytes_moved(size_bytes);
+    }
     void set_series(TimeSeries* bytes) override { inner_.set_series(bytes); }
     void follow(const TimeFloor* floor) override { inner_.follow(floor); }
 

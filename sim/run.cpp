@@ -76,14 +76,6 @@ struct Workload {
     const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
 };
 
-// The addresses rays fetch from (the nodes and triangles), whose lines sampled runs count.
-uint64_t sampled_range_begin(const BvhLayout& L) {
-    return std::min(L.node_base_addr, L.tri_base_addr);
-}
-uint64_t sampled_range_end(const BvhLayout& L) {
-    return std::max(L.node_base_addr + L.node_bytes_total(), L.tri_base_addr + L.tri_bytes_total());
-}
-
 // A sampled run's plan from the config (the seed defaults to the workload's).
 SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     const SimParams& s = cfg.typed.sim;
@@ -142,8 +134,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             fmt::format("v1 bvh={:016x} {} {}", bvh_cache_key(*w.scene, cfg.typed.bvh, sizes),
                         json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
         w.profile = std::make_unique<FrameProfile>(
-            profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, sampled_range_begin(L),
-                                 sampled_range_end(L), uint32_t(cfg.typed.l1.line_bytes),
+            profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, L.fetch_begin(),
+                                 L.fetch_end(), uint32_t(cfg.typed.l2.line_bytes),
                                  int(std::max(1u, std::thread::hardware_concurrency())), key,
                                  resolve_bvh_cache_dir(opt.bvh_cache)));
         sampling->tiles = uint64_t(w.gen->tile_count());
@@ -285,8 +277,10 @@ int run_command(const RunOptions& opt) {
         if (w.profile)  // the skip design: the frame's first fetches are the profile's
             sampler->set_profile(w.profile.get(), chip.l2.get());
         else
-            sampler->set_line_range(sampled_range_begin(L), sampled_range_end(L),
-                                    uint32_t(cfg.typed.l1.line_bytes));
+            sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
+                                    uint32_t(cfg.typed.l2.line_bytes));
+        sampler->set_fill_bytes(uint32_t(cfg.typed.l2.line_bytes),
+                                chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)));
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

@@ -103,12 +103,17 @@ class Sampler {
     // touches of lines are then counted, a second auxiliary figure (DRAM traffic follows new
     // lines far more than work: compulsory misses).
     void set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes);
-    // Skip design: the frame's profile (its units' auxiliaries and first-fetched lines), and the
-    // L2 that is loaded with the lines skipped tiles fetched first. The run's own line counting
+    // Skip design: the frame's profile (its units' auxiliaries and each tile's lines), and the
+    // L2 that is loaded with the lines of the tiles it skips. The run's own line counting
     // (set_line_range) is then not needed.
     void set_profile(const FrameProfile* profile, MemoryPort* l2) {
         profile_ = profile;
         l2_ = l2;
+    }
+    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates).
+    void set_fill_bytes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill) {
+        l2_line_bytes_ = l2_line_bytes;
+        dram_bytes_per_fill_ = dram_bytes_per_fill;
     }
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
@@ -141,17 +146,21 @@ class Sampler {
         kRays = kAuxRays
     };
     using Aux = AuxFigures;
-    // Skip design, at the first ray of traced tile `tile`: loads the L2 with the lines the frame
-    // fetched first in the tiles skipped since the last traced one.
+    // Skip design, at the first ray of traced tile `tile`: loads the L2 with the lines of the
+    // tiles skipped since the last traced one, tile by tile (straight into the L2: through the
+    // L1s, as the cores would, gave the same DRAM bytes on bunny and Cornell frames).
     void replay_skipped_tiles(uint64_t tile);
     // Skip design: the measured units that handed out no ray, entered as zeros.
     void add_rayless_units(uint64_t units);
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
     // from its start to `end`.
     void close_unit(const Aux& aux, Cycle end);
-    // Every counter that moved in a measured unit, its total estimated by `total`.
+    // Every counter that moved in a measured unit, its total estimated by `total`; those that
+    // follow the L2's first fills, from the frame's first fills (its distinct lines) and the
+    // rest. `units`: in the frame.
     nlohmann::json counter_estimates(
-        const std::function<Estimate(const std::vector<double>&)>& total) const;
+        const std::function<Estimate(const std::vector<double>&)>& total, double frame_first_fills,
+        uint64_t units) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
@@ -162,6 +171,8 @@ class Sampler {
     SamplingParams params_;
     SampleDesign design_;
     std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
+    uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
+    uint64_t dram_bytes_per_fill_ = 0;
     const StatsRegistry& counters_;
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail

@@ -2,6 +2,7 @@
 // tracer and the timing model use, and the byte layout the timing model fetches from.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <string>
@@ -74,6 +75,11 @@ struct BvhLayout {
     }
     uint64_t node_bytes_total() const { return uint64_t(inner_node_count) * node_size_bytes; }
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
+    // [begin, end) of the bytes traversal fetches: the node records and the triangles.
+    uint64_t fetch_begin() const { return std::min(node_base_addr, tri_base_addr); }
+    uint64_t fetch_end() const {
+        return std::max(node_base_addr + node_bytes_total(), tri_base_addr + tri_bytes_total());
+    }
 
     // Treelets (Aila & Karras 2010): the tree cut into connected pieces of at most
     // treelet_bytes (nodes plus their leaves' triangles), each stored as one contiguous run of

@@ -126,6 +126,10 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     }
 
     uint64_t out_of_order_requests() const override { return late_; }
+    uint64_t bytes_moved(uint32_t size_bytes) const override {
+        const uint32_t burst = spec_.burst_bytes();
+        return std::max<uint64_t>(1, (size_bytes + burst - 1) / burst) * burst;
+    }
     void set_series(TimeSeries* bytes) override { series_ = bytes; }
     void follow(const TimeFloor*) override {}
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <list>
 #include <random>
+#include <set>
 
 #include "fixed_memory.h"
 #include "models/cache.h"
@@ -74,6 +75,51 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
         EXPECT_EQ(mem.addrs.size(), ref_misses);
         EXPECT_EQ(c.fill_bytes, ref_misses * 64);
     }
+}
+
+// First fills (count_first_fills) against a reference LRU and a set of the lines ever held: a
+// counted miss on a line of the range never held before, by a miss or by warming (uncounted).
+TEST(Cache, FirstFillsAreMissesOnLinesOfTheRangeNeverHeld) {
+    CacheParams p;
+    p.ways = 4;
+    p.line_bytes = 64;
+    p.size_bytes = 4 * 64 * 16;  // 16 sets: capacity misses aplenty
+    test::FixedLatencyMemory mem(50);
+    Cache c("first_fills", p, &mem);
+    const uint64_t base = 64 * 100 + 8,
+                   end = 64 * 900;  // lines 100 .. 899 (a part line at each end)
+    c.count_first_fills(base, end);
+    StatsRegistry reg;
+    c.register_stats(reg);
+    ReferenceLru ref(p.sets(), p.ways, 64);
+    std::set<uint64_t> held;
+    std::mt19937_64 rng(7);
+    uint64_t want = 0, misses = 0;
+    Cycle t = 0;
+    for (int i = 0; i < 50000; ++i) {
+        const uint64_t line = rng() % 1000, addr = line * 64;
+        const bool in_range = line >= 100 && line < 900, warm = rng() % 5 == 0;
+        const bool hit = ref.access(addr);
+        if (!hit && in_range) want += !warm && held.insert(line).second;
+        if (!hit && in_range && warm) held.insert(line);
+        misses += !hit && !warm;
+        if (warm) {
+            c.warm(addr, 64);
+        } else {
+            c.access(addr, 64, t);
+            t += 1000;
+        }
+    }
+    EXPECT_EQ(c.misses, misses);
+    EXPECT_EQ(c.first_fills, want);
+    EXPECT_LT(want, misses / 4);  // most misses are capacity misses here
+    EXPECT_GT(want, 500u);
+    // Registered only when counted.
+    EXPECT_TRUE(reg.has("first_fills.first_fills"));
+    Cache plain("plain", p, &mem);
+    plain.register_stats(reg);
+    EXPECT_FALSE(reg.has("plain.first_fills"));
+    EXPECT_TRUE(reg.has("plain.misses"));
 }
 
 // The cores' way in: a request of one, two or four lines (a triangle, a node) first tries
