@@ -31,9 +31,12 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     const uint64_t tiles = uint64_t(gen.tile_count());
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
     p.tile_line_start.assign(tiles + 1, 0);
-    // Per line of the range, the last tile that fetched it, plus one (0: none yet).
+    // Per line of the range: the last tile that fetched it, plus one (0: none yet); the last of
+    // that tile's rays that did, plus one; and its entry in tile_lines.
     const uint64_t shift = uint64_t(__builtin_ctz(line_bytes)), first = base >> shift;
-    std::vector<uint32_t> fetched_by(end > base ? ((end - 1) >> shift) - first + 1 : 0, 0);
+    const uint64_t range_lines = end > base ? ((end - 1) >> shift) - first + 1 : 0;
+    std::vector<uint32_t> fetched_by(range_lines, 0), last_ray(range_lines, 0);
+    std::vector<size_t> entry(range_lines, 0);
     // The tiles in frame order, traced on the tile threads as a run's work source does.
     TileQueue queue(gen, threads,
                     [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
@@ -42,14 +45,26 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     while (queue.next(rays)) {
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
         const uint32_t stamp = uint32_t(tile + 1);
+        uint32_t ray = 0;
         for (GeneratedRay& g : rays) {
+            ++ray;
             for (const Step& s : g.steps) {
                 const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> shift;
                 for (uint64_t line = s.addr >> shift; line <= last; ++line) {
                     const uint64_t k = line - first;
-                    if (line < first || k >= fetched_by.size() || fetched_by[k] == stamp) continue;
-                    fetched_by[k] = stamp;
-                    p.tile_lines.push_back(uint32_t(k));
+                    if (line < first || k >= range_lines) continue;
+                    if (fetched_by[k] != stamp) {
+                        fetched_by[k] = stamp;
+                        last_ray[k] = ray;
+                        entry[k] = p.tile_lines.size();
+                        p.tile_lines.push_back(uint32_t(k));
+                        p.tile_line_info.push_back(
+                            uint8_t(1 | (s.kind == StepKind::Triangle ? kTileLineTriangle : 0)));
+                    } else if (last_ray[k] != ray) {
+                        last_ray[k] = ray;
+                        uint8_t& info = p.tile_line_info[entry[k]];
+                        if ((info & kTileLineRays) != kTileLineRays) ++info;
+                    }
                 }
             }
             work.rays = 1;
@@ -71,7 +86,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '2'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '3'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -85,6 +100,7 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.vec(p.units);
     w.vec(p.tile_line_start);
     w.vec(p.tile_lines);
+    w.vec(p.tile_line_info);
     w.pod(crc32(w.bytes().data(), w.bytes().size()));
     return std::move(w.bytes());
 }
@@ -106,11 +122,13 @@ FrameProfile deserialize(const std::string& bytes, const std::string& key, uint6
     r.vec(p.units);
     r.vec(p.tile_line_start);
     r.vec(p.tile_lines);
+    r.vec(p.tile_line_info);
     if (!r.done()) throw Unusable{"trailing bytes"};
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
     if (p.unit_tiles == 0 || p.tile_line_start.size() != tiles + 1 ||
         p.units.size() != (tiles + p.unit_tiles - 1) / p.unit_tiles ||
         p.tile_line_start.front() != 0 || p.tile_line_start.back() != p.tile_lines.size() ||
+        p.tile_line_info.size() != p.tile_lines.size() ||
         !std::is_sorted(p.tile_line_start.begin(), p.tile_line_start.end()))
         throw Unusable{"inconsistent contents"};
     return p;

@@ -1,11 +1,12 @@
 // A frame's functional profile for sampled runs that skip tiles (sim.sample_fast_forward = skip,
 // sim/sampler.h): per unit of tiles, what the functional tracer knows of its rays before timing
 // (the regression's auxiliaries: work, first-touched lines, node steps, rays), and per tile the
-// distinct lines its rays fetch. A skip run regresses on the units' auxiliaries as a run that
-// traces every ray does, and loads the L2 with the lines of each tile it skips, in tile order,
-// without tracing it: an LRU L2 then holds at each traced tile what it held in the full run, to
-// the order of lines within a tile (the first fetches alone, without the reuses that keep a
-// line recent, left bunny and Cornell diffuse frames' DRAM bytes 21-31% high). The profile
+// distinct lines its rays fetch, with how many of its rays fetched each. A skip run regresses on
+// the units' auxiliaries as a run that traces every ray does, and loads the caches with the lines
+// of each tile it skips, in tile order, without tracing it (sim/sampler.h): an LRU L2 then holds
+// at each traced tile what it held in the full run, to the order of lines within a tile (the
+// first fetches alone, without the reuses that keep a line recent, left bunny and Cornell
+// diffuse frames' DRAM bytes 21-31% high). The profile
 // depends on the frame and the BVH layout, not on the chip, so a sweep computes it once per frame
 // (profile_frame_cached) and every design point reuses it.
 #pragma once
@@ -72,14 +73,19 @@ AuxFigures ray_auxiliaries(const RayWork& work, LineTracker& lines, F&& new_line
     return a;
 }
 
+constexpr uint8_t kTileLineRays = 0x7f, kTileLineTriangle = 0x80;
+
 struct FrameProfile {
     uint64_t unit_tiles = 0;
     uint32_t line_bytes = 0;
     uint64_t line_base = 0;                 // byte address of line 0
     std::vector<AuxFigures> units;          // per unit of unit_tiles tiles
     std::vector<uint32_t> tile_line_start;  // per tile and one more, where its lines start
-    // Per tile, the line indices its rays fetch, each once, in the order they were first fetched.
+    // Per tile, the line indices its rays fetch, each once, in the order they were first fetched,
+    // and beside each, how many of the tile's rays fetched it (kTileLineRays, at most 127) and
+    // whether it holds triangles (kTileLineTriangle).
     std::vector<uint32_t> tile_lines;
+    std::vector<uint8_t> tile_line_info;
     double seconds = 0;  // host time to compute (or load) it
     std::string cache;   // "off", "hit", "built", "rebuilt: why"
 };

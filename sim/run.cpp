@@ -154,6 +154,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
 // bytes are with n units; the run then measures the n (h / P)^2 units a half-width of P needs,
 // by choosing its period (one unit in N / that many). The pilot covers the whole frame, so its
 // spread is the frame's, start-up transients included.
+constexpr double kMinTargetUnits = 30;
+
 json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     const json pilot = run_child(opt, {}, "--target-error");
     const json& sm = pilot["sampling"];
@@ -174,7 +176,11 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     // (h / P)^2 with h measured at n is then an overestimate, which only errs towards detail.
     // A quarter more: the pilot's spread is itself an estimate (n = 49 sized for 10% met 11.3%
     // without it, on the built-in cornell box at 512x512).
-    const double needed = std::min(units, std::ceil(1.25 * n_pilot * ratio * ratio));
+    // At least 30 units: with fewer, the regression on four auxiliaries has too few degrees of
+    // freedom for its spread to be known (8 units, sized for 15% from a pilot's 6.2% at 36 units
+    // of a 192x192 bunny frame, gave 36.8%).
+    const double needed =
+        std::min(units, std::max(kMinTargetUnits, std::ceil(1.25 * n_pilot * ratio * ratio)));
     sp.period_units = std::max<uint64_t>(1, uint64_t(units / std::max(2.0, needed)));
     return {{"target_error_pct", opt.target_error_pct},
             {"pilot_period_units", sm["period_units"]},

@@ -78,8 +78,23 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         const FrameProfile& p = *profile_;
         const uint32_t end =
             p.tile_line_start[std::min<uint64_t>(tile, p.tile_line_start.size() - 1)];
-        for (uint32_t i = p.tile_line_start[replayed_tiles_]; i < end; ++i)
-            l2_->warm(p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes, p.line_bytes);
+        const size_t cores = ports_.size();
+        for (uint32_t i = p.tile_line_start[replayed_tiles_]; i < end; ++i) {
+            const uint64_t addr = p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes;
+            if (cores == 0) {
+                l2_->warm(addr, p.line_bytes);
+                continue;
+            }
+            // The cores share a tile's rays: a line that n of them fetched is in n cores' L1s
+            // (all of them for the top of the tree), a line one ray fetched in one, in turn.
+            const uint8_t info = p.tile_line_info[i];
+            const auto kind =
+                size_t((info & kTileLineTriangle) ? StepKind::Triangle : StepKind::Node);
+            const size_t n = std::min<size_t>(info & kTileLineRays, cores);
+            for (size_t j = 0; j < n; ++j)
+                ports_[(replay_core_ + j) % cores][kind]->warm(addr, p.line_bytes);
+            replay_core_ = (replay_core_ + n) % cores;
+        }
     }
     replayed_tiles_ = tile + 1;
 }

@@ -104,8 +104,9 @@ class Sampler {
     // lines far more than work: compulsory misses).
     void set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes);
     // Skip design: the frame's profile (its units' auxiliaries and each tile's lines), and the
-    // L2 that is loaded with the lines of the tiles it skips. The run's own line counting
-    // (set_line_range) is then not needed.
+    // L2, loaded with the lines of the tiles it skips where no core's memories are known (they
+    // go through the cores' L1s otherwise). The run's own line counting (set_line_range) is
+    // then not needed.
     void set_profile(const FrameProfile* profile, MemoryPort* l2) {
         profile_ = profile;
         l2_ = l2;
@@ -146,9 +147,11 @@ class Sampler {
         kRays = kAuxRays
     };
     using Aux = AuxFigures;
-    // Skip design, at the first ray of traced tile `tile`: loads the L2 with the lines of the
-    // tiles skipped since the last traced one, tile by tile (straight into the L2: through the
-    // L1s, as the cores would, gave the same DRAM bytes on bunny and Cornell frames).
+    // Skip design, at the first ray of traced tile `tile`: loads the caches with the lines of
+    // the tiles skipped since the last traced one, tile by tile: each line into the L1s of as
+    // many cores as the tile had rays fetching it, and through them the L2. (Into the L2 alone,
+    // the L1s stayed cold where the warm-up tiles before a unit had few rays: camel and homer
+    // primary 1080p frames' cycles were 4-6% high.)
     void replay_skipped_tiles(uint64_t tile);
     // Skip design: the measured units that handed out no ray, entered as zeros.
     void add_rayless_units(uint64_t units);
@@ -195,6 +198,7 @@ class Sampler {
     const FrameProfile* profile_ = nullptr;
     MemoryPort* l2_ = nullptr;
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
+    size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first
     Aux total_aux_{};              // of every ray judged
     Aux current_aux_{};            // of the ray just judged
     Aux unit_aux_{};               // of the open unit's rays handed out so far

@@ -4,6 +4,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <set>
 #include <string>
 
@@ -96,26 +97,37 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
     auto line_of = [&p](uint32_t k) { return (p.line_base + uint64_t(k) * 64) / 64; };
 
     std::set<uint64_t> seen;
+    uint64_t shared = 0;  // tile lines more than one ray fetched
     std::vector<uint64_t> rays(p.units.size()), steps(p.units.size()), fresh(p.units.size());
     for (int t = 0; t < gen.tile_count(); ++t) {
         std::vector<GeneratedRay> tile;
         gen.generate_tile(t, tile);
-        std::set<uint64_t> tile_lines;
-        for (GeneratedRay& g : tile) {
+        // Per line of the tile: the rays that fetched it, and whether it held triangles.
+        std::map<uint64_t, std::pair<std::set<size_t>, bool>> tile_lines;
+        for (size_t r = 0; r < tile.size(); ++r) {
+            GeneratedRay& g = tile[r];
             if (!g.traced) trace_ray(f.bvh, g.ray, g.query, &g.steps);
             rays[size_t(t) / unit_tiles] += 1;
             steps[size_t(t) / unit_tiles] += g.steps.size();
             for (const Step& s : g.steps)
                 for (uint64_t a = s.addr / 64; a <= (s.addr + s.size_bytes - 1) / 64; ++a) {
                     fresh[size_t(t) / unit_tiles] += seen.insert(a).second;
-                    tile_lines.insert(a);
+                    tile_lines[a].first.insert(r);
+                    tile_lines[a].second |= s.kind == StepKind::Triangle;
                 }
         }
-        // The tile's lines, each once.
+        // The tile's lines, each once, with their rays (at most 127) and kind.
         std::set<uint64_t> listed;
-        for (uint32_t i = p.tile_line_start[size_t(t)]; i < p.tile_line_start[size_t(t) + 1]; ++i)
-            EXPECT_TRUE(listed.insert(line_of(p.tile_lines[i])).second) << "tile " << t;
-        EXPECT_EQ(listed, tile_lines) << "tile " << t;
+        for (uint32_t i = p.tile_line_start[size_t(t)]; i < p.tile_line_start[size_t(t) + 1]; ++i) {
+            const uint64_t line = line_of(p.tile_lines[i]);
+            EXPECT_TRUE(listed.insert(line).second) << "tile " << t;
+            ASSERT_EQ(tile_lines.count(line), 1u);
+            const auto& [by, triangles] = tile_lines[line];
+            EXPECT_EQ(p.tile_line_info[i] & kTileLineRays, std::min<size_t>(by.size(), 127));
+            EXPECT_EQ((p.tile_line_info[i] & kTileLineTriangle) != 0, triangles);
+            shared += by.size() > 1;
+        }
+        EXPECT_EQ(listed.size(), tile_lines.size()) << "tile " << t;
     }
     for (size_t u = 0; u < p.units.size(); ++u) {
         EXPECT_EQ(p.units[u][kAuxRays], rays[u]) << u;
@@ -123,11 +135,13 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
         EXPECT_EQ(p.units[u][kAuxNewLines], fresh[u]) << u;
     }
     EXPECT_GT(p.tile_lines.size(), seen.size());  // tiles share lines (the root's, at least)
+    EXPECT_GT(shared, 0u);
     // The same profile on two threads.
     const FrameProfile q = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 2);
     EXPECT_EQ(q.units, p.units);
     EXPECT_EQ(q.tile_line_start, p.tile_line_start);
     EXPECT_EQ(q.tile_lines, p.tile_lines);
+    EXPECT_EQ(q.tile_line_info, p.tile_line_info);
 }
 
 // The profile cache: stored, then served; a damaged, truncated or foreign entry is recomputed
@@ -148,6 +162,7 @@ TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
     EXPECT_EQ(hit.units, built.units);
     EXPECT_EQ(hit.tile_line_start, built.tile_line_start);
     EXPECT_EQ(hit.tile_lines, built.tile_lines);
+    EXPECT_EQ(hit.tile_line_info, built.tile_line_info);
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
     ASSERT_EQ(files.size(), 1u);
