@@ -285,8 +285,9 @@ int run_command(const RunOptions& opt) {
         else
             sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
                                     uint32_t(cfg.typed.l2.line_bytes));
-        sampler->set_fill_bytes(uint32_t(cfg.typed.l2.line_bytes),
-                                chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)));
+        sampler->set_cache_sizes(uint32_t(cfg.typed.l2.line_bytes),
+                                 chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
+                                 cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes);
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

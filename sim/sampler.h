@@ -111,10 +111,12 @@ class Sampler {
         profile_ = profile;
         l2_ = l2;
     }
-    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates).
-    void set_fill_bytes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill) {
+    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), and how
+    // many lines an L1 holds (replay_skipped_tiles).
+    void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines) {
         l2_line_bytes_ = l2_line_bytes;
         dram_bytes_per_fill_ = dram_bytes_per_fill;
+        l1_lines_ = l1_lines;
     }
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
@@ -176,6 +178,7 @@ class Sampler {
     std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
     uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
     uint64_t dram_bytes_per_fill_ = 0;
+    uint64_t l1_lines_ = 0;  // 0: every skipped tile's lines go through the L1s
     const StatsRegistry& counters_;
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail
