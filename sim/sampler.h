@@ -110,13 +110,19 @@ class Sampler {
     void set_profile(const FrameProfile* profile, MemoryPort* l2) {
         profile_ = profile;
         l2_ = l2;
+        const auto& lines = profile->tile_lines;
+        replay_last_.assign(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1,
+                            0);
     }
-    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), and how
-    // many lines an L1 holds (replay_skipped_tiles).
-    void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines) {
+    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
+    // lines an L1 holds and whether the L2 replaces the least recently used line
+    // (replay_skipped_tiles).
+    void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines,
+                         bool l2_lru) {
         l2_line_bytes_ = l2_line_bytes;
         dram_bytes_per_fill_ = dram_bytes_per_fill;
         l1_lines_ = l1_lines;
+        l2_lru_ = l2_lru;
     }
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
@@ -155,6 +161,8 @@ class Sampler {
     // the L1s stayed cold where the warm-up tiles before a unit had few rays: camel and homer
     // primary 1080p frames' cycles were 4-6% high.)
     void replay_skipped_tiles(uint64_t tile);
+    // Loads the profile's tile lines [from, to) into the L2.
+    void warm_l2_lines(uint32_t from, uint32_t to);
     // Skip design: the measured units that handed out no ray, entered as zeros.
     void add_rayless_units(uint64_t units);
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
@@ -179,6 +187,7 @@ class Sampler {
     uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
     uint64_t dram_bytes_per_fill_ = 0;
     uint64_t l1_lines_ = 0;  // 0: every skipped tile's lines go through the L1s
+    bool l2_lru_ = false;
     const StatsRegistry& counters_;
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail
@@ -202,9 +211,13 @@ class Sampler {
     MemoryPort* l2_ = nullptr;
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first
-    Aux total_aux_{};              // of every ray judged
-    Aux current_aux_{};            // of the ray just judged
-    Aux unit_aux_{};               // of the open unit's rays handed out so far
+    // warm_l2_lines: per line, the last replay that took it; that replay's last touches.
+    std::vector<uint32_t> replay_last_;
+    uint32_t replay_stamp_ = 0;
+    std::vector<uint32_t> last_touches_;
+    Aux total_aux_{};    // of every ray judged
+    Aux current_aux_{};  // of the ray just judged
+    Aux unit_aux_{};     // of the open unit's rays handed out so far
     // Per measured unit: its auxiliaries, cycles, and each counter's change.
     std::array<std::vector<double>, kAuxiliaries> aux_;
     std::vector<uint64_t> unit_index_;
