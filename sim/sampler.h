@@ -23,7 +23,7 @@
 // functionally, and the warmup_tiles right before it run in detail unmeasured. What the skipped
 // tiles would have told comes from the frame's profile (sim/frame_profile.h), computed once per
 // frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
-// tile fetched first in the frame, which are loaded into the L2 where the tile would have run.
+// tile fetched, which are loaded into the caches where the tile would have run.
 // Without the profile the totals could only be expanded from the measured units (+-20-50% on
 // 1080p frames at 1 in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10).
 #pragma once
