@@ -159,6 +159,12 @@ void print_run_summary(const json& out, const std::string& stats_path) {
             fmt::print("; frame cycles {:.0f} +- {:.1f}% (95%)", c["value"].get<double>(),
                        c["half_width_pct"].get<double>());
         }
+        // The traffic line below is the detailed part's; the frame's DRAM bytes are estimated.
+        if (sm.contains("counters") && sm["counters"].contains("dram.bytes")) {
+            const json& d = sm["counters"]["dram.bytes"];
+            fmt::print(", DRAM {:.2f} MB +- {:.1f}%", d["value"].get<double>() / 1e6,
+                       d["half_width_pct"].get<double>());
+        }
         fmt::print("\n");
         const bool skip = sm.value("fast_forward", std::string()) == "skip";
         if (skip)
