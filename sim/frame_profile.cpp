@@ -3,13 +3,11 @@
 #include <fmt/format.h>
 #include <algorithm>
 #include <chrono>
-#include <cstring>
 #include <filesystem>
 #include <stdexcept>
 
 #include "workloads/cache_entry.h"
 #include "workloads/tile_queue.h"
-#include "workloads/trace_file.h"
 
 namespace rtsim {
 
@@ -33,10 +31,8 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     p.tile_line_start.assign(tiles + 1, 0);
     // Per line of the range: the last tile that fetched it, plus one (0: none yet); the last of
     // that tile's rays that did, plus one; and its entry in tile_lines.
-    const uint64_t shift = uint64_t(__builtin_ctz(line_bytes)), first = base >> shift;
-    const uint64_t range_lines = end > base ? ((end - 1) >> shift) - first + 1 : 0;
-    std::vector<uint32_t> fetched_by(range_lines, 0), last_ray(range_lines, 0);
-    std::vector<size_t> entry(range_lines, 0);
+    std::vector<uint32_t> fetched_by(lines.lines(), 0), last_ray(lines.lines(), 0);
+    std::vector<size_t> entry(lines.lines(), 0);
     // The tiles in frame order, traced on the tile threads as a run's work source does.
     TileQueue queue(gen, threads,
                     [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
@@ -48,11 +44,8 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
         uint32_t ray = 0;
         for (GeneratedRay& g : rays) {
             ++ray;
-            for (const Step& s : g.steps) {
-                const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> shift;
-                for (uint64_t line = s.addr >> shift; line <= last; ++line) {
-                    const uint64_t k = line - first;
-                    if (line < first || k >= range_lines) continue;
+            for (const Step& s : g.steps)
+                lines.for_each_line(s, [&](uint64_t k) {
                     if (fetched_by[k] != stamp) {
                         fetched_by[k] = stamp;
                         last_ray[k] = ray;
@@ -65,11 +58,10 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
                         uint8_t& info = p.tile_line_info[entry[k]];
                         if ((info & kTileLineRays) != kTileLineRays) ++info;
                     }
-                }
-            }
+                });
             work.rays = 1;
             work.steps.swap(g.steps);
-            const AuxFigures a = ray_auxiliaries(work, lines, [](uint64_t) {});
+            const AuxFigures a = ray_auxiliaries(work, lines);
             for (size_t k = 0; k < kAuxiliaries; ++k) p.units[u][k] += a[k];
         }
         rays.clear();
@@ -91,8 +83,7 @@ constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '3'};
 using Unusable = CacheEntryUnusable;
 
 std::string serialize(const FrameProfile& p, const std::string& key) {
-    CacheEntryWriter w;
-    w.bytes().append(kMagic, sizeof kMagic);
+    CacheEntryWriter w(kMagic);
     w.vec(std::vector<char>(key.begin(), key.end()));
     w.pod(p.unit_tiles);
     w.pod(p.line_bytes);
@@ -101,17 +92,12 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.vec(p.tile_line_start);
     w.vec(p.tile_lines);
     w.vec(p.tile_line_info);
-    w.pod(crc32(w.bytes().data(), w.bytes().size()));
-    return std::move(w.bytes());
+    return w.finish();
 }
 
 FrameProfile deserialize(const std::string& bytes, const std::string& key, uint64_t tiles) {
-    if (bytes.size() < sizeof kMagic + 4 || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
-        throw Unusable{"not a frame profile"};
-    uint32_t crc;
-    std::memcpy(&crc, bytes.data() + bytes.size() - 4, 4);
-    if (crc32(bytes.data(), bytes.size() - 4) != crc) throw Unusable{"checksum mismatch"};
-    CacheEntryReader r(bytes.data() + sizeof kMagic, bytes.size() - sizeof kMagic - 4);
+    CacheEntryReader r =
+        open_cache_entry(bytes, kMagic, "not a frame profile", "checksum mismatch");
     std::vector<char> stored;
     r.vec(stored);
     if (std::string(stored.begin(), stored.end()) != key) throw Unusable{"key mismatch"};

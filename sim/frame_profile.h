@@ -28,27 +28,30 @@ class LineTracker {
   public:
     LineTracker() = default;
     LineTracker(uint64_t base, uint64_t end, uint32_t line_bytes);
-    // Marks the lines the step fetches; calls new_line(line index from the range's start) for
-    // each line not fetched before, and returns how many there were.
+    // Calls f(k) for each line the step fetches that lies in the range (k: its index from the
+    // range's start).
     template <class F>
-    uint64_t touch(const Step& s, F&& new_line) {
-        if (touched_.empty()) return 0;
-        uint64_t fresh = 0;
+    void for_each_line(const Step& s, F&& f) const {
         const uint64_t last = (s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_;
         for (uint64_t line = s.addr >> line_shift_; line <= last; ++line) {
             const uint64_t k = line - first_line_;
-            if (line < first_line_ || k >= lines_) continue;
-            const uint64_t bit = uint64_t(1) << (k % 64);
-            if ((touched_[k / 64] & bit) == 0) {
-                ++fresh;
-                new_line(k);
-            }
-            touched_[k / 64] |= bit;
+            if (line >= first_line_ && k < lines_) f(k);
         }
+    }
+    // Marks the lines the step fetches; returns how many were not fetched before.
+    uint64_t touch(const Step& s) {
+        if (touched_.empty()) return 0;
+        uint64_t fresh = 0;
+        for_each_line(s, [&](uint64_t k) {
+            const uint64_t bit = uint64_t(1) << (k % 64);
+            fresh += (touched_[k / 64] & bit) == 0;
+            touched_[k / 64] |= bit;
+        });
         return fresh;
     }
-    // The byte address of line k of the range.
+    // The byte address of line k of the range, and how many lines it has.
     uint64_t address(uint64_t k) const { return (first_line_ + k) << line_shift_; }
+    uint64_t lines() const { return lines_; }
 
   private:
     uint64_t first_line_ = 0, line_shift_ = 6, lines_ = 0;
@@ -61,14 +64,13 @@ enum AuxIndex { kAuxWork, kAuxNewLines, kAuxNodeSteps, kAuxRays, kAuxiliaries };
 using AuxFigures = std::array<uint64_t, kAuxiliaries>;
 
 // A ray's auxiliaries, marking its lines in `lines` (its new lines are the ones it fetched first).
-template <class F>
-AuxFigures ray_auxiliaries(const RayWork& work, LineTracker& lines, F&& new_line) {
+inline AuxFigures ray_auxiliaries(const RayWork& work, LineTracker& lines) {
     AuxFigures a{};
     a[kAuxWork] = work.steps.size() + work.rays;
     a[kAuxRays] = work.rays;
     for (const Step& s : work.steps) {
         a[kAuxNodeSteps] += s.kind == StepKind::Node;
-        a[kAuxNewLines] += lines.touch(s, new_line);
+        a[kAuxNewLines] += lines.touch(s);
     }
     return a;
 }

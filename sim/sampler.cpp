@@ -162,7 +162,7 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         detailed = detailed_ray(current_);
     }
     Aux& a = current_aux_;
-    a = ray_auxiliaries(work, lines_, [](uint64_t) {});
+    a = ray_auxiliaries(work, lines_);
     for (size_t k = 0; k < kAuxiliaries; ++k) total_aux_[k] += a[k];
     if (detailed) {
         detailed_ += work.rays;

@@ -29,10 +29,6 @@ using Unusable = CacheEntryUnusable;
 using Writer = CacheEntryWriter;
 using Reader = CacheEntryReader;
 
-uint64_t fnv(uint64_t h, const void* data, size_t n) {
-    return fnv1a(h, data, n);
-}
-
 // Calls f with every BvhBuildOptions field the build reads, in one order: the key hashes them,
 // an entry stores them and a load compares them, so a new build setting is added here once. (The
 // box datapath fields are not among them: they do not change the tree.)
@@ -85,8 +81,7 @@ void check_nodes(const std::vector<WideNode<W>>& nodes, const Bvh& b) {
 }
 
 std::string serialize(const Bvh& b, uint64_t key) {
-    Writer w;
-    w.bytes().append(kMagic, sizeof kMagic);
+    Writer w(kMagic);
     w.pod(kFormatVersion);
     w.pod(key);
     for_each_build_setting(b.options, [&](const auto& v) { w.pod(v); });
@@ -107,19 +102,12 @@ std::string serialize(const Bvh& b, uint64_t key) {
     w.vec(b.tri_verts);
     w.vec(b.tri4);
     w.vec(b.leaf_block);
-    const uint32_t crc = crc32(w.bytes().data(), w.bytes().size());
-    w.pod(crc);
-    return std::move(w.bytes());
+    return w.finish();
 }
 
 Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& want) {
-    if (bytes.size() < sizeof kMagic + 8 || std::memcmp(bytes.data(), kMagic, sizeof kMagic) != 0)
-        throw Unusable{"not a BVH cache entry"};
-    uint32_t crc;
-    std::memcpy(&crc, bytes.data() + bytes.size() - sizeof crc, sizeof crc);
-    if (crc32(bytes.data(), bytes.size() - sizeof crc) != crc)
-        throw Unusable{"checksum mismatch (a damaged or truncated file)"};
-    Reader r(bytes.data() + sizeof kMagic, bytes.size() - sizeof kMagic - sizeof crc);
+    Reader r = open_cache_entry(bytes, kMagic, "not a BVH cache entry",
+                                "checksum mismatch (a damaged or truncated file)");
     if (r.pod<uint32_t>() != kFormatVersion) throw Unusable{"an older entry format"};
     if (r.pod<uint64_t>() != key) throw Unusable{"its key is not this build's"};
     Bvh b;
@@ -183,8 +171,8 @@ std::string default_bvh_cache_dir() {
 }
 
 uint64_t bvh_cache_key(const Scene& scene, const BvhBuildOptions& o, const BvhLayout& L) {
-    uint64_t h = 1469598103934665603ull;
-    auto mix = [&h](const auto& v) { h = fnv(h, &v, sizeof v); };
+    uint64_t h = kFnvOffset;
+    auto mix = [&h](const auto& v) { h = fnv1a(h, &v, sizeof v); };
     mix(kFormatVersion);
     mix(scene.content_hash());
     mix(uint64_t(scene.vertices.size()));
@@ -232,6 +220,23 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     store_cache_entry(st.path, serialize(b, key), "BVH cache entry");
     st.seconds = seconds();
     return b;
+}
+
+std::string CacheEntryWriter::finish() {
+    pod(crc32(out_.data(), out_.size()));
+    return std::move(out_);
+}
+
+CacheEntryReader open_cache_entry(const std::string& bytes, const char (&magic)[8],
+                                  const char* not_entry, const char* bad_checksum) {
+    uint32_t crc;
+    if (bytes.size() < sizeof magic + sizeof crc ||
+        std::memcmp(bytes.data(), magic, sizeof magic) != 0)
+        throw CacheEntryUnusable{not_entry};
+    std::memcpy(&crc, bytes.data() + bytes.size() - sizeof crc, sizeof crc);
+    if (crc32(bytes.data(), bytes.size() - sizeof crc) != crc)
+        throw CacheEntryUnusable{bad_checksum};
+    return CacheEntryReader(bytes.data() + sizeof magic, bytes.size() - sizeof magic - sizeof crc);
 }
 
 void store_cache_entry(const std::string& path, const std::string& bytes, const char* what) {

@@ -1,6 +1,7 @@
 // What the on-disk caches (built BVHs, workloads/bvh_cache.h; frame profiles, sim/frame_profile.h)
-// share: an entry's bytes written and read back field by field, a read past the end refused, and
-// an entry stored through a temporary file and a rename.
+// share: an entry framed by its format's 8-byte magic and a CRC-32 of everything before the CRC,
+// its bytes written and read back field by field, a read past the end refused, and an entry
+// stored through a temporary file and a rename.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +19,7 @@ struct CacheEntryUnusable {
 
 class CacheEntryWriter {
   public:
+    explicit CacheEntryWriter(const char (&magic)[8]) : out_(magic, sizeof magic) {}
     template <class T>
     void pod(const T& v) {
         static_assert(std::is_trivially_copyable_v<T>);
@@ -29,7 +31,8 @@ class CacheEntryWriter {
         pod(uint64_t(v.size()));
         if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
     }
-    std::string& bytes() { return out_; }
+    // The entry: the fields written, then their CRC-32.
+    std::string finish();
 
   private:
     std::string out_;
@@ -62,6 +65,11 @@ class CacheEntryReader {
     const char* p_;
     const char* end_;
 };
+
+// The fields of an entry framed by `magic` and its CRC-32; throws CacheEntryUnusable with
+// `not_entry` for bytes of another kind (or too few) and `bad_checksum` for a damaged entry.
+CacheEntryReader open_cache_entry(const std::string& bytes, const char (&magic)[8],
+                                  const char* not_entry, const char* bad_checksum);
 
 // FNV-1a over bytes, continuing from h.
 inline uint64_t fnv1a(uint64_t h, const void* data, size_t n) {
