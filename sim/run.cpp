@@ -25,6 +25,7 @@
 #include "sim/work_sources.h"
 #include "workloads/bvh_cache.h"
 #include "workloads/error.h"
+#include "workloads/mesh_cache.h"
 #include "workloads/output_file.h"
 #include "workloads/trace_file.h"
 
@@ -67,6 +68,7 @@ std::string make_out_dir(const RunOptions& opt) {
 struct Workload {
     json meta;  // scene, bvh and workload sections of stats.json
     std::unique_ptr<Scene> scene;
+    MeshCacheStatus mesh_cache;
     BvhCacheStatus bvh_cache;
     std::unique_ptr<Bvh> bvh;
     std::unique_ptr<RayGenerator> gen;
@@ -112,7 +114,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         return w;
     }
     const RayGenOptions& rg = opt.workload.gen;
-    w.scene = std::make_unique<Scene>(load_scene(opt.workload.scene));
+    w.scene = std::make_unique<Scene>(
+        load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.mesh_cache));
     w.bvh = std::make_unique<Bvh>(
         build_bvh_from_config(cfg, *w.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.bvh_cache));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);
@@ -315,6 +318,8 @@ int run_command(const RunOptions& opt) {
     if (w.bvh) {
         host.bvh_build_s = w.bvh->quality.build_seconds;
         host.bvh_cache = bvh_cache_outcome_name(w.bvh_cache.outcome);
+        host.scene_load_s = w.mesh_cache.seconds;
+        host.mesh_cache = w.mesh_cache.outcome;
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
@@ -334,6 +339,9 @@ int run_command(const RunOptions& opt) {
                        cfg.typed.clock_ghz, command ? spec.tck_ns : 0.0);
     }
     const std::string stats_path = (fs::path(out_dir) / "stats.json").string();
+    if (sampler)
+        write_file_atomically((fs::path(out_dir) / "sampled_units.csv").string(),
+                              sampler->units_csv());
     write_file_atomically(stats_path, out.dump(2) + "\n");
     if (!opt.quiet) print_run_summary(out, stats_path);
     return 0;

@@ -116,6 +116,8 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
     if (host.bvh_build_s >= 0) out["host"]["bvh_build_s"] = host.bvh_build_s;
     if (!host.trace.empty()) out["host"]["trace"] = host.trace;
     if (!host.bvh_cache.empty()) out["host"]["bvh_cache"] = host.bvh_cache;
+    if (host.scene_load_s >= 0) out["host"]["scene_load_s"] = host.scene_load_s;
+    if (!host.mesh_cache.empty()) out["host"]["mesh_cache"] = host.mesh_cache;
     return out;
 }
 

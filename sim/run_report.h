@@ -15,9 +15,11 @@ namespace rtsim {
 // Host wall-clock times of a run (stats.json's "host"; never part of the simulated figures).
 struct HostTimes {
     double run_time_s = 0, prepare_s = 0, simulation_s = 0;
-    double bvh_build_s = -1;  // < 0: the BVH came with a trace
-    std::string trace;        // the trace replayed, if any
-    std::string bvh_cache;    // what the BVH cache did: off, hit, built, rebuilt (empty: trace)
+    double bvh_build_s = -1;   // < 0: the BVH came with a trace
+    std::string trace;         // the trace replayed, if any
+    std::string bvh_cache;     // what the BVH cache did: off, hit, built, rebuilt (empty: trace)
+    double scene_load_s = -1;  // < 0: no scene (a trace)
+    std::string mesh_cache;    // what the mesh cache did (workloads/mesh_cache.h)
 };
 
 // What the blocks' reports need of the run.

@@ -371,6 +371,41 @@ json Sampler::report(Cycle end_cycle) {
     return out;
 }
 
+std::string Sampler::units_csv() const {
+    // Counters of like blocks summed: "core[3].stall_l1_cycles" goes to "core.stall_l1_cycles".
+    std::vector<std::string> names;
+    std::vector<std::vector<double>> cols;
+    const auto& e = counters_.entries();
+    for (size_t c = 0; c < e.size(); ++c) {
+        std::string name = e[c].name;
+        const size_t open = name.find('['), close = name.find(']');
+        if (open != std::string::npos && close != std::string::npos && close > open)
+            name.erase(open, close - open + 1);
+        size_t col = std::find(names.begin(), names.end(), name) - names.begin();
+        if (col == names.size()) {
+            names.push_back(name);
+            cols.emplace_back(cycles_.size(), 0.0);
+        }
+        for (size_t u = 0; u < cycles_.size(); ++u) cols[col][u] += deltas_[c][u];
+    }
+    std::string out = "unit,work,new_lines,node_steps,rays,cycles";
+    for (const auto& n : names) out += "," + n;
+    out += "\n";
+    for (size_t i = 0; i < cycles_.size(); ++i) {
+        // The skip design regresses on the profile's auxiliaries, the other on the run's own.
+        Aux a{};
+        for (size_t k = 0; k < kAuxiliaries; ++k)
+            a[k] = profile_ && unit_index_[i] < profile_->units.size()
+                       ? profile_->units[unit_index_[i]][k]
+                       : uint64_t(aux_[k][i]);
+        out += fmt::format("{},{},{},{},{},{}", unit_index_[i], a[kWork], a[kNewLines],
+                           a[kNodeSteps], a[kRays], cycles_[i]);
+        for (const auto& c : cols) out += fmt::format(",{}", c[i]);
+        out += "\n";
+    }
+    return out;
+}
+
 void Sampler::add_rayless_units(uint64_t units) {
     if (!profile_ || profile_->units.size() != units)
         throw std::logic_error("Sampler: the skip design needs the frame's profile");

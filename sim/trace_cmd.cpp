@@ -8,6 +8,7 @@
 #include "sim/interrupt.h"
 #include "sim/run_report.h"
 #include "workloads/error.h"
+#include "workloads/mesh_cache.h"
 #include "workloads/output_file.h"
 #include "workloads/packet.h"
 #include "workloads/parallel.h"
@@ -104,7 +105,7 @@ class TraceJob {
         : opt_(opt),
           cfg_(load_config(opt.config_path, opt.sets)),
           reader_(opt.rays_file.empty() ? nullptr : std::make_unique<RayFileReader>(opt.rays_file)),
-          scene_(load_scene(opt.workload.scene)),
+          scene_(load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache))),
           bvh_(build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
           threads_(resolve_threads(opt.threads)) {
         if (!reader_) {

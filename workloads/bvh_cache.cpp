@@ -257,12 +257,15 @@ void store_cache_entry(const std::string& path, const std::string& bytes, const 
 }
 
 bool read_cache_entry(const std::string& path, std::string& bytes) {
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return false;
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    bytes = std::move(ss).str();
-    return bool(in) || in.eof();
+    // Sized once and read in one call, not copied through a stringstream.
+    const std::streamoff size = in.tellg();
+    if (size < 0) return false;
+    bytes.resize(size_t(size));
+    in.seekg(0);
+    in.read(bytes.data(), size);
+    return in.gcount() == size;
 }
 
 }  // namespace rtsim

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <sstream>
@@ -214,6 +215,30 @@ TEST(Run, AMeshReaderThatHangsIsStoppedWithOneLine) {
     unsetenv("RTSIM_IMPORT_TIMEOUT_S");
     expect_one_line_error(r, ply + ": the mesh reader (assimp) did not finish in 1 s");
     EXPECT_FALSE(fs::exists(out));
+}
+
+// Issue 16: a mesh file is parsed once and later runs load it from the cache beside the BVHs,
+// simulating exactly what a run that parsed it does.
+TEST(Run, TheMeshCacheServesLaterRunsTheSameScene) {
+    ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
+    const fs::path cache = work_dir() / "mesh_cache";
+    fs::remove_all(cache);
+    auto run = [&](const std::string& cache_arg, const char* name) {
+        const fs::path out = work_dir() / name;
+        EXPECT_EQ(run_rtsim(fmt::format("run --scene '{}' --rays primary --res 16x16 --bvh-cache "
+                                        "'{}' -o '{}'",
+                                        RTSIM_BUNNY_OBJ, cache_arg, out.string()))
+                      .status,
+                  0);
+        return stats_of(out);
+    };
+    const json a = run(cache.string(), "mesh_a"), b = run(cache.string(), "mesh_b"),
+               c = run("off", "mesh_c");
+    EXPECT_EQ(a["host"]["mesh_cache"], "built");
+    EXPECT_EQ(b["host"]["mesh_cache"], "hit");
+    EXPECT_EQ(c["host"]["mesh_cache"], "off");
+    EXPECT_EQ(without_host(a), without_host(b));
+    EXPECT_EQ(without_host(a), without_host(c));
 }
 
 // Issue 16: a scene's BVH is built once per scene content and settings and reused from the cache;
@@ -465,6 +490,37 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
     EXPECT_NEAR(sm["total_cycles"]["value"].get<double>(), truth, 1e-4 * truth);
     EXPECT_NEAR(sm["counters"]["dram.bytes"]["value"].get<double>(),
                 f["counters"]["dram.bytes"].get<double>(), 1e-9);
+
+    // sampled_units.csv: a row per unit whose columns add up to the full run's figures (cycles
+    // with the drain after the last hand-out; like blocks' counters summed into one column).
+    std::ifstream csv(all / "sampled_units.csv");
+    std::string line;
+    ASSERT_TRUE(std::getline(csv, line));
+    std::vector<std::string> header;
+    for (std::stringstream ss(line); std::getline(ss, line, ',');) header.push_back(line);
+    ASSERT_GE(header.size(), 6u);
+    EXPECT_EQ(
+        std::vector<std::string>(header.begin(), header.begin() + 6),
+        (std::vector<std::string>{"unit", "work", "new_lines", "node_steps", "rays", "cycles"}));
+    std::map<std::string, double> sums;
+    int rows = 0;
+    while (std::getline(csv, line)) {
+        ++rows;
+        size_t col = 0;
+        for (std::stringstream ss(line); std::getline(ss, line, ',') && col < header.size();)
+            sums[header[col++]] += std::stod(line);
+        EXPECT_EQ(col, header.size());
+    }
+    EXPECT_EQ(rows, 18);
+    EXPECT_EQ(sums["cycles"] + sm["drain_cycles"].get<double>(), truth);
+    EXPECT_EQ(sums["rays"], f["rays"]["total"].get<double>());
+    EXPECT_EQ(sums["dram.bytes"], f["counters"]["dram.bytes"].get<double>());
+    double l1_hits = 0;
+    for (const auto& [name, v] : f["counters"].items())
+        if (name.rfind("l1[", 0) == 0 && name.find(".hits") != std::string::npos)
+            l1_hits += v.get<double>();
+    EXPECT_GT(l1_hits, 0);
+    EXPECT_EQ(sums["l1.hits"], l1_hits);
 }
 
 // One unit in four measured, tiles far from them never traced: the frame's rays are the
