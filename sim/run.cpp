@@ -119,7 +119,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     w.bvh = std::make_unique<Bvh>(
         build_bvh_from_config(cfg, *w.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.bvh_cache));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);
-    w.meta = {{"scene", scene_summary(*w.scene)},
+    // The BVH cache hashed the scene's geometry already (a few ms for a large mesh).
+    const bool cached = w.bvh_cache.outcome != BvhCacheOutcome::Off;
+    const uint64_t scene_hash = cached ? w.bvh_cache.scene_hash : w.scene->content_hash();
+    w.meta = {{"scene", scene_summary(*w.scene, scene_hash)},
               {"bvh", bvh_summary(*w.bvh)},
               {"workload", workload_summary(rg, w.gen->ao_length())}};
     const bool packets = TraversalModeRegistry::at(cfg.typed.traversal.mode).packets;
@@ -133,9 +136,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         BvhLayout sizes;
         sizes.node_size_bytes = cfg.typed.node_size_bytes;
         sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
-        const std::string key =
-            fmt::format("v1 bvh={:016x} {} {}", bvh_cache_key(*w.scene, cfg.typed.bvh, sizes),
-                        json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
+        const std::string key = fmt::format(
+            "v1 bvh={:016x} {} {}",
+            cached ? w.bvh_cache.key : bvh_cache_key(scene_hash, *w.scene, cfg.typed.bvh, sizes),
+            json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
         w.profile = std::make_unique<FrameProfile>(
             profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, L.fetch_begin(),
                                  L.fetch_end(), uint32_t(cfg.typed.l2.line_bytes),

@@ -113,6 +113,7 @@ class Sampler {
         const auto& lines = profile->tile_lines;
         replay_last_.assign(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1,
                             0);
+        l1_seen_.assign(replay_last_.size(), 0);
     }
     // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
     // lines an L1 holds and whether the L2 replaces the least recently used line
@@ -219,6 +220,9 @@ class Sampler {
     // warm_l2_lines: per line, the last replay that took it; that replay's last touches.
     std::vector<uint32_t> replay_last_;
     uint32_t replay_stamp_ = 0;
+    // replay_skipped_tiles: per line, the last replay whose L1 window counted it.
+    std::vector<uint32_t> l1_seen_;
+    uint32_t l1_stamp_ = 0;
     std::vector<uint32_t> last_touches_;
     Aux total_aux_{};    // of every ray judged
     Aux current_aux_{};  // of the ray just judged

@@ -82,11 +82,15 @@ void add_workload_options(CLI::App* cmd, WorkloadOptions& w) {
 }
 
 json scene_summary(const Scene& scene) {
+    return scene_summary(scene, scene.content_hash());
+}
+
+json scene_summary(const Scene& scene, uint64_t content_hash) {
     return {{"name", scene.name},
             {"source", scene.source},
             {"triangles", scene.triangle_count()},
             {"vertices", scene.vertices.size()},
-            {"hash", fmt::format("{:016x}", scene.content_hash())},
+            {"hash", fmt::format("{:016x}", content_hash)},
             {"bounds", aabb_json(scene.bounds())}};
 }
 

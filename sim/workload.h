@@ -48,6 +48,8 @@ void add_bvh_cache_option(CLI::App* cmd, std::string& dir);
 
 // Sections of stats.json and of a trace's header metadata.
 nlohmann::json scene_summary(const Scene& scene);
+// The same with the scene's content hash already known (BvhCacheStatus::scene_hash).
+nlohmann::json scene_summary(const Scene& scene, uint64_t content_hash);
 nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
 // A trace's header metadata, checked to be an RTSim trace's (the reader has set its layout
 // from it). Throws InputError.

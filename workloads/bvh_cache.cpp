@@ -171,10 +171,15 @@ std::string default_bvh_cache_dir() {
 }
 
 uint64_t bvh_cache_key(const Scene& scene, const BvhBuildOptions& o, const BvhLayout& L) {
+    return bvh_cache_key(scene.content_hash(), scene, o, L);
+}
+
+uint64_t bvh_cache_key(uint64_t scene_hash, const Scene& scene, const BvhBuildOptions& o,
+                       const BvhLayout& L) {
     uint64_t h = kFnvOffset;
     auto mix = [&h](const auto& v) { h = fnv1a(h, &v, sizeof v); };
     mix(kFormatVersion);
-    mix(scene.content_hash());
+    mix(scene_hash);
     mix(uint64_t(scene.vertices.size()));
     mix(uint64_t(scene.triangles.size()));
     for_each_build_setting(o, mix);
@@ -199,7 +204,8 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
         st.seconds = seconds();
         return b;
     }
-    const uint64_t key = bvh_cache_key(scene, options, layout_sizes);
+    st.scene_hash = scene.content_hash();
+    const uint64_t key = st.key = bvh_cache_key(st.scene_hash, scene, options, layout_sizes);
     st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
     st.outcome = BvhCacheOutcome::Built;
     std::string bytes;

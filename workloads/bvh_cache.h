@@ -25,7 +25,10 @@ const char* bvh_cache_outcome_name(BvhCacheOutcome o);
 
 struct BvhCacheStatus {
     BvhCacheOutcome outcome = BvhCacheOutcome::Off;
-    std::string path;    // the entry's file
+    std::string path;  // the entry's file
+    // With a cache folder: the entry's key, and the scene's content hash it was made from (a
+    // run reuses both rather than hash a large scene's geometry again).
+    uint64_t key = 0, scene_hash = 0;
     std::string why;     // for Rebuilt: what was wrong with the entry
     double seconds = 0;  // host time to load or build (and store)
 };
@@ -37,6 +40,9 @@ std::string default_bvh_cache_dir();
 // The key of a build: a hash of the format version, the scene's content and counts, every
 // BvhBuildOptions field the build reads, and the layout's sizes and base address.
 uint64_t bvh_cache_key(const Scene& scene, const BvhBuildOptions& options,
+                       const BvhLayout& layout_sizes);
+// The same from the scene's content hash (Scene::content_hash) and counts.
+uint64_t bvh_cache_key(uint64_t scene_hash, const Scene& scene, const BvhBuildOptions& options,
                        const BvhLayout& layout_sizes);
 
 // build_bvh through the cache in `dir` (empty: no cache). The box datapath fields of `options`
