@@ -29,6 +29,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     const uint64_t tiles = uint64_t(gen.tile_count());
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
     p.tile_line_start.assign(tiles + 1, 0);
+    p.tile_rays.assign(tiles, 0);
     // Per line of the range: the last tile that fetched it, plus one (0: none yet); the last of
     // that tile's rays that did, plus one; and its entry in tile_lines.
     std::vector<uint32_t> fetched_by(lines.lines(), 0), last_ray(lines.lines(), 0);
@@ -40,6 +41,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     RayWork work;
     while (queue.next(rays)) {
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
+        p.tile_rays[tile] = uint32_t(rays.size());
         const uint32_t stamp = uint32_t(tile + 1);
         uint32_t ray = 0;
         for (GeneratedRay& g : rays) {
@@ -78,7 +80,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '3'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '4'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -92,6 +94,7 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.vec(p.tile_line_start);
     w.vec(p.tile_lines);
     w.vec(p.tile_line_info);
+    w.vec(p.tile_rays);
     return w.finish();
 }
 
@@ -109,12 +112,13 @@ FrameProfile deserialize(const std::string& bytes, const std::string& key, uint6
     r.vec(p.tile_line_start);
     r.vec(p.tile_lines);
     r.vec(p.tile_line_info);
+    r.vec(p.tile_rays);
     if (!r.done()) throw Unusable{"trailing bytes"};
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
     if (p.unit_tiles == 0 || p.tile_line_start.size() != tiles + 1 ||
         p.units.size() != (tiles + p.unit_tiles - 1) / p.unit_tiles ||
         p.tile_line_start.front() != 0 || p.tile_line_start.back() != p.tile_lines.size() ||
-        p.tile_line_info.size() != p.tile_lines.size() ||
+        p.tile_line_info.size() != p.tile_lines.size() || p.tile_rays.size() != tiles ||
         !std::is_sorted(p.tile_line_start.begin(), p.tile_line_start.end()))
         throw Unusable{"inconsistent contents"};
     return p;

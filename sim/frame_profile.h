@@ -88,8 +88,9 @@ struct FrameProfile {
     // whether it holds triangles (kTileLineTriangle).
     std::vector<uint32_t> tile_lines;
     std::vector<uint8_t> tile_line_info;
-    double seconds = 0;  // host time to compute (or load) it
-    std::string cache;   // "off", "hit", "built", "rebuilt: why"
+    std::vector<uint32_t> tile_rays;  // per tile, its rays (those that fetch nothing too)
+    double seconds = 0;               // host time to compute (or load) it
+    std::string cache;                // "off", "hit", "built", "rebuilt: why"
 };
 
 // Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)

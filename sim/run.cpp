@@ -146,6 +146,7 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
                                  int(std::max(1u, std::thread::hardware_concurrency())), key,
                                  resolve_bvh_cache_dir(opt.bvh_cache)));
         sampling->tiles = uint64_t(w.gen->tile_count());
+        sampling->tile_rays = w.profile->tile_rays;
         want_tile = [design = SampleDesign(*sampling)](int tile) {
             return design.wants_tile(uint64_t(tile));
         };

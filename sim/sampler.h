@@ -20,7 +20,8 @@
 // does (bench/results/sampled_estimators.md). With skip = true (sim.sample_fast_forward = skip)
 // units are groups of unit_tiles tiles of the image instead, and a tile far from a measured unit
 // is never generated or traced: only the warm_tiles before each measured unit warm the caches
-// functionally, and the warmup_tiles right before it run in detail unmeasured. What the skipped
+// functionally, and the warmup_tiles right before it run in detail unmeasured (more, going back,
+// until they hold warmup_rays rays). What the skipped
 // tiles would have told comes from the frame's profile (sim/frame_profile.h), computed once per
 // frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
 // tile fetched, which are loaded into the caches where the tile would have run.
@@ -58,6 +59,11 @@ struct SamplingParams {
     // Skip design (above): units of unit_tiles tiles of a frame of `tiles` tiles.
     bool skip = false;
     uint64_t unit_tiles = 16, warm_tiles = 0, warmup_tiles = 8, tiles = 0;
+    // Skip design: per tile, its rays that reach the cores (FrameProfile::tile_rays; empty:
+    // unknown). A measured unit's detailed warm-up then reaches back past its warmup_tiles
+    // until it holds warmup_rays rays: the slots hold the last rays before the unit whatever
+    // tiles they came from, and background tiles bring none.
+    std::vector<uint32_t> tile_rays;
 };
 
 // Which units a sample measures, and in the skip design what becomes of each tile; a value
@@ -81,6 +87,7 @@ class SampleDesign {
   private:
     SamplingParams params_;
     uint64_t first_unit_ = 0;
+    std::vector<TileRole> roles_;  // skip design: every tile's, worked out once
 };
 
 class Sampler {

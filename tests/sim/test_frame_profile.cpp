@@ -46,6 +46,40 @@ TEST(SkipDesign, TileRolesByHand) {
     EXPECT_FALSE(d.wants_tile(11));
 }
 
+// The same design knowing each tile's rays, with a warm-up of at least 5 rays: it reaches back
+// past its one tile while the tiles it holds have fewer (tiles 0 and 1 hold none and 3 rays; 7
+// and 6, none and 6), then one tile warms the caches (5), and the tile that closes unit 1 (4)
+// stays what it is. By hand.
+TEST(SkipDesign, WarmupReachesBackUntilItHoldsEnoughRays) {
+    using R = SampleDesign::TileRole;
+    SamplingParams p = skip_params();
+    p.warm_tiles = 1;
+    p.warmup_rays = 5;
+    p.tile_rays = {3, 0, 9, 9, 2, 1, 6, 0, 9, 9, 9, 9};
+    const SampleDesign d(p);
+    const R want[12] = {R::Warmup, R::Warmup, R::Measured, R::Measured, R::After, R::Warming,
+                        R::Warmup, R::Warmup, R::Measured, R::Measured, R::After, R::Skipped};
+    for (uint64_t t = 0; t < 12; ++t) EXPECT_EQ(int(d.tile_role(t)), int(want[t])) << "tile " << t;
+    // Without the rays, the warm-up is its one tile again.
+    p.tile_rays.clear();
+    const SampleDesign tiles_only(p);
+    EXPECT_EQ(int(tiles_only.tile_role(0)), int(R::Warming));
+    EXPECT_EQ(int(tiles_only.tile_role(6)), int(R::Warming));
+    EXPECT_EQ(int(tiles_only.tile_role(5)), int(R::Skipped));
+    // A measured unit without rays (4, tiles 8-9) takes no cycles whatever came before and has
+    // nothing to close: no warm-up, no closing tile; and the warm-up of the next one (7, tiles
+    // 14-15) reaches back through it as through any tile without rays, to tile 6. By hand.
+    p.tiles = 18;
+    p.tile_rays = {3, 0, 9, 9, 2, 1, 6, 0, 0, 0, 0, 0, 0, 0, 9, 9, 9, 9};
+    const SampleDesign rayless(p);
+    const R want_rayless[18] = {R::Warmup,   R::Warmup, R::Measured, R::Measured, R::After,
+                                R::Warming,  R::Warmup, R::Warmup,   R::Measured, R::Measured,
+                                R::Warmup,   R::Warmup, R::Warmup,   R::Warmup,   R::Measured,
+                                R::Measured, R::After,  R::Skipped};
+    for (uint64_t t = 0; t < 18; ++t)
+        EXPECT_EQ(int(rayless.tile_role(t)), int(want_rayless[t])) << "tile " << t;
+}
+
 // A stratified skip design draws its last, shorter stratum among the units it has: every stratum
 // then holds exactly one measured unit, whatever the seed.
 TEST(SkipDesign, EveryStratumHasOneMeasuredUnit) {
@@ -102,6 +136,7 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
     for (int t = 0; t < gen.tile_count(); ++t) {
         std::vector<GeneratedRay> tile;
         gen.generate_tile(t, tile);
+        EXPECT_EQ(p.tile_rays[size_t(t)], tile.size()) << "tile " << t;
         // Per line of the tile: the rays that fetched it, and whether it held triangles.
         std::map<uint64_t, std::pair<std::set<size_t>, bool>> tile_lines;
         for (size_t r = 0; r < tile.size(); ++r) {
@@ -142,6 +177,7 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
     EXPECT_EQ(q.tile_line_start, p.tile_line_start);
     EXPECT_EQ(q.tile_lines, p.tile_lines);
     EXPECT_EQ(q.tile_line_info, p.tile_line_info);
+    EXPECT_EQ(q.tile_rays, p.tile_rays);
 }
 
 // The profile cache: stored, then served; a damaged, truncated or foreign entry is recomputed
@@ -163,6 +199,7 @@ TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
     EXPECT_EQ(hit.tile_line_start, built.tile_line_start);
     EXPECT_EQ(hit.tile_lines, built.tile_lines);
     EXPECT_EQ(hit.tile_line_info, built.tile_line_info);
+    EXPECT_EQ(hit.tile_rays, built.tile_rays);
     std::vector<fs::path> files;
     for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
     ASSERT_EQ(files.size(), 1u);
