@@ -38,12 +38,12 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
     std::vector<uint8_t> stop(tiles, 0);  // a warm-up goes no further back than these
     for (uint64_t u = 0; u < units(); ++u) {
         if (!measured_unit(u)) continue;
-        const bool rays = has_rays(u);
+        const bool with_rays = has_rays(u);
         for (uint64_t t = u * per; t < unit_end(u); ++t) {
             roles_[t] = TileRole::Measured;
-            stop[t] = rays;
+            stop[t] = with_rays;
         }
-        if (rays && (u + 1) * per < tiles && !measured_unit(u + 1)) {
+        if (with_rays && (u + 1) * per < tiles && !measured_unit(u + 1)) {
             roles_[(u + 1) * per] = TileRole::After;
             stop[(u + 1) * per] = 1;
         }

@@ -136,10 +136,10 @@ class Sampler {
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
     nlohmann::json report(Cycle end_cycle);
-    // One line per measured unit (after report): its index, auxiliaries, cycles and the changes
-    // of the counters DRAM traffic is estimated from, as CSV with a header. With every unit
+    // One line per measured unit (after report): its index, auxiliaries, cycles and the change of
+    // every counter (like blocks' summed into one column), as CSV with a header. With every unit
     // measured (sample_period_units = 1) it is the frame's per-unit truth, for studying
-    // estimators and sample designs offline.
+    // estimators and sample designs offline (scripts/sampled_offline.py).
     std::string units_csv() const;
     // Closes a measured unit the frame ended in: its rays up to the last hand-out count, and
     // the cycles to it (called by report).
