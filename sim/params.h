@@ -41,7 +41,8 @@ struct SimParams {
     // "warm": every ray traced, the unmeasured ones warm the caches; "skip": units are tiles,
     // and tiles far from a measured unit are never generated or traced.
     std::string sample_fast_forward = "warm";
-    uint64_t sample_unit_tiles = 16, sample_warm_tiles = 0, sample_warmup_tiles = 8;
+    uint64_t sample_unit_tiles = 4, sample_warm_tiles = 0, sample_warmup_tiles = 2,
+             sample_warmup_tile_rays = 128;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -92,6 +92,7 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     sp.unit_tiles = s.sample_unit_tiles;
     sp.warm_tiles = s.sample_warm_tiles;
     sp.warmup_tiles = s.sample_warmup_tiles;
+    sp.warmup_tile_rays = s.sample_warmup_tile_rays;
     return sp;
 }
 

@@ -20,7 +20,7 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
     if (!params_.skip || params_.tiles == 0) return;
     // Every tile's role, strongest first: a measured unit's tiles, the tile whose first ray
     // closes it, then going back from each measured unit its detailed warm-up (warmup_tiles,
-    // and on until it holds warmup_rays rays when tile_rays is known) and before that the
+    // and on until it holds warmup_tile_rays rays when tile_rays is known) and before that the
     // functionally warmed tiles. A measured unit without rays (tile_rays known) takes no cycles
     // whatever came before, has nothing to close and needs no warm-up, and a warm-up reaches back
     // through it as through any tile without rays: in the full run the rays before and after it
@@ -53,7 +53,7 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
         uint64_t t = u * per, back = 0, rays = 0, warming = 0;
         while (t > 0) {
             const bool warmup =
-                back < params_.warmup_tiles || (by_rays && rays < params_.warmup_rays);
+                back < params_.warmup_tiles || (by_rays && rays < params_.warmup_tile_rays);
             if (!warmup && warming >= params_.warm_tiles) break;
             if (stop[--t]) break;
             ++back;

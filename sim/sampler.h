@@ -21,7 +21,7 @@
 // units are groups of unit_tiles tiles of the image instead, and a tile far from a measured unit
 // is never generated or traced: only the warm_tiles before each measured unit warm the caches
 // functionally, and the warmup_tiles right before it run in detail unmeasured (more, going back,
-// until they hold warmup_rays rays). What the skipped
+// until they hold warmup_tile_rays rays). What the skipped
 // tiles would have told comes from the frame's profile (sim/frame_profile.h), computed once per
 // frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
 // tile fetched, which are loaded into the caches where the tile would have run.
@@ -58,10 +58,10 @@ struct SamplingParams {
     bool stratified = true;
     // Skip design (above): units of unit_tiles tiles of a frame of `tiles` tiles.
     bool skip = false;
-    uint64_t unit_tiles = 16, warm_tiles = 0, warmup_tiles = 8, tiles = 0;
+    uint64_t unit_tiles = 4, warm_tiles = 0, warmup_tiles = 2, warmup_tile_rays = 128, tiles = 0;
     // Skip design: per tile, its rays that reach the cores (FrameProfile::tile_rays; empty:
     // unknown). A measured unit's detailed warm-up then reaches back past its warmup_tiles
-    // until it holds warmup_rays rays: the slots hold the last rays before the unit whatever
+    // until it holds warmup_tile_rays rays: the slots hold the last rays before the unit whatever
     // tiles they came from, and background tiles bring none.
     std::vector<uint32_t> tile_rays;
 };

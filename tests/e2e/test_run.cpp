@@ -549,7 +549,9 @@ std::map<std::string, std::vector<double>> read_units_csv(const fs::path& path) 
 TEST(Sampled, SkipDesignMeasuredUnitsTakeWhatTheyTookInTheFullRun) {
     const std::string common = "run --scene " RTSIM_CGAL_MESH_DIR
                                "/elephant.off --rays primary --res 960x544 "
-                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip ";
+                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_unit_tiles=16 --set sim.sample_warmup_tiles=8 "
+                               "--set sim.sample_warmup_tile_rays=512 ";
     const fs::path all = work_dir() / "mu_all", part = work_dir() / "mu_part";
     ASSERT_EQ(run_rtsim(common + "--set sim.sample_period_units=1 -o '" + all.string() + "'")
                   .status,
@@ -586,7 +588,7 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
         "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
         "--set sim.sample_design=systematic --set sim.sample_period_units=4 "
         "--set sim.sample_unit_tiles=2 --set sim.sample_warm_tiles=2 "
-        "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_rays=0 --bvh-cache '" +
+        "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_tile_rays=0 --bvh-cache '" +
         cache.string() + "' ";
     const fs::path full = work_dir() / "kf", a = work_dir() / "ka", b = work_dir() / "kb";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);

@@ -54,7 +54,7 @@ TEST(SkipDesign, WarmupReachesBackUntilItHoldsEnoughRays) {
     using R = SampleDesign::TileRole;
     SamplingParams p = skip_params();
     p.warm_tiles = 1;
-    p.warmup_rays = 5;
+    p.warmup_tile_rays = 5;
     p.tile_rays = {3, 0, 9, 9, 2, 1, 6, 0, 9, 9, 9, 9};
     const SampleDesign d(p);
     const R want[12] = {R::Warmup, R::Warmup, R::Measured, R::Measured, R::After, R::Warming,
