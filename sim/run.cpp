@@ -115,10 +115,11 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         return w;
     }
     const RayGenOptions& rg = opt.workload.gen;
-    w.scene = std::make_unique<Scene>(
-        load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.mesh_cache));
-    w.bvh = std::make_unique<Bvh>(
-        build_bvh_from_config(cfg, *w.scene, resolve_bvh_cache_dir(opt.bvh_cache), &w.bvh_cache));
+    // Meshes, BVHs and frame profiles share one cache folder.
+    const std::string cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
+    w.scene =
+        std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
+    w.bvh = std::make_unique<Bvh>(build_bvh_from_config(cfg, *w.scene, cache_dir, &w.bvh_cache));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);
     // The BVH cache hashed the scene's geometry already (a few ms for a large mesh).
     const bool cached = w.bvh_cache.outcome != BvhCacheOutcome::Off;
@@ -141,11 +142,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             "v1 bvh={:016x} {} {}",
             cached ? w.bvh_cache.key : bvh_cache_key(scene_hash, *w.scene, cfg.typed.bvh, sizes),
             json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
-        w.profile = std::make_unique<FrameProfile>(
-            profile_frame_cached(*w.gen, *w.bvh, sampling->unit_tiles, L.fetch_begin(),
-                                 L.fetch_end(), uint32_t(cfg.typed.l2.line_bytes),
-                                 int(std::max(1u, std::thread::hardware_concurrency())), key,
-                                 resolve_bvh_cache_dir(opt.bvh_cache)));
+        w.profile = std::make_unique<FrameProfile>(profile_frame_cached(
+            *w.gen, *w.bvh, sampling->unit_tiles, L.fetch_begin(), L.fetch_end(),
+            uint32_t(cfg.typed.l2.line_bytes),
+            int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
         sampling->tiles = uint64_t(w.gen->tile_count());
         sampling->tile_rays = w.profile->tile_rays;
         want_tile = [design = SampleDesign(*sampling)](int tile) {

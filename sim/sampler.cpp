@@ -35,30 +35,28 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
                                        [](uint32_t r) { return r > 0; });
     };
     roles_.assign(tiles, TileRole::Skipped);
-    std::vector<uint8_t> stop(tiles, 0);  // a warm-up goes no further back than these
+    std::vector<uint8_t> measured_with_rays(units(), 0);
     for (uint64_t u = 0; u < units(); ++u) {
         if (!measured_unit(u)) continue;
-        const bool with_rays = has_rays(u);
-        for (uint64_t t = u * per; t < unit_end(u); ++t) {
-            roles_[t] = TileRole::Measured;
-            stop[t] = with_rays;
-        }
-        if (with_rays && (u + 1) * per < tiles && !measured_unit(u + 1)) {
+        measured_with_rays[u] = has_rays(u);
+        std::fill(roles_.begin() + long(u * per), roles_.begin() + long(unit_end(u)),
+                  TileRole::Measured);
+        if (measured_with_rays[u] && (u + 1) * per < tiles && !measured_unit(u + 1))
             roles_[(u + 1) * per] = TileRole::After;
-            stop[(u + 1) * per] = 1;
-        }
     }
     for (uint64_t u = 0; u < units(); ++u) {
-        if (!measured_unit(u) || !has_rays(u)) continue;
+        if (!measured_with_rays[u]) continue;
         uint64_t t = u * per, back = 0, rays = 0, warming = 0;
         while (t > 0) {
             const bool warmup =
                 back < params_.warmup_tiles || (by_rays && rays < params_.warmup_tile_rays);
             if (!warmup && warming >= params_.warm_tiles) break;
-            if (stop[--t]) break;
+            TileRole& r = roles_[--t];
+            // No further back than an earlier unit with rays, measured or closed.
+            if (r == TileRole::After || (r == TileRole::Measured && measured_with_rays[t / per]))
+                break;
             ++back;
             if (by_rays) rays += params_.tile_rays[t];
-            TileRole& r = roles_[t];
             if (r == TileRole::Measured) continue;  // a unit without rays: traced anyway
             if (warmup) {
                 r = TileRole::Warmup;
@@ -130,20 +128,14 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         // units in the full run, and took 0.5-1.2% more cycles; counted once, within -2% to +2%
         // and -0.1% to +0.8%).
         uint64_t through_l1 = last;
-        if (++l1_stamp_ == 0) {
-            std::fill(l1_seen_.begin(), l1_seen_.end(), 0);
-            l1_stamp_ = 1;
-        }
+        line_pass_.next();
         for (uint64_t budget = 0;
              through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < 2 * l1_lines_ * cores);) {
             --through_l1;
             for (uint32_t i = p.tile_line_start[through_l1]; i < p.tile_line_start[through_l1 + 1];
-                 ++i) {
-                uint32_t& seen = l1_seen_[p.tile_lines[i]];
-                if (seen == l1_stamp_) continue;
-                seen = l1_stamp_;
-                budget += std::min<size_t>(p.tile_line_info[i] & kTileLineRays, cores);
-            }
+                 ++i)
+                if (line_pass_.first(p.tile_lines[i]))
+                    budget += std::min<size_t>(p.tile_line_info[i] & kTileLineRays, cores);
         }
         const uint32_t l1_from = cores == 0 ? end : p.tile_line_start[through_l1];
         warm_l2_lines(p.tile_line_start[replayed_tiles_], l1_from);
@@ -176,17 +168,10 @@ void Sampler::warm_l2_lines(uint32_t from, uint32_t to) {
     // holds its most recently touched lines, in that order), so only last touches are loaded, in
     // their order: a Cornell 2-bounce path frame at 1 in 100 replays about 5 million tile lines,
     // a few tens of thousands of them distinct.
-    if (++replay_stamp_ == 0) {
-        std::fill(replay_last_.begin(), replay_last_.end(), 0);
-        replay_stamp_ = 1;
-    }
+    line_pass_.next();
     last_touches_.clear();
-    for (uint32_t i = to; i-- > from;) {
-        uint32_t& seen = replay_last_[p.tile_lines[i]];
-        if (seen == replay_stamp_) continue;
-        seen = replay_stamp_;
-        last_touches_.push_back(i);
-    }
+    for (uint32_t i = to; i-- > from;)
+        if (line_pass_.first(p.tile_lines[i])) last_touches_.push_back(i);
     for (auto i = last_touches_.rbegin(); i != last_touches_.rend(); ++i) warm(*i);
 }
 

@@ -90,6 +90,33 @@ class SampleDesign {
     std::vector<TileRole> roles_;  // skip design: every tile's, worked out once
 };
 
+// Meets each line once per pass: a stamp per line and a new stamp per pass, so starting a pass
+// costs nothing (the replays below make thousands of passes over a few million line entries).
+class LinePass {
+  public:
+    void resize(size_t lines) {
+        stamp_.assign(lines, 0);
+        now_ = 0;
+    }
+    void next() {
+        if (++now_ == 0) {  // the stamp wrapped: forget every earlier pass
+            std::fill(stamp_.begin(), stamp_.end(), 0);
+            now_ = 1;
+        }
+    }
+    // True the first time `line` is met in this pass.
+    bool first(uint32_t line) {
+        uint32_t& s = stamp_[line];
+        if (s == now_) return false;
+        s = now_;
+        return true;
+    }
+
+  private:
+    std::vector<uint32_t> stamp_;
+    uint32_t now_ = 0;
+};
+
 class Sampler {
   public:
     // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
@@ -118,9 +145,7 @@ class Sampler {
         profile_ = profile;
         l2_ = l2;
         const auto& lines = profile->tile_lines;
-        replay_last_.assign(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1,
-                            0);
-        l1_seen_.assign(replay_last_.size(), 0);
+        line_pass_.resize(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1);
     }
     // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
     // lines an L1 holds and whether the L2 replaces the least recently used line
@@ -224,16 +249,12 @@ class Sampler {
     MemoryPort* l2_ = nullptr;
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first
-    // warm_l2_lines: per line, the last replay that took it; that replay's last touches.
-    std::vector<uint32_t> replay_last_;
-    uint32_t replay_stamp_ = 0;
-    // replay_skipped_tiles: per line, the last replay whose L1 window counted it.
-    std::vector<uint32_t> l1_seen_;
-    uint32_t l1_stamp_ = 0;
-    std::vector<uint32_t> last_touches_;
-    Aux total_aux_{};    // of every ray judged
-    Aux current_aux_{};  // of the ray just judged
-    Aux unit_aux_{};     // of the open unit's rays handed out so far
+    // replay_skipped_tiles' L1 window and warm_l2_lines' last touches each meet a line once.
+    LinePass line_pass_;
+    std::vector<uint32_t> last_touches_;  // warm_l2_lines: the replay's last touches
+    Aux total_aux_{};                     // of every ray judged
+    Aux current_aux_{};                   // of the ray just judged
+    Aux unit_aux_{};                      // of the open unit's rays handed out so far
     // Per measured unit: its auxiliaries, cycles, and each counter's change.
     std::array<std::vector<double>, kAuxiliaries> aux_;
     std::vector<uint64_t> unit_index_;

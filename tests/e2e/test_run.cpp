@@ -7,6 +7,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <numeric>
 #include <set>
 #include <sstream>
 
@@ -466,6 +467,31 @@ TEST(Sampled, TreeletModeIsRefusedForNow) {
                           "sim.fidelity=sampled: not yet with traversal.mode=treelet");
 }
 
+namespace {
+// A sampled_units.csv: its header, and its columns by name, one value per row.
+struct UnitsCsv {
+    std::vector<std::string> header;
+    std::map<std::string, std::vector<double>> cols;
+};
+UnitsCsv read_units_csv(const fs::path& path) {
+    std::ifstream csv(path);
+    std::string line, cell;
+    UnitsCsv out;
+    std::getline(csv, line);
+    for (std::stringstream ss(line); std::getline(ss, cell, ',');) out.header.push_back(cell);
+    while (std::getline(csv, line)) {
+        size_t c = 0;
+        for (std::stringstream ss(line); std::getline(ss, cell, ',') && c < out.header.size();)
+            out.cols[out.header[c++]].push_back(std::stod(cell));
+    }
+    return out;
+}
+double column_sum(const UnitsCsv& csv, const std::string& name) {
+    const auto& v = csv.cols.at(name);
+    return std::accumulate(v.begin(), v.end(), 0.0);
+}
+}  // namespace
+
 // The skip design (sim.sample_fast_forward = skip) with every unit measured traces every tile and
 // skips none: the run is the full run, and the estimates are what it measured.
 TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
@@ -493,53 +519,24 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
 
     // sampled_units.csv: a row per unit whose columns add up to the full run's figures (cycles
     // with the drain after the last hand-out; like blocks' counters summed into one column).
-    std::ifstream csv(all / "sampled_units.csv");
-    std::string line;
-    ASSERT_TRUE(std::getline(csv, line));
-    std::vector<std::string> header;
-    for (std::stringstream ss(line); std::getline(ss, line, ',');) header.push_back(line);
-    ASSERT_GE(header.size(), 6u);
+    const UnitsCsv csv = read_units_csv(all / "sampled_units.csv");
+    ASSERT_GE(csv.header.size(), 6u);
     EXPECT_EQ(
-        std::vector<std::string>(header.begin(), header.begin() + 6),
+        std::vector<std::string>(csv.header.begin(), csv.header.begin() + 6),
         (std::vector<std::string>{"unit", "work", "new_lines", "node_steps", "rays", "cycles"}));
-    std::map<std::string, double> sums;
-    int rows = 0;
-    while (std::getline(csv, line)) {
-        ++rows;
-        size_t col = 0;
-        for (std::stringstream ss(line); std::getline(ss, line, ',') && col < header.size();)
-            sums[header[col++]] += std::stod(line);
-        EXPECT_EQ(col, header.size());
-    }
-    EXPECT_EQ(rows, 18);
-    EXPECT_EQ(sums["cycles"] + sm["drain_cycles"].get<double>(), truth);
-    EXPECT_EQ(sums["rays"], f["rays"]["total"].get<double>());
-    EXPECT_EQ(sums["dram.bytes"], f["counters"]["dram.bytes"].get<double>());
+    // 18 rows, every one with every column.
+    ASSERT_EQ(csv.cols.size(), csv.header.size());
+    for (const auto& [name, values] : csv.cols) EXPECT_EQ(values.size(), 18u) << name;
+    EXPECT_EQ(column_sum(csv, "cycles") + sm["drain_cycles"].get<double>(), truth);
+    EXPECT_EQ(column_sum(csv, "rays"), f["rays"]["total"].get<double>());
+    EXPECT_EQ(column_sum(csv, "dram.bytes"), f["counters"]["dram.bytes"].get<double>());
     double l1_hits = 0;
     for (const auto& [name, v] : f["counters"].items())
         if (name.rfind("l1[", 0) == 0 && name.find(".hits") != std::string::npos)
             l1_hits += v.get<double>();
     EXPECT_GT(l1_hits, 0);
-    EXPECT_EQ(sums["l1.hits"], l1_hits);
+    EXPECT_EQ(column_sum(csv, "l1.hits"), l1_hits);
 }
-
-namespace {
-// A sampled_units.csv as columns by name, one value per row.
-std::map<std::string, std::vector<double>> read_units_csv(const fs::path& path) {
-    std::ifstream csv(path);
-    std::string line, cell;
-    std::vector<std::string> header;
-    std::getline(csv, line);
-    for (std::stringstream ss(line); std::getline(ss, cell, ',');) header.push_back(cell);
-    std::map<std::string, std::vector<double>> cols;
-    while (std::getline(csv, line)) {
-        size_t c = 0;
-        for (std::stringstream ss(line); std::getline(ss, cell, ',') && c < header.size();)
-            cols[header[c++]].push_back(std::stod(cell));
-    }
-    return cols;
-}
-}  // namespace
 
 // The units a skip run measures take what the same units took in the full run (the run that
 // measures every unit): the caches hold what they held there. Elephant primary rays at 960x544,
@@ -553,14 +550,12 @@ TEST(Sampled, SkipDesignMeasuredUnitsTakeWhatTheyTookInTheFullRun) {
                                "--set sim.sample_unit_tiles=16 --set sim.sample_warmup_tiles=8 "
                                "--set sim.sample_warmup_tile_rays=512 ";
     const fs::path all = work_dir() / "mu_all", part = work_dir() / "mu_part";
-    ASSERT_EQ(run_rtsim(common + "--set sim.sample_period_units=1 -o '" + all.string() + "'")
-                  .status,
-              0);
-    ASSERT_EQ(run_rtsim(common + "--set sim.sample_period_units=8 -o '" + part.string() + "'")
-                  .status,
-              0);
-    auto truth = read_units_csv(all / "sampled_units.csv");
-    auto sample = read_units_csv(part / "sampled_units.csv");
+    ASSERT_EQ(
+        run_rtsim(common + "--set sim.sample_period_units=1 -o '" + all.string() + "'").status, 0);
+    ASSERT_EQ(
+        run_rtsim(common + "--set sim.sample_period_units=8 -o '" + part.string() + "'").status, 0);
+    auto truth = read_units_csv(all / "sampled_units.csv").cols;
+    auto sample = read_units_csv(part / "sampled_units.csv").cols;
     ASSERT_EQ(truth["unit"].size(), 510u);  // 120 x 68 tiles of 8 x 8, 16 to a unit
     ASSERT_GE(sample["unit"].size(), 60u);
     double cycles[2] = {0, 0}, l1_misses[2] = {0, 0};
