@@ -119,7 +119,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     const std::string cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
     w.scene =
         std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
-    w.bvh = std::make_unique<Bvh>(build_bvh_from_config(cfg, *w.scene, cache_dir, &w.bvh_cache));
+    w.bvh = std::make_unique<Bvh>(
+        build_bvh_from_config(cfg, *w.scene, cache_dir, &w.bvh_cache, w.mesh_cache.scene_hash));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);
     // The BVH cache hashed the scene's geometry already (a few ms for a large mesh).
     const bool cached = w.bvh_cache.outcome != BvhCacheOutcome::Off;

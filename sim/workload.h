@@ -38,9 +38,10 @@ void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
 void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);
 
 // The BVH the config's "bvh" section asks for, through the BVH cache in `cache_dir` (empty:
-// none; workloads/bvh_cache.h).
+// none; workloads/bvh_cache.h). `scene_hash`: the scene's content hash if known.
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,
-                          BvhCacheStatus* status = nullptr);
+                          BvhCacheStatus* status = nullptr,
+                          std::optional<uint64_t> scene_hash = std::nullopt);
 // The --bvh-cache option: "off" -> none, empty -> default_bvh_cache_dir(), else the folder.
 std::string resolve_bvh_cache_dir(const std::string& option);
 // Adds --bvh-cache to a command that builds BVHs.

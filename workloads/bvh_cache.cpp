@@ -190,8 +190,8 @@ uint64_t bvh_cache_key(uint64_t scene_hash, const Scene& scene, const BvhBuildOp
 }
 
 Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
-                     const BvhLayout& layout_sizes, const std::string& dir,
-                     BvhCacheStatus* status) {
+                     const BvhLayout& layout_sizes, const std::string& dir, BvhCacheStatus* status,
+                     std::optional<uint64_t> scene_hash) {
     const auto t0 = std::chrono::steady_clock::now();
     BvhCacheStatus local;
     BvhCacheStatus& st = status ? *status : local;
@@ -204,7 +204,7 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
         st.seconds = seconds();
         return b;
     }
-    st.scene_hash = scene.content_hash();
+    st.scene_hash = scene_hash ? *scene_hash : scene.content_hash();
     const uint64_t key = st.key = bvh_cache_key(st.scene_hash, scene, options, layout_sizes);
     st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
     st.outcome = BvhCacheOutcome::Built;

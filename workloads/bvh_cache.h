@@ -7,6 +7,7 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "workloads/bvh.h"
@@ -47,9 +48,11 @@ uint64_t bvh_cache_key(uint64_t scene_hash, const Scene& scene, const BvhBuildOp
 
 // build_bvh through the cache in `dir` (empty: no cache). The box datapath fields of `options`
 // do not change the tree; they are taken from `options` whatever the entry holds. A folder that
-// cannot be written only costs the store (a one-line warning), never the run.
+// cannot be written only costs the store (a one-line warning), never the run. `scene_hash`:
+// the scene's content hash if known (MeshCacheStatus), else it is computed.
 Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
                      const BvhLayout& layout_sizes, const std::string& dir,
-                     BvhCacheStatus* status = nullptr);
+                     BvhCacheStatus* status = nullptr,
+                     std::optional<uint64_t> scene_hash = std::nullopt);
 
 }  // namespace rtsim

@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '1'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '2'};
 
 // A 64-bit hash of the file's bytes, 8 at a time (FNV-1a's step on words: a few MB hash in a
 // millisecond, where the byte-wise step takes several).
@@ -34,20 +34,23 @@ uint64_t hash_bytes(const std::string& bytes) {
     return h;
 }
 
-std::string serialize(const Scene& s, uint64_t file_hash, uint64_t file_size) {
+std::string serialize(const Scene& s, uint64_t file_hash, uint64_t file_size, uint64_t scene_hash) {
     CacheEntryWriter w(kMagic);
     w.pod(file_hash);
     w.pod(file_size);
+    w.pod(scene_hash);
     w.vec(s.vertices);
     w.vec(s.triangles);
     return w.finish();
 }
 
-void deserialize(const std::string& bytes, uint64_t file_hash, uint64_t file_size, Scene& s) {
+void deserialize(const std::string& bytes, uint64_t file_hash, uint64_t file_size, Scene& s,
+                 uint64_t& scene_hash) {
     CacheEntryReader r = open_cache_entry(bytes, kMagic, "not a mesh cache entry",
                                           "checksum mismatch (a damaged or truncated file)");
     if (r.pod<uint64_t>() != file_hash || r.pod<uint64_t>() != file_size)
         throw CacheEntryUnusable{"its key is not this file's"};
+    scene_hash = r.pod<uint64_t>();
     r.vec(s.vertices);
     r.vec(s.triangles);
     if (!r.done()) throw CacheEntryUnusable{"trailing bytes"};
@@ -79,16 +82,20 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
         return done(load_scene(spec));
     }
     const uint64_t hash = hash_bytes(bytes), size = bytes.size();
-    const std::string path = (fs::path(dir) / fmt::format("{:016x}.mesh", hash)).string();
+    // The format's revision in the name: an entry of an older one is never read (nor warned of).
+    const std::string path =
+        (fs::path(dir) / fmt::format("{:016x}-{}.mesh", hash, kMagic[7])).string();
     st.outcome = "built";
     std::string entry;
     if (read_cache_entry(path, entry)) {
         try {
             Scene s;
-            deserialize(entry, hash, size, s);
+            uint64_t scene_hash = 0;
+            deserialize(entry, hash, size, s, scene_hash);
             s.name = fs::path(spec).filename().string();
             s.source = spec;
             st.outcome = "hit";
+            st.scene_hash = scene_hash;
             return done(std::move(s));
         } catch (const CacheEntryUnusable& u) {
             st.outcome = "rebuilt: " + u.why;
@@ -97,7 +104,8 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
         }
     }
     Scene s = load_scene(spec);
-    store_cache_entry(path, serialize(s, hash, size), "mesh cache entry");
+    st.scene_hash = s.content_hash();
+    store_cache_entry(path, serialize(s, hash, size, *st.scene_hash), "mesh cache entry");
     return done(std::move(s));
 }
 

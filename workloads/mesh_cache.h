@@ -7,6 +7,8 @@
 // stored over it, never used.
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
 
 #include "workloads/scene.h"
@@ -16,6 +18,9 @@ namespace rtsim {
 struct MeshCacheStatus {
     std::string outcome = "off";  // off, hit, built, rebuilt: why, builtin
     double seconds = 0;           // host time to load the scene (parse or cache)
+    // Scene::content_hash of the scene, when the cache knew it (stored with the entry: the BVH
+    // cache's key needs it, and byte-wise FNV over a large mesh costs more than reading it).
+    std::optional<uint64_t> scene_hash;
 };
 
 // load_scene through the cache in `dir` (empty: none; built-in scenes are never cached). A

@@ -85,6 +85,12 @@ TEST(BvhCache, AHitIsTheTreeABuildGives) {
     const Bvh r = build_bvh_cached(s, o, BvhLayout(), dir, &st);
     EXPECT_EQ(st.outcome, BvhCacheOutcome::Hit);
     EXPECT_EQ(r.options.box_mantissa_bits, 10);
+    // A content hash known beforehand (the mesh cache's) finds the same entry.
+    BvhCacheStatus given;
+    build_bvh_cached(s, o, BvhLayout(), dir, &given, s.content_hash());
+    EXPECT_EQ(given.outcome, BvhCacheOutcome::Hit);
+    EXPECT_EQ(given.path, st.path);
+    EXPECT_EQ(given.scene_hash, st.scene_hash);
 }
 
 TEST(BvhCache, KeysSeparateScenesSettingsAndLayouts) {

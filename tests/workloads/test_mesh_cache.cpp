@@ -80,6 +80,9 @@ TEST(MeshCache, HitGivesTheParsedSceneAndAnEditedFileMisses) {
     const Scene hit = load_scene_cached(obj.string(), cache.string(), &st);
     EXPECT_EQ(st.outcome, "hit");
     expect_same_scene(hit, parsed);
+    // The entry's stored content hash is the parsed scene's, hashed here.
+    ASSERT_TRUE(st.scene_hash.has_value());
+    EXPECT_EQ(*st.scene_hash, parsed.content_hash());
 
     // The same bytes under another name hit, and keep their own name.
     const fs::path copy = dir / "copy.obj";
@@ -93,6 +96,8 @@ TEST(MeshCache, HitGivesTheParsedSceneAndAnEditedFileMisses) {
     write_obj(obj, 0.25f);
     const Scene edited = load_scene_cached(obj.string(), cache.string(), &st);
     EXPECT_EQ(st.outcome, "built");
+    ASSERT_TRUE(st.scene_hash.has_value());
+    EXPECT_NE(*st.scene_hash, parsed.content_hash());
     auto has_x = [&](float x) {
         return std::any_of(edited.vertices.begin(), edited.vertices.end(),
                            [x](const Vec3& v) { return v.x == x; });
@@ -128,7 +133,8 @@ TEST(MeshCache, DamagedOrInconsistentEntriesAreReadAgain) {
     EXPECT_EQ(reload("RTSBVH00 something else"), "rebuilt: not a mesh cache entry");
 
     // A checksum that holds over an index past the vertices: the layout is magic, file hash,
-    // file size, the vertices (count, 12 bytes each), the triangles (count, 12 bytes each), CRC.
+    // file size, scene hash, the vertices (count, 12 bytes each), the triangles (count, 12 bytes
+    // each), CRC.
     std::string bad = good;
     const size_t last_index = bad.size() - 4 - 4;  // the last triangle's third index
     const uint32_t past = 1000;
@@ -145,6 +151,7 @@ TEST(MeshCache, BuiltinScenesAndNoFolderBypassIt) {
     MeshCacheStatus st;
     const Scene b = load_scene_cached("builtin:cornell", "unused-folder", &st);
     EXPECT_EQ(st.outcome, "builtin");
+    EXPECT_FALSE(st.scene_hash.has_value());
     EXPECT_EQ(b.content_hash(), load_scene("builtin:cornell").content_hash());
     EXPECT_FALSE(fs::exists("unused-folder"));
     const fs::path dir = fresh_dir("mesh_cache_off");
