@@ -80,7 +80,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '4'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '5'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -131,8 +131,10 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
                                   const std::string& key, const std::string& dir) {
     if (dir.empty()) return profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads);
     const auto start = std::chrono::steady_clock::now();
-    const std::string full_key = fmt::format("{} unit_tiles={} line_bytes={} range={:x}-{:x}", key,
-                                             unit_tiles, line_bytes, base, end);
+    // The format's magic in the key: an entry of an older format is never read (nor warned of).
+    const std::string full_key =
+        fmt::format("{} unit_tiles={} line_bytes={} range={:x}-{:x} {}", key, unit_tiles,
+                    line_bytes, base, end, std::string(kMagic, sizeof kMagic));
     const std::string path =
         (fs::path(dir) /
          fmt::format("profile-{:016x}.bin", fnv1a(kFnvOffset, full_key.data(), full_key.size())))

@@ -11,9 +11,9 @@
 #include <sstream>
 #include <type_traits>
 
+#include <xxhash.h>
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
-#include "workloads/trace_file.h"  // crc32
 
 namespace rtsim {
 
@@ -22,7 +22,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // Bump when the entry layout or anything in Bvh it stores changes: older entries then miss.
-constexpr uint32_t kFormatVersion = 1;
+constexpr uint32_t kFormatVersion = 2;  // 2: XXH3-64 checksum
 constexpr char kMagic[8] = {'R', 'T', 'S', 'I', 'M', 'B', 'V', 'H'};
 
 using Unusable = CacheEntryUnusable;
@@ -229,20 +229,20 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
 }
 
 std::string CacheEntryWriter::finish() {
-    pod(crc32(out_.data(), out_.size()));
+    pod(uint64_t(XXH3_64bits(out_.data(), out_.size())));
     return std::move(out_);
 }
 
 CacheEntryReader open_cache_entry(const std::string& bytes, const char (&magic)[8],
                                   const char* not_entry, const char* bad_checksum) {
-    uint32_t crc;
-    if (bytes.size() < sizeof magic + sizeof crc ||
+    uint64_t sum;
+    if (bytes.size() < sizeof magic + sizeof sum ||
         std::memcmp(bytes.data(), magic, sizeof magic) != 0)
         throw CacheEntryUnusable{not_entry};
-    std::memcpy(&crc, bytes.data() + bytes.size() - sizeof crc, sizeof crc);
-    if (crc32(bytes.data(), bytes.size() - sizeof crc) != crc)
+    std::memcpy(&sum, bytes.data() + bytes.size() - sizeof sum, sizeof sum);
+    if (XXH3_64bits(bytes.data(), bytes.size() - sizeof sum) != sum)
         throw CacheEntryUnusable{bad_checksum};
-    return CacheEntryReader(bytes.data() + sizeof magic, bytes.size() - sizeof magic - sizeof crc);
+    return CacheEntryReader(bytes.data() + sizeof magic, bytes.size() - sizeof magic - sizeof sum);
 }
 
 void store_cache_entry(const std::string& path, const std::string& bytes, const char* what) {

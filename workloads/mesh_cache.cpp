@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '2'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '3'};
 
 // A 64-bit hash of the file's bytes, 8 at a time (FNV-1a's step on words: a few MB hash in a
 // millisecond, where the byte-wise step takes several).

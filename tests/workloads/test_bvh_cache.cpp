@@ -1,6 +1,7 @@
 // The on-disk BVH cache: a hit gives the very tree a build gives (every array compared), and an
 // entry that is damaged, truncated, of another build or of another scene is rebuilt, never used.
 #include <gtest/gtest.h>
+#include <xxhash.h>
 
 #include <cstring>
 #include <filesystem>
@@ -8,7 +9,6 @@
 
 #include "support/scratch_dir.h"
 #include "workloads/bvh_cache.h"
-#include "workloads/trace_file.h"
 #include "workloads/tracer.h"
 
 using namespace rtsim;
@@ -145,8 +145,8 @@ TEST(BvhCache, DamagedOrForeignEntriesAreRebuiltNeverUsed) {
     other_version[8] ^= 1;  // the format version follows the 8-byte magic
     // The same, with its checksum made right again: a sound entry of another format version.
     std::string older = other_version;
-    const uint32_t crc = crc32(older.data(), older.size() - 4);
-    std::memcpy(&older[older.size() - 4], &crc, 4);
+    const uint64_t sum = XXH3_64bits(older.data(), older.size() - 8);
+    std::memcpy(&older[older.size() - 8], &sum, 8);
     // An entry of another build under this key's name (a copied or renamed file).
     BvhBuildOptions o8 = o;
     o8.width = 8;

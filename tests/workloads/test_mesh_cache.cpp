@@ -2,7 +2,7 @@
 // entry that is damaged, truncated or holds an index past its vertices (with a valid checksum)
 // is refused and the file read again, never used.
 #include <gtest/gtest.h>
-#include <zlib.h>
+#include <xxhash.h>
 
 #include <algorithm>
 #include <cstring>
@@ -134,14 +134,13 @@ TEST(MeshCache, DamagedOrInconsistentEntriesAreReadAgain) {
 
     // A checksum that holds over an index past the vertices: the layout is magic, file hash,
     // file size, scene hash, the vertices (count, 12 bytes each), the triangles (count, 12 bytes
-    // each), CRC.
+    // each), the 8-byte checksum.
     std::string bad = good;
-    const size_t last_index = bad.size() - 4 - 4;  // the last triangle's third index
+    const size_t last_index = bad.size() - 8 - 4;  // the last triangle's third index
     const uint32_t past = 1000;
     std::memcpy(&bad[last_index], &past, 4);
-    const uint32_t crc =
-        uint32_t(crc32(0L, reinterpret_cast<const Bytef*>(bad.data()), uInt(bad.size() - 4)));
-    std::memcpy(&bad[bad.size() - 4], &crc, 4);
+    const uint64_t sum = XXH3_64bits(bad.data(), bad.size() - 8);
+    std::memcpy(&bad[bad.size() - 8], &sum, 8);
     EXPECT_EQ(reload(bad), "rebuilt: a vertex index out of range");
     EXPECT_EQ(load_scene_cached(obj.string(), cache.string(), &st).triangles, parsed.triangles);
     EXPECT_EQ(st.outcome, "hit");
