@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 #include <unistd.h>
+#include <xxhash.h>
 
 #include <chrono>
 #include <cstdlib>
@@ -11,7 +12,6 @@
 #include <sstream>
 #include <type_traits>
 
-#include <xxhash.h>
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
 
