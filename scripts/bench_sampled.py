@@ -22,11 +22,21 @@ With --skip, the skip design (sim.sample_fast_forward=skip: tiles far from a mea
 never traced; each frame's profile is computed once, untimed, before the timed runs) and
 bench/results/sampled_skip.* instead.
 
+With --design-set (repeatable) the design simulated, full and sampled, is the default config
+with those fields changed. With --reference-set (repeatable; --skip only) each sampled run is
+paired with a reference design, the default config with those fields changed (none: the default
+itself): the reference measures every unit of each frame once, untimed (its cost listed), and
+every sampled run passes --reference (sim/reference.h), which samples the reference design on
+the same units (a child run, once per seed and period: in a sweep of designs with one seed it is
+paid once, so its seconds are listed apart and left out of the run's host time). Writes
+sampled_skip_paired.* (or --name).
+
     scripts/bench_sampled.py [--rtsim build/rtsim] [--res 1920x1080]
         [--scenes bunny,armadillo,cornell,camel,elephant,homer]
         [--workloads primary,ao,diffuse,path2] [--periods 10,20,100] [--max-starts 100]
         [--target-errors 5] [--adaptive-starts 5] [--full-repeats 3] [-j 2]
-        [--set KEY=VALUE] [--skip] [--out bench/results]
+        [--set KEY=VALUE] [--skip] [--design-set KEY=VALUE] [--reference-set KEY=VALUE]
+        [--name NAME] [--out bench/results]
 """
 import argparse
 import concurrent.futures
@@ -66,6 +76,7 @@ def summarise(rows):
     out["detailed_share"] = statistics.mean(r["detailed_share"] for r in rows)
     out["units_measured"] = statistics.mean(r["units_measured"] for r in rows)
     out["host_s"] = statistics.median(r["host_s"] for r in rows)
+    out["matched_host_s"] = statistics.median(r.get("matched_host_s", 0.0) for r in rows)
     out["runs"] = len(rows)
     return out
 
@@ -172,6 +183,12 @@ def main(argv=None):
                          "far from a measured unit never traced); writes sampled_skip.*")
     ap.add_argument("--set", action="append", default=[],
                     help="KEY=VALUE config override for the sampled runs (repeatable)")
+    ap.add_argument("--design-set", action="append", default=[],
+                    help="KEY=VALUE: the design simulated, full and sampled (repeatable)")
+    ap.add_argument("--reference-set", action="append", default=None,
+                    help="KEY=VALUE: pair the sampled runs with this reference design, the "
+                         "default config changed so (repeatable; '' for the default itself)")
+    ap.add_argument("--name", default=None, help="results' file name (default by mode)")
     ap.add_argument("-j", type=int, default=2)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     args = ap.parse_args(argv)
@@ -188,13 +205,20 @@ def main(argv=None):
     sets = [a for kv in args.set for a in ("--set", kv)]
     if args.skip:
         sets += ["--set", "sim.sample_fast_forward=skip"]
-    out_name = "sampled_skip" if args.skip else "sampled"
+    design = [a for kv in args.design_set for a in ("--set", kv)]
+    paired = args.reference_set is not None
+    reference = [a for kv in (args.reference_set or []) if kv for a in ("--set", kv)]
+    if paired and not args.skip:
+        sys.exit("bench_sampled: --reference-set needs --skip (a reference's units are tiles)")
+    out_name = args.name or ("sampled_skip_paired" if paired else
+                             "sampled_skip" if args.skip else "sampled")
+    references = {}  # (scene, workload): the reference's folder and its full run's seconds
 
     profiles = {}
     with tempfile.TemporaryDirectory() as tmp:
         def frame(scene, wl, res=args.res):
             return ["--scene", SCENES[scene], "--res", res, "--bvh-cache",
-                    os.path.join(tmp, "bvh")] + WORKLOADS[wl]
+                    os.path.join(tmp, "bvh")] + WORKLOADS[wl] + design
 
         def run(job):
             scene, wl, mode, k = job
@@ -215,6 +239,8 @@ def main(argv=None):
                     extra += (["--set", f"sim.sample_first_unit={k % periods[0]}"]
                               if args.design == "systematic" else
                               ["--set", f"sim.sample_seed={k + 1}"])
+            if mode != "full" and paired:
+                extra += ["--reference", references[(scene, wl)][0]]
             out = os.path.join(tmp, "-".join([scene, wl, mode.replace("/", "_").replace(" ", "_"),
                                               str(k)]))
             st = run_stats(args.rtsim, frame(scene, wl) + extra, out, "bench_sampled")
@@ -232,6 +258,17 @@ def main(argv=None):
                                    + sets, os.path.join(tmp, f"profile-{scene}-{wl}"),
                                    "bench_sampled")
                     profiles[(scene, wl)] = st["sampling"]["profile"]["seconds"]
+                    if paired:
+                        # The reference design (its own fields, not the design's) measuring
+                        # every unit.
+                        ref_args = (["--scene", SCENES[scene], "--res", args.res,
+                                     "--bvh-cache", os.path.join(tmp, "bvh")] + WORKLOADS[wl])
+                        d = os.path.join(tmp, f"reference-{scene}-{wl}")
+                        st = run_stats(args.rtsim, ref_args + reference + sets
+                                       + ["--set", "sim.fidelity=sampled",
+                                          "--set", "sim.sample_period_units=1"], d,
+                                       "bench_sampled")
+                        references[(scene, wl)] = (d, st["host"]["run_time_s"])
         jobs = []
         for scene in scenes:
             for wl in workloads:
@@ -271,9 +308,13 @@ def main(argv=None):
                         # not averaged in.
                         no_estimate += 1
                         continue
+                    # A paired run's matched reference sample is paid once per seed in a
+                    # sweep: listed apart.
+                    matched_s = sm.get("reference", {}).get("matched_host_s", 0.0)
                     row = {"start": k, "detailed_share": sm["detailed_share"],
                            "units_measured": sm["units_measured"],
-                           "host_s": st["host"]["run_time_s"]}
+                           "host_s": st["host"]["run_time_s"] - matched_s,
+                           "matched_host_s": matched_s}
                     for name, t, est in (("cycles", truth["total_cycles"], sm["total_cycles"]),
                                          ("dram_bytes", truth["counters"]["dram.bytes"],
                                           # absent: no measured unit moved a DRAM byte
@@ -319,7 +360,16 @@ def main(argv=None):
                 "systematic design's outcomes, so coverage is exact over them)"
                 if args.design == "systematic" else
                 f"with {args.max_starts} sample seeds (sim.sample_seed; the frame is the same)")
-             + ", and with --target-error from a few seeds. Errors and half-widths in percent of the full "
+             + ", and with --target-error from a few seeds."
+             + (f" Design: the default config with {', '.join(args.design_set)}."
+                if args.design_set else "")
+             + (" Paired (--reference) with the reference design "
+                + (f"(the default config with {', '.join(k for k in args.reference_set if k)})"
+                   if any(args.reference_set) else "(the default config)")
+                + ", which measured every unit of each frame once, untimed (seconds below); "
+                "host s leaves out each run's matched reference sample (a child run, paid once "
+                "per seed in a sweep; its median seconds below)." if paired else "")
+             + " Errors and half-widths in percent of the full "
              "run; cov: the share of runs whose 95% interval holds the full run's figure; "
              "host: median seconds per run, x: full / sampled host seconds, on this shared "
              "2-core machine, several runs at a time.", "",
@@ -381,6 +431,18 @@ def main(argv=None):
                          f"{profiles[(c['scene'], c['workload'])]:.2f} | "
                          f"{c['full']['host_s']:.2f} |")
             c["profile_s"] = profiles[(c["scene"], c["workload"])]
+    if paired:
+        lines += ["", "Reference design (paid once per frame by a sweep: it measures every unit; "
+                  "and once per seed and period: its matched sample):", "",
+                  "| scene | workload | reference full s | matched sample s, median per mode "
+                  "| full run host s |", "|---|---|---|---|---|"]
+        for c in cells:
+            ref_s = references[(c["scene"], c["workload"])][1]
+            c["reference_s"] = ref_s
+            matched = ", ".join(f"{m['mode']} {m['matched_host_s']:.2f}" for m in c["modes"]
+                                if m["runs"] > 0)
+            lines.append(f"| {c['scene']} | {c['workload']} | {ref_s:.2f} | {matched} | "
+                         f"{c['full']['host_s']:.2f} |")
     lines += ["", f"Plot: {out_name}_pareto.svg (host seconds against the cycles' mean absolute "
               "error; the dashed line is the Pareto front)."]
     text = "\n".join(lines) + "\n"

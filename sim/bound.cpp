@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -16,7 +17,7 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 json run_child(const RunOptions& opt, const std::vector<std::string>& extra, const char* what) {
-    std::vector<std::string> args = {"/proc/self/exe"};
+    std::vector<std::string> args;
     for (size_t i = 1; i < opt.argv.size(); ++i) {
         const std::string& a = opt.argv[i];
         if (a == "--bound" || a == "--quiet" || a == "-q") continue;
@@ -27,10 +28,17 @@ json run_child(const RunOptions& opt, const std::vector<std::string>& extra, con
         if (a.rfind("--out=", 0) == 0 || a.rfind("--target-error=", 0) == 0) continue;
         args.push_back(a);
     }
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run_rtsim_child(args, what);
+}
+
+json run_rtsim_child(const std::vector<std::string>& arguments, const char* what,
+                     std::string* units_csv) {
+    std::vector<std::string> args = {"/proc/self/exe"};
+    args.insert(args.end(), arguments.begin(), arguments.end());
     char tmpl[] = "/tmp/rtsim-child-XXXXXX";
     const char* dir = mkdtemp(tmpl);
     if (!dir) throw std::runtime_error(std::string(what) + ": cannot create a temporary folder");
-    args.insert(args.end(), extra.begin(), extra.end());
     for (const char* a : {"--quiet", "--out"}) args.push_back(a);
     args.push_back(dir);
     std::vector<char*> cargv;
@@ -44,9 +52,17 @@ json run_child(const RunOptions& opt, const std::vector<std::string>& extra, con
     const std::string path = (fs::path(dir) / "stats.json").string();
     std::ifstream in(path);
     json b = json::parse(in, nullptr, false);
+    bool csv_ok = true;
+    if (units_csv) {
+        std::ifstream csv(fs::path(dir) / "sampled_units.csv");
+        std::stringstream text;
+        text << csv.rdbuf();
+        *units_csv = text.str();
+        csv_ok = bool(csv);
+    }
     std::error_code ec;
     fs::remove_all(dir, ec);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded())
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded() || !csv_ok)
         throw std::runtime_error(std::string(what) + ": the run failed");
     return b;
 }

@@ -20,6 +20,12 @@ nlohmann::json run_bound(const RunOptions& opt);
 nlohmann::json run_child(const RunOptions& opt, const std::vector<std::string>& extra,
                          const char* what);
 
+// rtsim with `arguments` (and --quiet --out <a temporary folder>) in a child process; returns its
+// stats.json, and in `units_csv` (if given) its sampled_units.csv. Throws std::runtime_error
+// naming `what` if it fails.
+nlohmann::json run_rtsim_child(const std::vector<std::string>& arguments, const char* what,
+                               std::string* units_csv = nullptr);
+
 // stats.json's "bound" section from the run's stats and the ideal run's.
 nlohmann::json bound_section(const nlohmann::json& run, const nlohmann::json& ideal);
 

@@ -49,6 +49,13 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
                      "With sim.fidelity=sampled: the 95% interval wanted on the frame's cycles "
                      "and DRAM bytes, in percent; a pilot sample sizes the rest")
         ->check(CLI::Range(0.01, 100.0));
+    run_cmd->add_option(
+        "--reference", run.reference_dir,
+        "With sim.fidelity=sampled and sim.sample_fast_forward=skip: the output folder of a run "
+        "of a reference design on the same frame that measured every unit "
+        "(sim.sample_period_units=1); the reference design is sampled on the same units and "
+        "each figure is estimated from the pair, with a far narrower interval for designs near "
+        "it");
     run_cmd->add_flag(
         "--bound", run.bound,
         "Also simulate the same rays with ideal memory and unlimited units, and report "

@@ -21,6 +21,7 @@
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/mem_trace.h"
+#include "sim/reference.h"
 #include "sim/run_report.h"
 #include "sim/work_sources.h"
 #include "workloads/bvh_cache.h"
@@ -258,6 +259,11 @@ int run_command(const RunOptions& opt) {
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
     const bool sampled = cfg.typed.sim.fidelity == "sampled";
+    if (!opt.reference_dir.empty() && (!sampled || cfg.typed.sim.sample_fast_forward != "skip"))
+        throw InputError(fmt::format(
+            "--reference {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (the "
+            "reference's units are groups of tiles)",
+            opt.reference_dir));
     SamplingParams sp;
     json plan;  // --target-error: the pilot and the period it chose
     if (sampled) {
@@ -267,6 +273,9 @@ int run_command(const RunOptions& opt) {
     }
     const auto t_prepare = Clock::now();
     Workload w = prepare_workload(opt, cfg, progress, sampled ? &sp : nullptr);
+    std::unique_ptr<Reference> reference;
+    if (!opt.reference_dir.empty())
+        reference = std::make_unique<Reference>(load_reference(opt, cfg, w.meta, *w.profile, sp));
     // After the workload: a scene or trace refused (or a reader stopped by its watchdog) leaves
     // no output folder behind.
     const std::string out_dir = make_out_dir(opt);
@@ -292,6 +301,8 @@ int run_command(const RunOptions& opt) {
         const BvhLayout& L = w.layout();
         if (w.profile)  // the skip design: the frame's lines are the profile's
             sampler->set_profile(w.profile.get(), chip.l2.get());
+        if (reference)
+            sampler->set_reference(reference.get());
         else
             sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
                                     uint32_t(cfg.typed.l2.line_bytes));

@@ -23,6 +23,7 @@ struct RunOptions {
     std::string out_dir;          // empty: a fresh folder under out/
     std::string bvh_cache;        // --bvh-cache: "off", a folder, or empty for the default
     double target_error_pct = 0;  // --target-error (sim.fidelity = sampled)
+    std::string reference_dir;    // --reference: matched-pair sampling (sim/reference.h)
     bool quiet = false;
     int tracer_threads = 1;      // --tracer-threads: threads generating and tracing rays
     std::string mem_trace_path;  // --mem-trace: write the requests that reach DRAM here

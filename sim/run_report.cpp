@@ -174,6 +174,14 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                 "  traced   {:.1f}% of rays (the rest skipped); frame profile {} ({:.2f} s)\n",
                 100 * sm.value("traced_share", 0.0), sm["profile"].value("cache", std::string("?")),
                 sm["profile"].value("seconds", 0.0));
+        if (sm.contains("reference")) {
+            const json& r = sm["reference"];
+            fmt::print("  paired   with reference design '{}' ({}), its sample {}\n",
+                       r.value("config_name", std::string()), r.value("dir", std::string()),
+                       r.value("matched_sample", std::string()) == "cached"
+                           ? "kept from an earlier run"
+                           : fmt::format("run now ({:.2f} s)", r.value("matched_host_s", 0.0)));
+        }
         if (sm.value("units_measured", 0) < 30)
             fmt::print(
                 "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <random>
 
+#include "sim/reference.h"
 #include "sim/sampling.h"
 #include "sim/stats_report.h"
+#include "workloads/error.h"
 
 namespace rtsim {
 
@@ -293,8 +295,8 @@ json estimate_json(const Estimate& e, double scale, double offset = 0) {
 }
 }  // namespace
 
-json Sampler::counter_estimates(const std::function<Estimate(const std::vector<double>&)>& total,
-                                double frame_first_fills, uint64_t units) const {
+json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
+                                uint64_t units) const {
     // Counters that move by a known amount per first fill of a BVH line in the L2 (its
     // compulsory misses, the most of a frame's DRAM traffic). The frame's first fills are its
     // distinct lines, known exactly, so only the rest (capacity misses, writes) is estimated:
@@ -317,14 +319,15 @@ json Sampler::counter_estimates(const std::function<Estimate(const std::vector<d
         if (sum == 0) continue;  // a counter that never moved in a measured unit
         const auto known = std::find_if(per_fill.begin(), per_fill.end(),
                                         [&](const auto& p) { return p.first == e[c].name; });
+        const std::string column = summed_counter_name(e[c].name);
         if (fill_counters != 1 || known == per_fill.end() || known->second == 0) {
-            counters[e[c].name] = estimate_json(total(deltas_[c]), 1.0);
+            counters[e[c].name] = estimate_json(total(deltas_[c], column, 0.0), 1.0);
             continue;
         }
         const double k = known->second;
         std::vector<double> rest(deltas_[c].size());
         for (size_t u = 0; u < rest.size(); ++u) rest[u] = deltas_[c][u] - k * first_fills[u];
-        Estimate est = total(rest);
+        Estimate est = total(rest, column, k);
         // Rare events (a capacity miss in a frame that nearly fits the L2) leave a sample that
         // saw none with no spread to show: the half-width is at least the rule of three's
         // bound (none in n units: up to 3 N / n in the frame's N, at 95%), each a line.
@@ -404,9 +407,37 @@ json Sampler::report(Cycle end_cycle) {
             aux[k] = {aux_[k], double(total_aux_[k] - current_aux_[k])};
     }
     out["new_lines"] = aux[kNewLines].total;
-    // Totals by regression on the auxiliaries (sim/sampling.h says which it fits).
-    auto total = [&](const std::vector<double>& y) { return regression_total(y, aux, units); };
-    out["total_cycles"] = estimate_json(total(cycles_), 1.0, double(end_cycle - last_handout_));
+    // Totals by regression on the auxiliaries (sim/sampling.h says which it fits), the
+    // reference design's figure in the same unit first where there is one.
+    std::vector<Auxiliary> with_reference(kAuxiliaries + 1);
+    std::copy(aux.begin(), aux.end(), with_reference.begin() + 1);
+    auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
+        if (reference_ && reference_->totals.count(column) &&
+            (per_fill == 0 || reference_->totals.count("l2.first_fills"))) {
+            Auxiliary& r = with_reference[0];
+            r.x.assign(y.size(), 0.0);
+            r.total = reference_->totals.at(column);
+            if (per_fill != 0) r.total -= per_fill * reference_->totals.at("l2.first_fills");
+            for (size_t i = 0; i < y.size(); ++i) {
+                const auto v = reference_->value(column, unit_index_[i]);
+                const auto fills = reference_->value("l2.first_fills", unit_index_[i]);
+                if (!v || (per_fill != 0 && !fills))
+                    throw InputError(
+                        fmt::format("--reference {}: its matched sample has no unit {} (delete its "
+                                    "matched-*.csv files to run it again)",
+                                    reference_->dir, unit_index_[i]));
+                r.x[i] = *v - (per_fill != 0 ? per_fill * *fills : 0.0);
+            }
+            // A figure the reference's sample never moved (DRAM traffic beyond first fills, in a
+            // frame whose lines fit its L2) says nothing of this design's.
+            if (std::any_of(r.x.begin(), r.x.end(), [](double x) { return x != 0; }))
+                return regression_total(y, with_reference, units);
+        }
+        return regression_total(y, aux, units);
+    };
+    if (reference_) out["reference"] = reference_->summary;
+    out["total_cycles"] =
+        estimate_json(total(cycles_, "cycles", 0.0), 1.0, double(end_cycle - last_handout_));
     out["counters"] = counter_estimates(
         total, skip ? aux[kNewLines].total : double(total_aux_[kNewLines]), units);
     out["figures"] = figures(units);
@@ -419,10 +450,7 @@ std::string Sampler::units_csv() const {
     std::vector<std::vector<double>> cols;
     const auto& e = counters_.entries();
     for (size_t c = 0; c < e.size(); ++c) {
-        std::string name = e[c].name;
-        const size_t open = name.find('['), close = name.find(']');
-        if (open != std::string::npos && close != std::string::npos && close > open)
-            name.erase(open, close - open + 1);
+        const std::string name = summed_counter_name(e[c].name);
         size_t col = std::find(names.begin(), names.end(), name) - names.begin();
         if (col == names.size()) {
             names.push_back(name);

@@ -46,6 +46,8 @@
 
 namespace rtsim {
 
+struct Reference;  // sim/reference.h
+
 struct SamplingParams {
     uint64_t unit_rays = 1024;
     uint64_t period_units = 10;  // one unit measured in this many
@@ -147,6 +149,9 @@ class Sampler {
         const auto& lines = profile->tile_lines;
         line_pass_.resize(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1);
     }
+    // Skip design: matched-pair estimates against a reference design's figures in the same
+    // units (sim/reference.h); each figure is regressed on the reference's first.
+    void set_reference(const Reference* reference) { reference_ = reference; }
     // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
     // lines an L1 holds and whether the L2 replaces the least recently used line
     // (replay_skipped_tiles).
@@ -209,9 +214,11 @@ class Sampler {
     // Every counter that moved in a measured unit, its total estimated by `total`; those that
     // follow the L2's first fills, from the frame's first fills (its distinct lines) and the
     // rest. `units`: in the frame.
-    nlohmann::json counter_estimates(
-        const std::function<Estimate(const std::vector<double>&)>& total, double frame_first_fills,
-        uint64_t units) const;
+    // `total(y, column, per_fill)`: the total of y, the change of the counter summed into
+    // sampled_units.csv's `column`, less per_fill times the unit's L2 first fills.
+    using TotalFn = std::function<Estimate(const std::vector<double>&, const std::string&, double)>;
+    nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills,
+                                     uint64_t units) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
@@ -246,6 +253,7 @@ class Sampler {
     Cycle last_handout_ = 0;
     LineTracker lines_;
     const FrameProfile* profile_ = nullptr;
+    const Reference* reference_ = nullptr;
     MemoryPort* l2_ = nullptr;
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first

@@ -645,6 +645,147 @@ TEST(Sampled, SkipDesignNeedsGeneratedRays) {
                           "sim.sample_fast_forward=skip skips tiles before they are traced");
 }
 
+// Matched-pair sampling (--reference, sim/reference.h) on a 96x96 bunny frame in units of 2
+// tiles (72 units).
+const std::string kPairFrame = "run --scene " RTSIM_BUNNY_OBJ
+                               " --rays primary,ao --res 96x96 --set sim.fidelity=sampled "
+                               "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 ";
+
+// The reference's every unit (a run measuring every unit), in a folder of its own.
+fs::path make_reference(const std::string& name, const std::string& design = "") {
+    const fs::path dir = work_dir() / name;
+    fs::remove_all(dir);
+    const Result r = run_rtsim(kPairFrame + design + "--set sim.sample_period_units=1 -o '" +
+                               dir.string() + "'");
+    EXPECT_EQ(r.status, 0) << r.err;
+    return dir;
+}
+
+// The reference design against itself: its matched sample is the run's own, unit for unit, so
+// the regression on it is exact and every total is the reference's, which the test reads from
+// the reference's sampled_units.csv (plus the run's drain after its last hand-out, for cycles).
+// A second run finds the matched sample kept in the folder and gives the same figures.
+TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
+    const fs::path ref = make_reference("pair_ref");
+    const fs::path a = work_dir() / "pair_a", b = work_dir() / "pair_b";
+    const std::string sampled =
+        kPairFrame + "--set sim.sample_period_units=4 --reference '" + ref.string() + "' ";
+    const Result ra = run_rtsim(sampled + "-o '" + a.string() + "'");
+    ASSERT_EQ(ra.status, 0) << ra.err;
+    const Result rb = run_rtsim(sampled + "-o '" + b.string() + "'");
+    ASSERT_EQ(rb.status, 0) << rb.err;
+    EXPECT_NE(rb.out.find("paired   with reference design 'baseline'"), std::string::npos)
+        << rb.out;
+    json sa = stats_of(a), sb = stats_of(b);
+    EXPECT_EQ(sa["sampling"]["reference"]["matched_sample"], "ran");
+    EXPECT_EQ(sb["sampling"]["reference"]["matched_sample"], "cached");
+    for (json* s : {&sa, &sb}) {
+        (*s)["sampling"].erase("reference");
+        (*s)["sampling"].erase("profile");
+    }
+    EXPECT_EQ(without_host(sa), without_host(sb));
+
+    const UnitsCsv truth = read_units_csv(ref / "sampled_units.csv");
+    const json& sm = sa["sampling"];
+    ASSERT_EQ(sm["units"], 72);
+    ASSERT_EQ(sm["units_measured"], 18);
+    const double cycles = column_sum(truth, "cycles") + sm["drain_cycles"].get<double>();
+    EXPECT_NEAR(sm["total_cycles"]["value"].get<double>(), cycles, 1e-6 * cycles);
+    EXPECT_LT(sm["total_cycles"]["half_width_pct"].get<double>(), 1e-6);
+    for (const char* counter : {"l2.accesses", "dram.bytes"}) {
+        const double t = column_sum(truth, counter);
+        ASSERT_GT(t, 0) << counter;
+        EXPECT_NEAR(sm["counters"][counter]["value"].get<double>(), t, 1e-6 * t) << counter;
+    }
+    // Like blocks are each regressed on their column's sum (the estimator is linear in the
+    // figure): their estimates add up to it.
+    double ops = 0;
+    int blocks = 0;
+    for (const auto& [name, e] : sm["counters"].items())
+        if (name.rfind("triangle_unit[", 0) == 0 && name.find("].ops") != std::string::npos) {
+            ops += e["value"].get<double>();
+            ++blocks;
+        }
+    EXPECT_EQ(blocks, 8);
+    const double t = column_sum(truth, "triangle_unit.ops");
+    EXPECT_NEAR(ops, t, 1e-6 * t);
+}
+
+// Another design paired with the reference: the run's units and the reference's are the same,
+// and the interval on the frame's cycles is narrower than the same sample's without the pair
+// and still holds the full run's (unit latencies doubled; checked on this seed).
+TEST(Sampled, ReferenceNarrowsTheIntervalOfANearDesign) {
+    const fs::path ref = make_reference("near_ref");
+    const std::string design =
+        "--set box_unit.latency_cycles=16 --set triangle_unit.latency_cycles=36 ";
+    const fs::path full = make_reference("near_full", design);
+    const fs::path alone = work_dir() / "near_alone", paired = work_dir() / "near_paired";
+    const std::string sampled = kPairFrame + design + "--set sim.sample_period_units=4 ";
+    ASSERT_EQ(run_rtsim(sampled + "-o '" + alone.string() + "'").status, 0);
+    const Result r =
+        run_rtsim(sampled + "--reference '" + ref.string() + "' -o '" + paired.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json sa = stats_of(alone)["sampling"], sp = stats_of(paired)["sampling"];
+    const double truth = stats_of(full)["total_cycles"].get<double>();
+    const json& c = sp["total_cycles"];
+    EXPECT_LT(c["half_width_pct"].get<double>(),
+              0.5 * sa["total_cycles"]["half_width_pct"].get<double>());
+    EXPECT_LE(c["lo"].get<double>(), truth);
+    EXPECT_GE(c["hi"].get<double>(), truth);
+    const UnitsCsv mine = read_units_csv(paired / "sampled_units.csv");
+    bool found = false;
+    for (const auto& f : fs::directory_iterator(ref)) {
+        if (f.path().filename().string().rfind("matched-", 0) != 0) continue;
+        found = true;
+        EXPECT_EQ(read_units_csv(f.path()).cols["unit"], mine.cols.at("unit"));
+    }
+    EXPECT_TRUE(found);
+}
+
+TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
+    const fs::path ref = make_reference("bad_ref");
+    const fs::path out = work_dir() / "bad_ref_out";
+    const std::string sampled =
+        kPairFrame + "--set sim.sample_period_units=4 -o '" + out.string() + "' --reference ";
+    // No run there.
+    expect_one_line_error(run_rtsim(sampled + "'" + (work_dir() / "nowhere").string() + "'"),
+                          "nowhere: no readable stats.json");
+    // A sampled run, not one that measured every unit.
+    const fs::path part = work_dir() / "bad_ref_part";
+    ASSERT_EQ(
+        run_rtsim(kPairFrame + "--set sim.sample_period_units=4 -o '" + part.string() + "'").status,
+        0);
+    expect_one_line_error(run_rtsim(sampled + "'" + part.string() + "'"),
+                          "not a run that measured every unit");
+    // Another frame: the same scene at another resolution, or other rays.
+    expect_one_line_error(
+        run_rtsim("run --scene " RTSIM_BUNNY_OBJ
+                  " --rays primary,ao --res 64x64 --set sim.fidelity=sampled "
+                  "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
+                  "--set sim.sample_period_units=4 --reference '" +
+                  ref.string() + "' -o '" + out.string() + "'"),
+        "made on another frame (its workload differs");
+    // Other units.
+    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=4 -o '" +
+                                    out.string() + "' --reference '" + ref.string() + "'"),
+                          "its units are 2 tiles, this run's 4");
+    // A damaged unit table.
+    const fs::path damaged = work_dir() / "bad_ref_damaged";
+    fs::remove_all(damaged);
+    fs::copy(ref, damaged);
+    {
+        std::ofstream csv(damaged / "sampled_units.csv", std::ios::app);
+        csv << "72,1,2,x\n";  // after the header and 72 units: line 74
+    }
+    expect_one_line_error(run_rtsim(sampled + "'" + damaged.string() + "'"),
+                          "sampled_units.csv: line 74: 'x' is not a number");
+    // Not a sampled run.
+    expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 -o '" +
+                                    out.string() + "' --reference '" + ref.string() + "'"),
+                          "needs sim.fidelity=sampled and sim.sample_fast_forward=skip");
+    EXPECT_FALSE(fs::exists(out));
+}
+
 TEST(Run, BrokenConfigExitsTwoWithOneLine) {
     const fs::path cfg = work_dir() / "broken.json";
     std::ofstream(cfg) << R"({"l1": {"size_kib": 0}})";

@@ -1,0 +1,66 @@
+// Matched-pair sampling against a reference design (rtsim run --reference DIR; Ekman and
+// Stenstrom, ISPASS 2005, compare two designs on the same sample).
+//
+// An architect sweeping designs knows one of them in full: DIR is the output folder of a skip run
+// of that reference design that measured every unit of the frame (--set
+// sim.sample_period_units=1: counter for counter the full run, with every unit's cycles and
+// counters in sampled_units.csv). A sampled run of another design on the same frame then also
+// runs the reference design with its own sampling plan, same seed, same units (a child process,
+// once per plan: the result is kept in DIR for the sweep's other points), and regresses each of
+// its units' figures on the reference's figure in the same unit, whose frame total DIR knows,
+// before the four functional auxiliaries (sim/sampler.h). Two designs' units differ far less from
+// each other than units differ from what the functional tracer can say of them: on six 1080p
+// frames at 1 in 20 the cycles' mean error fell from 1.4-3.0% to 0.3-0.7% against designs that
+// changed unit latencies or DRAM timing, and to 1.9% (from 2.3%) against L1 and L2 eight and
+// sixteen times smaller (bench/results/sampled_estimators.md, section 10). The reference's
+// measured units were simulated with the same warm-up and cache replay as the run's own, so the
+// simulation's bias in them mostly cancels: bunny primary's +1.2 points fell to +0.2.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sim/config.h"
+#include "sim/frame_profile.h"
+#include "sim/run.h"
+#include "sim/sampler.h"
+
+namespace rtsim {
+
+// A sampled_units.csv: a column per name, a row per unit.
+struct UnitTable {
+    std::vector<std::string> names;
+    std::map<std::string, std::vector<double>> cols;
+    size_t rows = 0;
+    bool has(const std::string& name) const { return cols.count(name) != 0; }
+};
+
+// Parses sampled_units.csv text; `path` names it in errors (InputError).
+UnitTable parse_units_csv(const std::string& text, const std::string& path);
+
+// A counter's column in sampled_units.csv: like blocks summed ("core[3].rays" -> "core.rays").
+std::string summed_counter_name(std::string name);
+
+struct Reference {
+    std::string dir;
+    nlohmann::json summary;                // stats.json's sampling.reference
+    std::map<std::string, double> totals;  // every column's frame total, from the full run
+    UnitTable matched;                     // the reference design's sample with this run's plan
+    std::map<uint64_t, size_t> row_of_unit;
+    // The reference's value of `column` in measured unit `unit`; nullopt if it has no such
+    // column.
+    std::optional<double> value(const std::string& column, uint64_t unit) const;
+};
+
+// Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json
+// sections `meta`, its frame `profile`, its plan `sp`), running the reference design's matched
+// sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
+// for this frame and unit size.
+Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
+                         const FrameProfile& profile, const SamplingParams& sp);
+
+}  // namespace rtsim
