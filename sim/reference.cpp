@@ -168,10 +168,15 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     ref_cfg["sim"]["sample_seed"] = sp.seed;
     const std::string plan = fmt::format("{} {} {} {}", RTSIM_VERSION, ref.value("config_hash", ""),
                                          ref_cfg["sim"].dump(), meta["workload"].dump());
-    const fs::path cached =
-        dir / fmt::format("matched-{:016x}.csv", uint64_t(XXH3_64bits(plan.data(), plan.size())));
-    std::string matched = read_text(cached);
+    const std::string stem =
+        fmt::format("matched-{:016x}", uint64_t(XXH3_64bits(plan.data(), plan.size())));
+    const fs::path cached = dir / (stem + ".csv"), cached_drain = dir / (stem + ".json");
+    // The drain is written first: a table without it is an interrupted write, run again.
+    const json drain = json::parse(read_text(cached_drain), nullptr, false);
+    std::string matched =
+        drain.is_object() && drain.contains("drain_cycles") ? read_text(cached) : std::string();
     const bool hit = !matched.empty();
+    r.drain_full_cycles = sm.value("drain_cycles", 0.0);
     double child_s = 0;
     if (!hit) {
         char tmpl[] = "/tmp/rtsim-reference-XXXXXX.json";
@@ -190,9 +195,14 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         }
         fs::remove(tmpl);
         child_s = child["host"].value("run_time_s", 0.0);
+        r.drain_matched_cycles = child["sampling"].value("drain_cycles", 0.0);
         // Kept for the next run with this plan (a sweep's other points); written whole or not
         // at all.
+        write_file_atomically(cached_drain.string(),
+                              json({{"drain_cycles", r.drain_matched_cycles}}).dump() + "\n");
         write_file_atomically(cached.string(), matched);
+    } else {
+        r.drain_matched_cycles = drain["drain_cycles"].get<double>();
     }
     r.matched = parse_units_csv(matched, cached.string());
     const auto& units = r.matched.cols.at("unit");
@@ -202,6 +212,7 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
                  {"config_hash", ref.value("config_hash", "")},
                  {"total_cycles", ref.value("total_cycles", uint64_t(0))},
                  {"matched_sample", hit ? "cached" : "ran"},
+                 {"drain_correction_cycles", r.drain_full_cycles - r.drain_matched_cycles},
                  {"matched_host_s", child_s}};
     return r;
 }

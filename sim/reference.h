@@ -51,6 +51,10 @@ struct Reference {
     std::map<std::string, double> totals;  // every column's frame total, from the full run
     UnitTable matched;                     // the reference design's sample with this run's plan
     std::map<uint64_t, size_t> row_of_unit;
+    // The cycles after the last hand-out, in the reference's full run and in its matched
+    // sample: a sampled run's own drain follows its last detailed rays, not the frame's, and
+    // the pair corrects it by the reference's difference (exactly, for the reference design).
+    double drain_full_cycles = 0, drain_matched_cycles = 0;
     // The reference's value of `column` in measured unit `unit`; nullopt if it has no such
     // column.
     std::optional<double> value(const std::string& column, uint64_t unit) const;

@@ -436,8 +436,12 @@ json Sampler::report(Cycle end_cycle) {
         return regression_total(y, aux, units);
     };
     if (reference_) out["reference"] = reference_->summary;
-    out["total_cycles"] =
-        estimate_json(total(cycles_, "cycles", 0.0), 1.0, double(end_cycle - last_handout_));
+    // The frame's cycles after its last hand-out: the run's own drain, corrected by the
+    // reference's (sim/reference.h).
+    const double drain =
+        double(end_cycle - last_handout_) +
+        (reference_ ? reference_->drain_full_cycles - reference_->drain_matched_cycles : 0.0);
+    out["total_cycles"] = estimate_json(total(cycles_, "cycles", 0.0), 1.0, drain);
     out["counters"] = counter_estimates(
         total, skip ? aux[kNewLines].total : double(total_aux_[kNewLines]), units);
     out["figures"] = figures(units);

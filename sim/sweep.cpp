@@ -93,9 +93,10 @@ SweepPlan plan_sweep(const std::string& path) {
     if (!s.is_object()) fail("expected an object");
     for (const auto& [k, v] : s.items())
         if (k != "config" && k != "set" && k != "workload" && k != "trace" && k != "vary" &&
-            k != "pareto")
+            k != "pareto" && k != "reference")
             fail(fmt::format(
-                "{}: unknown key (expected config, set, workload, trace, vary, pareto)", k));
+                "{}: unknown key (expected config, set, workload, trace, vary, pareto, reference)",
+                k));
     const fs::path dir = fs::path(path).parent_path();
     auto relative = [&](const std::string& p) {
         return fs::path(p).is_absolute() ? p : (dir / p).lexically_normal().string();
@@ -203,7 +204,34 @@ SweepPlan plan_sweep(const std::string& path) {
         plan.points.push_back(std::move(p));
     }
     plan.pareto = pareto;
+    if (s.contains("reference")) {
+        if (!s["reference"].is_boolean()) fail("reference: expected true or false");
+        if (s["reference"].get<bool>()) {
+            if (!trace.empty())
+                fail(
+                    "reference: needs a workload (a reference's units are tiles of a generated "
+                    "frame)");
+            const Config base = load_config(base_config, fixed_sets);
+            if (base.typed.sim.fidelity != "sampled" ||
+                base.typed.sim.sample_fast_forward != "skip")
+                fail(
+                    "reference: the base design must set sim.fidelity=sampled and "
+                    "sim.sample_fast_forward=skip");
+            SweepPoint r;
+            r.name = "reference";
+            r.run_args = common;
+            for (const auto& set : fixed_sets) r.run_args.insert(r.run_args.end(), {"--set", set});
+            r.run_args.insert(r.run_args.end(), {"--set", "sim.sample_period_units=1"});
+            plan.reference = std::move(r);
+        }
+    }
     return plan;
+}
+
+void pair_with_reference(SweepPlan& plan, const std::string& out_dir) {
+    if (!plan.reference) return;
+    const std::string dir = (fs::absolute(out_dir) / plan.reference->name).string();
+    for (SweepPoint& p : plan.points) p.run_args.insert(p.run_args.end(), {"--reference", dir});
 }
 
 namespace {
@@ -591,15 +619,30 @@ int sweep_command(const SweepOptions& given) {
     if (opt.resume && !fs::is_directory(opt.out_dir))
         throw InputError(fmt::format("--resume: {}: no such folder", opt.out_dir));
     if (!opt.pareto.empty()) check_pareto(opt.pareto, "--pareto");
-    const SweepPlan plan = plan_sweep(opt.path);
+    SweepPlan plan = plan_sweep(opt.path);
     const std::string out_dir =
         opt.out_dir.empty() ? fresh_sweep_dir(fs::path(opt.path).stem().string()) : opt.out_dir;
     std::error_code ec;
     fs::create_directories(out_dir, ec);
     if (ec)
         throw InputError(fmt::format("{}: cannot create the folder ({})", out_dir, ec.message()));
+    pair_with_reference(plan, out_dir);
     if (opt.task >= 0) return run_task(plan, out_dir, opt.task, opt.points_per_task);
     if (opt.collect) return collect(opt, plan, out_dir);
+    // The reference before any point (here, also before a Slurm job's tasks start).
+    if (plan.reference &&
+        !finished_before(fs::path(out_dir) / plan.reference->name, plan.reference->run_args)) {
+        const pid_t pid = spawn_point(out_dir, *plan.reference);
+        int st = 0;
+        while (pid >= 0 && waitpid(pid, &st, 0) < 0)
+            if (errno != EINTR) break;
+        if (pid < 0 || !WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+            const fs::path dir = fs::path(out_dir) / plan.reference->name;
+            const std::string why = first_line_of(dir / "stderr.txt");
+            throw std::runtime_error(fmt::format("sweep: the reference run in {} failed{}",
+                                                 dir.string(), why.empty() ? "" : ": " + why));
+        }
+    }
     if (opt.slurm) return submit(opt, plan, out_dir);
     const size_t skipped = run_points(plan, out_dir, opt.jobs, opt.resume, opt.quiet);
     write_results(opt, plan, out_dir, skipped);

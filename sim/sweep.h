@@ -11,12 +11,20 @@
 //     "trace": "frame.rtt",                  or replay a trace (relative to the sweep file)
 //     "vary": {"l1.size_kib": [16, 32, 64], "l1.ways": [2, 4]}   every combination
 //     "pareto": ["cycles", "energy per ray (nJ)"]   two figures: plots/pareto.svg (optional)
-//   }
+//     "reference": true                      sampled sweeps: pair every point with the base
+//   }                                        design (optional; below)
+// With "reference", the base design (config and set, nothing varied; it must set
+// sim.fidelity=sampled and sim.sample_fast_forward=skip) first measures every unit of the frame
+// into OUT/reference/, and every point runs with --reference OUT/reference (sim/reference.h):
+// each point's figures come from the pair, with far narrower intervals for points near the
+// base. The reference's sample with a point's plan is run by the first point with that plan and
+// kept for the others (points running at once may each run it).
 // Besides the table, OUT/plots/ gets a figure per varied axis (each figure of merit against
 // it, a line per value of the other axes) as SVG, and PNG where rsvg-convert is installed.
 #pragma once
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -54,11 +62,17 @@ struct SweepPoint {
 struct SweepPlan {
     std::vector<std::string> keys;  // varied keys, in the file's order
     std::vector<SweepPoint> points;
+    // "reference": the base design's run measuring every unit (its folder: "reference"); the
+    // points' run_args get --reference once the sweep's folder is known (pair_with_reference).
+    std::optional<SweepPoint> reference;
     std::vector<std::string> pareto;  // the file's two objectives, if it names them
 };
 // Checks that `names` are two figures of the shared list; throws InputError naming `where`.
 void check_pareto(const std::vector<std::string>& names, const std::string& where);
 SweepPlan plan_sweep(const std::string& path);
+// With plan.reference: every point's run_args get --reference OUT_DIR/reference (absolute, so a
+// Slurm task and the local collect agree).
+void pair_with_reference(SweepPlan& plan, const std::string& out_dir);
 
 // Runs the plan; writes each point's stats.json (and run.json, the arguments it ran with) under
 // out_dir/<point>/ and the table to out_dir/results.json and results.csv. Returns the exit status.

@@ -663,7 +663,7 @@ fs::path make_reference(const std::string& name, const std::string& design = "")
 
 // The reference design against itself: its matched sample is the run's own, unit for unit, so
 // the regression on it is exact and every total is the reference's, which the test reads from
-// the reference's sampled_units.csv (plus the run's drain after its last hand-out, for cycles).
+// the reference's sampled_units.csv and stats.json.
 // A second run finds the matched sample kept in the folder and gives the same figures.
 TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     const fs::path ref = make_reference("pair_ref");
@@ -689,7 +689,11 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     const json& sm = sa["sampling"];
     ASSERT_EQ(sm["units"], 72);
     ASSERT_EQ(sm["units_measured"], 18);
-    const double cycles = column_sum(truth, "cycles") + sm["drain_cycles"].get<double>();
+    // With the drain after the last hand-out as the reference (the full run) had it: the
+    // frame's cycles exactly.
+    const json full = stats_of(ref);
+    const double cycles = full["total_cycles"].get<double>();
+    EXPECT_EQ(column_sum(truth, "cycles") + full["sampling"]["drain_cycles"].get<double>(), cycles);
     EXPECT_NEAR(sm["total_cycles"]["value"].get<double>(), cycles, 1e-6 * cycles);
     EXPECT_LT(sm["total_cycles"]["half_width_pct"].get<double>(), 1e-6);
     for (const char* counter : {"l2.accesses", "dram.bytes"}) {
@@ -735,7 +739,9 @@ TEST(Sampled, ReferenceNarrowsTheIntervalOfANearDesign) {
     const UnitsCsv mine = read_units_csv(paired / "sampled_units.csv");
     bool found = false;
     for (const auto& f : fs::directory_iterator(ref)) {
-        if (f.path().filename().string().rfind("matched-", 0) != 0) continue;
+        if (f.path().filename().string().rfind("matched-", 0) != 0 ||
+            f.path().extension() != ".csv")
+            continue;
         found = true;
         EXPECT_EQ(read_units_csv(f.path()).cols["unit"], mine.cols.at("unit"));
     }
@@ -1503,6 +1509,42 @@ TEST(Sweep, RunsEveryPointAndWritesOneTable) {
     for (std::string line; std::getline(csv, line);) ++lines;
     EXPECT_EQ(lines, 3);
     EXPECT_NE(r.out.find("l1.ways"), std::string::npos) << r.out;
+}
+
+// A sampled sweep paired with its base design: the reference runs first into OUT/reference
+// (every unit measured), each point's estimates come from the pair, and its interval holds the
+// point's full run (checked for this frame and seed).
+TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
+    const fs::path file = work_dir() / "sweep_paired.json";
+    std::ofstream(file) << R"({"workload": {"scene": ")" RTSIM_BUNNY_OBJ R"(",
+                                             "rays": "primary,ao", "res": "96x96"},
+                               "set": {"sim.fidelity": "sampled", "sim.sample_fast_forward": "skip",
+                                       "sim.sample_unit_tiles": 2, "sim.sample_period_units": 4},
+                               "vary": {"triangle_unit.latency_cycles": [18, 36]},
+                               "reference": true})";
+    const fs::path out = work_dir() / "sweep_paired_out";
+    const Result r = run_rtsim(fmt::format("sweep '{}' -j 2 -o '{}'", file.string(), out.string()));
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json ref = stats_of(out / "reference");
+    EXPECT_EQ(ref["sampling"]["period_units"], 1);
+    const json table = json::parse(std::ifstream(out / "results.json"));
+    ASSERT_EQ(table["points"].size(), 2u);
+    for (size_t i = 0; i < 2; ++i) {
+        const json s = stats_of(out / table["points"][i]["point"].get<std::string>());
+        ASSERT_TRUE(s["sampling"].contains("reference")) << i;
+        EXPECT_EQ(s["sampling"]["reference"]["dir"], fs::absolute(out / "reference").string());
+        const fs::path full = work_dir() / fmt::format("sweep_paired_full{}", i);
+        ASSERT_EQ(run_rtsim(fmt::format("run --scene " RTSIM_BUNNY_OBJ
+                                        " --rays primary,ao --res 96x96 --set "
+                                        "triangle_unit.latency_cycles={} -o '{}'",
+                                        i == 0 ? 18 : 36, full.string()))
+                      .status,
+                  0);
+        const double truth = stats_of(full)["total_cycles"].get<double>();
+        const json& c = s["sampling"]["total_cycles"];
+        EXPECT_LE(c["lo"].get<double>(), truth) << i;
+        EXPECT_GE(c["hi"].get<double>(), truth) << i;
+    }
 }
 
 // Plots (issue 19): a figure per varied axis and the Pareto front the file names, as SVG, and

@@ -70,7 +70,8 @@ TEST(Sweep, PathsAreRelativeToTheSweepFile) {
 
 TEST(Sweep, BadFilesAreRefusedBeforeAnythingRuns) {
     EXPECT_EQ(refusal(R"({"vary": {"l1.size_kib": [8]}, "colour": 1})"),
-              "colour: unknown key (expected config, set, workload, trace, vary, pareto)");
+              "colour: unknown key (expected config, set, workload, trace, vary, pareto, "
+              "reference)");
     EXPECT_EQ(refusal(R"({"vary": {"l1.size_kib": [8]}, "pareto": ["cycles"]})"),
               "pareto: expected two figure names, e.g. [\"cycles\", \"energy per ray (nJ)\"]");
     EXPECT_NE(refusal(R"({"vary": {"l1.size_kib": [8]}, "pareto": ["cycles", "speed"]})")
@@ -102,4 +103,37 @@ TEST(Sweep, BadFilesAreRefusedBeforeAnythingRuns) {
     EXPECT_EQ(
         refusal(R"({"vary": {"l1.ways": [2e99999]}})").rfind("invalid JSON: number overflow", 0),
         0u);
+}
+
+// "reference": the base design measuring every unit, and every point paired with it.
+TEST(Sweep, AReferencePairsEveryPointWithTheBaseDesign) {
+    const std::string path = write_sweep("paired.json", R"({
+        "workload": {"scene": "builtin:cornell", "rays": "primary", "res": "32x32"},
+        "set": {"sim.fidelity": "sampled", "sim.sample_fast_forward": "skip",
+                "sim.sample_period_units": 4},
+        "vary": {"l1.size_kib": [8, 16]}, "reference": true})");
+    SweepPlan plan = plan_sweep(path);
+    ASSERT_TRUE(plan.reference.has_value());
+    const auto& ref = plan.reference->run_args;
+    EXPECT_EQ(plan.reference->name, "reference");
+    EXPECT_TRUE(has(ref, "--set", "sim.sample_period_units=1"));
+    EXPECT_TRUE(has(ref, "--scene", "builtin:cornell"));
+    for (const auto& a : ref) EXPECT_EQ(a.find("l1.size_kib"), std::string::npos) << a;
+    pair_with_reference(plan, "/tmp/sweep-out");
+    for (const auto& p : plan.points)
+        EXPECT_TRUE(has(p.run_args, "--reference", "/tmp/sweep-out/reference")) << p.name;
+
+    EXPECT_EQ(refusal(R"({"workload": {"res": "8x8"}, "vary": {"l1.ways": [2]},
+                          "reference": 1})"),
+              "reference: expected true or false");
+    EXPECT_EQ(refusal(R"({"workload": {"res": "8x8"}, "vary": {"l1.ways": [2]},
+                          "reference": true})"),
+              "reference: the base design must set sim.fidelity=sampled and "
+              "sim.sample_fast_forward=skip");
+    // Without "reference" nothing is paired.
+    SweepPlan alone = plan_sweep(write_sweep("alone.json", R"({
+        "workload": {"res": "8x8"}, "vary": {"l1.ways": [2]}, "reference": false})"));
+    EXPECT_FALSE(alone.reference.has_value());
+    pair_with_reference(alone, "/tmp/x");
+    for (const auto& a : alone.points[0].run_args) EXPECT_NE(a, "--reference");
 }
