@@ -4,6 +4,7 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -21,33 +22,45 @@ using nlohmann::json;
 
 UnitTable parse_units_csv(const std::string& text, const std::string& path) {
     UnitTable t;
-    std::istringstream in(text);
-    std::string line;
-    if (!std::getline(in, line) || line.rfind("unit,", 0) != 0)
+    const size_t header_end = std::min(text.find('\n'), text.size());
+    if (text.compare(0, 5, "unit,") != 0)
         throw InputError(fmt::format("{}: not a sampled_units.csv (no 'unit,...' header)", path));
-    std::istringstream header(line);
-    for (std::string name; std::getline(header, name, ',');) t.names.push_back(name);
-    for (const auto& n : t.names) t.cols[n];
+    for (size_t a = 0; a <= header_end;) {
+        const size_t b = std::min(text.find(',', a), header_end);
+        t.names.push_back(text.substr(a, b - a));
+        a = b + 1;
+    }
+    std::vector<std::vector<double>*> cols;
+    for (const auto& n : t.names) cols.push_back(&t.cols[n]);
     if (t.cols.size() != t.names.size())
         throw InputError(fmt::format("{}: a column name appears twice", path));
+    // By hand with from_chars: a paired run reads a table of every measured unit's counters.
     size_t row = 1;
-    while (std::getline(in, line)) {
+    for (size_t pos = header_end + 1; pos < text.size();) {
         ++row;
-        if (line.empty()) continue;
-        std::istringstream fields(line);
+        const size_t end = std::min(text.find('\n', pos), text.size());
+        if (end == pos) {
+            pos = end + 1;
+            continue;
+        }
         size_t c = 0;
-        for (std::string f; std::getline(fields, f, ','); ++c) {
-            if (c >= t.names.size()) break;
-            char* end = nullptr;
-            const double v = std::strtod(f.c_str(), &end);
-            if (f.empty() || *end != '\0' || !std::isfinite(v))
-                throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, row, f));
-            t.cols[t.names[c]].push_back(v);
+        for (size_t a = pos; a <= end; ++c) {
+            const size_t b = std::min(text.find(',', a), end);
+            if (c < t.names.size()) {
+                double v = 0;
+                const auto r = std::from_chars(text.data() + a, text.data() + b, v);
+                if (a == b || r.ec != std::errc() || r.ptr != text.data() + b || !std::isfinite(v))
+                    throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, row,
+                                                 text.substr(a, b - a)));
+                cols[c]->push_back(v);
+            }
+            a = b + 1;
         }
         if (c != t.names.size())
             throw InputError(fmt::format("{}: line {}: {} fields, the header has {}", path, row, c,
                                          t.names.size()));
         ++t.rows;
+        pos = end + 1;
     }
     return t;
 }
@@ -133,31 +146,34 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
                 fmt::format("{}: made on another frame (its {} differs: {} against {})", where,
                             section, theirs.dump(), mine.dump()));
     }
+    // The same frame's units: the same BVH, and the profile's count of rays and first-touched
+    // lines.
+    if (ref.value("bvh", json()) != meta["bvh"])
+        throw InputError(fmt::format("{}: made with another BVH (bvh differs)", where));
+    uint64_t rays = 0, new_lines = 0;
+    for (const AuxFigures& u : profile.units) {
+        rays += u[kAuxRays];
+        new_lines += u[kAuxNewLines];
+    }
+    if (sm.value("units", uint64_t(0)) != profile.units.size() ||
+        sm.value("total_rays", 0.0) != double(rays) ||
+        sm.value("new_lines", 0.0) != double(new_lines))
+        throw InputError(fmt::format(
+            "{}: its units are not this frame's ({} units, {} rays, {} new lines against {}, {}, "
+            "{})",
+            where, sm.value("units", uint64_t(0)), sm.value("total_rays", 0.0),
+            sm.value("new_lines", 0.0), profile.units.size(), rays, new_lines));
     Reference r;
     r.dir = opt.reference_dir;
-    const std::string truth_path = (dir / "sampled_units.csv").string();
-    const UnitTable truth = parse_units_csv(read_text(truth_path), truth_path);
-    // The same frame's units: every unit's functional figures equal this run's profile's (a
-    // different BVH or tile order would show here).
-    if (truth.rows != profile.units.size())
-        throw InputError(fmt::format("{}: {} units, this frame has {}", truth_path, truth.rows,
-                                     profile.units.size()));
-    const char* aux_names[kAuxiliaries] = {"work", "new_lines", "node_steps", "rays"};
-    for (size_t u = 0; u < truth.rows; ++u) {
-        if (truth.cols.at("unit")[u] != double(u))
-            throw InputError(fmt::format("{}: row {} is not unit {}", truth_path, u + 2, u));
-        for (size_t k = 0; k < kAuxiliaries; ++k)
-            if (!truth.has(aux_names[k]) ||
-                truth.cols.at(aux_names[k])[u] != double(profile.units[u][k]))
-                throw InputError(fmt::format(
-                    "{}: unit {}'s {} differs from this frame's (another BVH or workload)",
-                    truth_path, u, aux_names[k]));
-    }
-    for (const auto& [name, v] : truth.cols) {
-        double sum = 0;
-        for (double x : v) sum += x;
-        r.totals[name] = sum;
-    }
+    // Every unit measured: the frame's counters are the units' sums, like blocks summed as in
+    // sampled_units.csv, and its cycles those of the units and the drain after the last
+    // hand-out.
+    if (!ref.contains("counters") || !ref["counters"].is_object())
+        throw InputError(fmt::format("{}: stats.json has no counters", where));
+    for (const auto& [name, v] : ref["counters"].items())
+        if (v.is_number()) r.totals[summed_counter_name(name)] += v.get<double>();
+    r.drain_full_cycles = sm.value("drain_cycles", 0.0);
+    r.totals["cycles"] = sm.value("simulated_cycles", 0.0) - r.drain_full_cycles;
 
     // The reference design with this run's sampling plan.
     json ref_cfg = ref["config"];
@@ -176,7 +192,6 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     std::string matched =
         drain.is_object() && drain.contains("drain_cycles") ? read_text(cached) : std::string();
     const bool hit = !matched.empty();
-    r.drain_full_cycles = sm.value("drain_cycles", 0.0);
     double child_s = 0;
     if (!hit) {
         char tmpl[] = "/tmp/rtsim-reference-XXXXXX.json";

@@ -3,8 +3,8 @@
 //
 // An architect sweeping designs knows one of them in full: DIR is the output folder of a skip run
 // of that reference design that measured every unit of the frame (--set
-// sim.sample_period_units=1: counter for counter the full run, with every unit's cycles and
-// counters in sampled_units.csv). A sampled run of another design on the same frame then also
+// sim.sample_period_units=1: counter for counter the full run; its stats.json gives the frame's
+// totals). A sampled run of another design on the same frame then also
 // runs the reference design with its own sampling plan, same seed, same units (a child process,
 // once per plan: the result is kept in DIR for the sweep's other points), and regresses each of
 // its units' figures on the reference's figure in the same unit, whose frame total DIR knows,
@@ -47,9 +47,10 @@ std::string summed_counter_name(std::string name);
 
 struct Reference {
     std::string dir;
-    nlohmann::json summary;                // stats.json's sampling.reference
-    std::map<std::string, double> totals;  // every column's frame total, from the full run
-    UnitTable matched;                     // the reference design's sample with this run's plan
+    nlohmann::json summary;  // stats.json's sampling.reference
+    // Every sampled_units.csv column's frame total (like blocks summed), from the full run.
+    std::map<std::string, double> totals;
+    UnitTable matched;  // the reference design's sample with this run's plan
     std::map<uint64_t, size_t> row_of_unit;
     // The cycles after the last hand-out, in the reference's full run and in its matched
     // sample: a sampled run's own drain follows its last detailed rays, not the frame's, and

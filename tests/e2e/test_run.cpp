@@ -775,16 +775,24 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=4 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),
                           "its units are 2 tiles, this run's 4");
-    // A damaged unit table.
+    // A damaged table of the reference's matched sample (kept in its folder by a first run).
     const fs::path damaged = work_dir() / "bad_ref_damaged";
     fs::remove_all(damaged);
     fs::copy(ref, damaged);
-    {
-        std::ofstream csv(damaged / "sampled_units.csv", std::ios::app);
-        csv << "72,1,2,x\n";  // after the header and 72 units: line 74
-    }
+    const fs::path first = work_dir() / "bad_ref_first";
+    ASSERT_EQ(run_rtsim(kPairFrame + "--set sim.sample_period_units=4 -o '" + first.string() +
+                        "' --reference '" + damaged.string() + "'")
+                  .status,
+              0);
+    fs::path table;
+    for (const auto& f : fs::directory_iterator(damaged))
+        if (f.path().extension() == ".csv" &&
+            f.path().filename().string().rfind("matched-", 0) == 0)
+            table = f.path();
+    ASSERT_FALSE(table.empty());
+    std::ofstream(table, std::ios::app) << "72,1,2,x\n";  // line 20: after the header, 18 units
     expect_one_line_error(run_rtsim(sampled + "'" + damaged.string() + "'"),
-                          "sampled_units.csv: line 74: 'x' is not a number");
+                          table.filename().string() + ": line 20: 'x' is not a number");
     // Not a sampled run.
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),

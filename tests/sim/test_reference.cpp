@@ -31,7 +31,8 @@ TEST(Reference, RefusesADamagedTable) {
     EXPECT_EQ(message("unit,a,a\n0,1,2\n"), "u.csv: a column name appears twice");
     EXPECT_EQ(message("unit,a\n0,1\n1\n"), "u.csv: line 3: 1 fields, the header has 2");
     EXPECT_EQ(message("unit,a\n0,1e999\n"), "u.csv: line 2: '1e999' is not a number");
-    EXPECT_EQ(message("unit,a\n0,\n"), "u.csv: line 2: 1 fields, the header has 2");
+    EXPECT_EQ(message("unit,a\n0,\n"), "u.csv: line 2: '' is not a number");
+    EXPECT_EQ(message("unit,a\n0,1,2\n"), "u.csv: line 2: 3 fields, the header has 2");
     EXPECT_EQ(message("unit,a\n0,3x\n"), "u.csv: line 2: '3x' is not a number");
 }
 
