@@ -9,12 +9,13 @@
 // once per plan: the result is kept in DIR for the sweep's other points), and regresses each of
 // its units' figures on the reference's figure in the same unit, whose frame total DIR knows,
 // before the four functional auxiliaries (sim/sampler.h). Two designs' units differ far less from
-// each other than units differ from what the functional tracer can say of them: on six 1080p
-// frames at 1 in 20 the cycles' mean error fell from 1.4-3.0% to 0.3-0.7% against designs that
-// changed unit latencies or DRAM timing, and to 1.9% (from 2.3%) against L1 and L2 eight and
-// sixteen times smaller (bench/results/sampled_estimators.md, section 10). The reference's
-// measured units were simulated with the same warm-up and cache replay as the run's own, so the
-// simulation's bias in them mostly cancels: bunny primary's +1.2 points fell to +0.2.
+// each other than units differ from what the functional tracer can say of them: box and triangle
+// units twice as slow, paired with the default design, on the 24 1080p frames of
+// bench_sampled.py at 1 in 20, took the cycles' mean error from 1.26% to 0.31% (worst frame 2.67%
+// to 0.54%); offline, slower DRAM gave 2.3% -> 0.8% and L1 and L2 eight and sixteen times smaller
+// 2.8% -> 2.0% (bench/results/sampled_estimators.md, section 10). The reference's measured units
+// were simulated with the same warm-up and cache replay as the run's own, so the simulation's
+// bias in them mostly cancels: bunny primary's +1.2 points fell to +0.2.
 #pragma once
 
 #include <cstdint>
