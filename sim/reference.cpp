@@ -187,7 +187,8 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     const std::string stem =
         fmt::format("matched-{:016x}", uint64_t(XXH3_64bits(plan.data(), plan.size())));
     const fs::path cached = dir / (stem + ".csv"), cached_drain = dir / (stem + ".json");
-    // The drain is written first: a table without it is an interrupted write, run again.
+    // The drain is written before the table, so a table is read only beside its drain (an
+    // interrupted write is run again).
     const json drain = json::parse(read_text(cached_drain), nullptr, false);
     std::string matched =
         drain.is_object() && drain.contains("drain_cycles") ? read_text(cached) : std::string();
@@ -199,6 +200,14 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         if (fd < 0) throw std::runtime_error(where + ": cannot write a temporary config");
         close(fd);
         std::ofstream(tmpl) << ref_cfg.dump() << "\n";
+        try {  // here, so that a reference from an older schema is named in one line
+            load_config(tmpl, {});
+        } catch (const InputError& e) {
+            fs::remove(tmpl);
+            const std::string why = e.what();
+            throw InputError(fmt::format("{}: its config does not load in this rtsim ({})", where,
+                                         why.substr(std::min(why.find(": ") + 2, why.size()))));
+        }
         std::vector<std::string> args = workload_arguments(opt.argv);
         args.insert(args.begin() + (args.empty() ? 0 : 1), {"--config", tmpl});
         json child;
@@ -212,10 +221,13 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         child_s = child["host"].value("run_time_s", 0.0);
         r.drain_matched_cycles = child["sampling"].value("drain_cycles", 0.0);
         // Kept for the next run with this plan (a sweep's other points); written whole or not
-        // at all.
-        write_file_atomically(cached_drain.string(),
-                              json({{"drain_cycles", r.drain_matched_cycles}}).dump() + "\n");
-        write_file_atomically(cached.string(), matched);
+        // at all, and a folder that cannot take it (read-only) only costs the next run a child.
+        try {
+            write_file_atomically(cached_drain.string(),
+                                  json({{"drain_cycles", r.drain_matched_cycles}}).dump() + "\n");
+            write_file_atomically(cached.string(), matched);
+        } catch (const std::exception&) {
+        }
     } else {
         r.drain_matched_cycles = drain["drain_cycles"].get<double>();
     }

@@ -793,6 +793,15 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     std::ofstream(table, std::ios::app) << "72,1,2,x\n";  // line 20: after the header, 18 units
     expect_one_line_error(run_rtsim(sampled + "'" + damaged.string() + "'"),
                           table.filename().string() + ": line 20: 'x' is not a number");
+    // A reference whose config this rtsim no longer accepts (as from an older schema).
+    const fs::path old_schema = work_dir() / "bad_ref_schema";
+    fs::remove_all(old_schema);
+    fs::copy(ref, old_schema);
+    json stats = json::parse(slurp(old_schema / "stats.json"));
+    stats["config"]["l1"]["size_kib"] = 0;
+    std::ofstream(old_schema / "stats.json") << stats.dump();
+    expect_one_line_error(run_rtsim(sampled + "'" + old_schema.string() + "'"),
+                          "bad_ref_schema: its config does not load in this rtsim (l1.size_kib");
     // Not a sampled run.
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),
