@@ -299,10 +299,9 @@ int run_command(const RunOptions& opt) {
         for (const auto& core : chip.cores) cores.push_back(core.get());
         sampler->set_write_warming(std::move(cores));
         const BvhLayout& L = w.layout();
+        if (reference) sampler->set_reference(reference.get());
         if (w.profile)  // the skip design: the frame's lines are the profile's
             sampler->set_profile(w.profile.get(), chip.l2.get());
-        if (reference)
-            sampler->set_reference(reference.get());
         else
             sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
                                     uint32_t(cfg.typed.l2.line_bytes));
