@@ -748,6 +748,29 @@ TEST(Sampled, ReferenceNarrowsTheIntervalOfANearDesign) {
     EXPECT_TRUE(found);
 }
 
+// --target-error with a reference: the pilot is paired too (its own matched sample), so the
+// period it picks is sized by the pair's spread, and the run meets the target.
+TEST(Sampled, ReferenceWithTargetError) {
+    const fs::path ref = make_reference("target_ref");
+    const fs::path out = work_dir() / "target_paired";
+    const Result r = run_rtsim(kPairFrame +
+                               "--set box_unit.latency_cycles=16 --set sim.sample_period_units=4 "
+                               "--target-error 2 --reference '" +
+                               ref.string() + "' -o '" + out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out)["sampling"];
+    EXPECT_TRUE(s["target"]["met"].get<bool>()) << s["target"];
+    EXPECT_LE(s["total_cycles"]["half_width_pct"].get<double>(), 2.0);
+    EXPECT_EQ(s["period_units"], s["target"]["period_units"]);
+    ASSERT_TRUE(s.contains("reference"));
+    // The pilot's plan and the run's: a matched sample each, kept in the reference's folder.
+    int tables = 0;
+    for (const auto& f : fs::directory_iterator(ref))
+        tables += f.path().extension() == ".csv" &&
+                  f.path().filename().string().rfind("matched-", 0) == 0;
+    EXPECT_EQ(tables, s["period_units"] == 4 ? 1 : 2);
+}
+
 TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     const fs::path ref = make_reference("bad_ref");
     const fs::path out = work_dir() / "bad_ref_out";
