@@ -1,9 +1,12 @@
 #include "sim/reference.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/file.h>
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdlib>
@@ -115,6 +118,25 @@ std::vector<std::string> workload_arguments(const std::vector<std::string>& argv
     return out;
 }
 
+// An exclusive advisory lock on a file, held for the object's life.
+class PlanLock {
+  public:
+    explicit PlanLock(const std::string& path) {
+        fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        if (fd_ >= 0)
+            while (::flock(fd_, LOCK_EX) != 0 && errno == EINTR) {
+            }
+    }
+    ~PlanLock() {
+        if (fd_ >= 0) ::close(fd_);  // releases the lock
+    }
+    PlanLock(const PlanLock&) = delete;
+    PlanLock& operator=(const PlanLock&) = delete;
+
+  private:
+    int fd_ = -1;
+};
+
 }  // namespace
 
 Reference load_reference(const RunOptions& opt, const Config& cfg, const json& meta,
@@ -187,6 +209,10 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     const std::string stem =
         fmt::format("matched-{:016x}", uint64_t(XXH3_64bits(plan.data(), plan.size())));
     const fs::path cached = dir / (stem + ".csv"), cached_drain = dir / (stem + ".json");
+    // One run at a time looks for this plan's sample and runs it if missing: a sweep's points
+    // that start together then run it once, the others waiting and reading it (a folder that
+    // cannot hold the lock only loses that).
+    const PlanLock lock((dir / (stem + ".lock")).string());
     // The drain is written before the table, so a table is read only beside its drain (an
     // interrupted write is run again).
     const json drain = json::parse(read_text(cached_drain), nullptr, false);

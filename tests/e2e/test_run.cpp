@@ -1569,9 +1569,12 @@ TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
     EXPECT_EQ(ref["sampling"]["period_units"], 1);
     const json table = json::parse(std::ifstream(out / "results.json"));
     ASSERT_EQ(table["points"].size(), 2u);
+    // The two points, running at once with one plan, ran the reference's sample once.
+    int ran = 0;
     for (size_t i = 0; i < 2; ++i) {
         const json s = stats_of(out / table["points"][i]["point"].get<std::string>());
         ASSERT_TRUE(s["sampling"].contains("reference")) << i;
+        ran += s["sampling"]["reference"]["matched_sample"] == "ran";
         EXPECT_EQ(s["sampling"]["reference"]["dir"], fs::absolute(out / "reference").string());
         const fs::path full = work_dir() / fmt::format("sweep_paired_full{}", i);
         ASSERT_EQ(run_rtsim(fmt::format("run --scene " RTSIM_BUNNY_OBJ
@@ -1585,6 +1588,7 @@ TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
         EXPECT_LE(c["lo"].get<double>(), truth) << i;
         EXPECT_GE(c["hi"].get<double>(), truth) << i;
     }
+    EXPECT_EQ(ran, 1);
 }
 
 // Plots (issue 19): a figure per varied axis and the Pareto front the file names, as SVG, and
