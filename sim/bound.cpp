@@ -4,6 +4,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -16,18 +17,34 @@ namespace rtsim {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-json run_child(const RunOptions& opt, const std::vector<std::string>& extra, const char* what) {
-    std::vector<std::string> args;
-    for (size_t i = 1; i < opt.argv.size(); ++i) {
-        const std::string& a = opt.argv[i];
-        if (a == "--bound" || a == "--quiet" || a == "-q") continue;
-        if (a == "--out" || a == "-o" || a == "--target-error") {
+std::vector<std::string> child_arguments(const std::vector<std::string>& argv,
+                                         const std::vector<std::string>& flags,
+                                         const std::vector<std::string>& valued) {
+    auto in = [](const std::vector<std::string>& names, const std::string& a) {
+        return std::find(names.begin(), names.end(), a) != names.end();
+    };
+    std::vector<std::string> out;
+    for (size_t i = 1; i < argv.size(); ++i) {
+        const std::string& a = argv[i];
+        if (in(flags, a)) continue;
+        if (a == "--set" && in(valued, a)) {  // --set takes one or more values
+            while (i + 1 < argv.size() && argv[i + 1].rfind("-", 0) != 0) ++i;
+            continue;
+        }
+        if (in(valued, a)) {
             ++i;  // and its value
             continue;
         }
-        if (a.rfind("--out=", 0) == 0 || a.rfind("--target-error=", 0) == 0) continue;
-        args.push_back(a);
+        const size_t eq = a.find('=');
+        if (eq != std::string::npos && in(valued, a.substr(0, eq))) continue;
+        out.push_back(a);
     }
+    return out;
+}
+
+json run_child(const RunOptions& opt, const std::vector<std::string>& extra, const char* what) {
+    std::vector<std::string> args =
+        child_arguments(opt.argv, {"--bound", "--quiet", "-q"}, {"--out", "-o", "--target-error"});
     args.insert(args.end(), extra.begin(), extra.end());
     return run_rtsim_child(args, what);
 }

@@ -20,6 +20,12 @@ nlohmann::json run_bound(const RunOptions& opt);
 nlohmann::json run_child(const RunOptions& opt, const std::vector<std::string>& extra,
                          const char* what);
 
+// This process's command line `argv` without argv[0], the `flags` and the options in `valued` with
+// their values (also as --option=value; --set with all of its values).
+std::vector<std::string> child_arguments(const std::vector<std::string>& argv,
+                                         const std::vector<std::string>& flags,
+                                         const std::vector<std::string>& valued);
+
 // rtsim with `arguments` (and --quiet --out <a temporary folder>) in a child process; returns its
 // stats.json, and in `units_csv` (if given) its sampled_units.csv. Throws std::runtime_error
 // naming `what` if it fails.

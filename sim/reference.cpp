@@ -92,32 +92,6 @@ std::string read_text(const fs::path& p) {
     return s.str();
 }
 
-// The run's command line without what names its own design or output: the workload, the
-// scene and BVH caches and the tracer threads stay.
-std::vector<std::string> workload_arguments(const std::vector<std::string>& argv) {
-    std::vector<std::string> out;
-    for (size_t i = 1; i < argv.size(); ++i) {
-        const std::string& a = argv[i];
-        if (a == "--bound" || a == "--quiet" || a == "-q") continue;
-        const bool one_value = a == "--out" || a == "-o" || a == "--target-error" ||
-                               a == "--config" || a == "--reference" || a == "--mem-trace";
-        if (one_value) {
-            ++i;
-            continue;
-        }
-        if (a == "--set") {  // --set takes one or more values
-            while (i + 1 < argv.size() && argv[i + 1].rfind("-", 0) != 0) ++i;
-            continue;
-        }
-        bool joined = false;
-        for (const char* o :
-             {"--out=", "--target-error=", "--config=", "--reference=", "--mem-trace=", "--set="})
-            joined = joined || a.rfind(o, 0) == 0;
-        if (!joined) out.push_back(a);
-    }
-    return out;
-}
-
 // An exclusive advisory lock on a file, held for the object's life.
 class PlanLock {
   public:
@@ -234,7 +208,11 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
             throw InputError(fmt::format("{}: its config does not load in this rtsim ({})", where,
                                          why.substr(std::min(why.find(": ") + 2, why.size()))));
         }
-        std::vector<std::string> args = workload_arguments(opt.argv);
+        // The run's command line without what names its own design or output: the workload,
+        // the scene and BVH caches and the tracer threads stay.
+        std::vector<std::string> args = child_arguments(
+            opt.argv, {"--bound", "--quiet", "-q"},
+            {"--out", "-o", "--target-error", "--config", "--reference", "--mem-trace", "--set"});
         args.insert(args.begin() + (args.empty() ? 0 : 1), {"--config", tmpl});
         json child;
         try {

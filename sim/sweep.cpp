@@ -464,6 +464,16 @@ std::vector<std::pair<size_t, std::string>> unfinished_points(const SweepPlan& p
     return out;
 }
 
+// Runs point `p` (as spawn_point starts it) and waits for it; true if it succeeded.
+bool run_point_now(const std::string& out_dir, const SweepPoint& p) {
+    const pid_t pid = spawn_point(out_dir, p);
+    if (pid < 0) throw std::runtime_error("sweep: cannot start the run of " + p.name);
+    int st = 0;
+    while (waitpid(pid, &st, 0) < 0)
+        if (errno != EINTR) throw std::runtime_error("sweep: lost the run of " + p.name);
+    return WIFEXITED(st) && WEXITSTATUS(st) == 0;
+}
+
 // One array task: its points (task * per .. task * per + per - 1) in turn, each as the local sweep
 // runs it (the same child run and folder); points already finished are not run again. Returns 1
 // if any failed.
@@ -477,12 +487,7 @@ int run_task(const SweepPlan& plan, const std::string& out_dir, int task, int pe
     for (size_t i = first; i < std::min(plan.points.size(), first + size_t(per)); ++i) {
         const SweepPoint& p = plan.points[i];
         if (finished_before(fs::path(out_dir) / p.name, p.run_args)) continue;
-        const pid_t pid = spawn_point(out_dir, p);
-        if (pid < 0) throw std::runtime_error("sweep: cannot start the run of " + p.name);
-        int st = 0;
-        while (waitpid(pid, &st, 0) < 0)
-            if (errno != EINTR) throw std::runtime_error("sweep: lost the run of " + p.name);
-        if (!WIFEXITED(st) || WEXITSTATUS(st) != 0) status = 1;
+        if (!run_point_now(out_dir, p)) status = 1;
     }
     return status;
 }
@@ -632,11 +637,7 @@ int sweep_command(const SweepOptions& given) {
     // The reference before any point (here, also before a Slurm job's tasks start).
     if (plan.reference &&
         !finished_before(fs::path(out_dir) / plan.reference->name, plan.reference->run_args)) {
-        const pid_t pid = spawn_point(out_dir, *plan.reference);
-        int st = 0;
-        while (pid >= 0 && waitpid(pid, &st, 0) < 0)
-            if (errno != EINTR) break;
-        if (pid < 0 || !WIFEXITED(st) || WEXITSTATUS(st) != 0) {
+        if (!run_point_now(out_dir, *plan.reference)) {
             const fs::path dir = fs::path(out_dir) / plan.reference->name;
             const std::string why = first_line_of(dir / "stderr.txt");
             throw std::runtime_error(fmt::format("sweep: the reference run in {} failed{}",
