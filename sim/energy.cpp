@@ -2,7 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "workloads/reduced_box.h"
 
@@ -39,21 +43,55 @@ double counter(const json& stats, const std::string& name) {
     return c.contains(name) ? c[name].get<double>() : 0.0;
 }
 
-// The sum of `suffix` over every block named prefix[i] (l1[0].accesses, l1[1].accesses, ...).
-double sum_blocks(const json& stats, const std::string& prefix, const std::string& suffix) {
-    double sum = 0;
-    for (const auto& [name, value] : stats["counters"].items()) {
-        (void)value;
-        if (name.rfind(prefix + "[", 0) == 0 && name.size() > suffix.size() &&
-            name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
-            sum += counter(stats, name);
+// The counters of every block named prefix[i] ending in suffix (l1[0].accesses, l1[1].accesses,
+// ...), found once per (prefix, suffix): a sampled run evaluates the model again for each
+// jackknife replicate.
+class BlockNames {
+  public:
+    explicit BlockNames(const json& stats) : stats_(stats) {}
+    const std::vector<std::string>& of(const std::string& prefix, const std::string& suffix) {
+        auto [it, added] = names_.try_emplace(prefix + "\n" + suffix);
+        if (added)
+            for (const auto& [name, value] : stats_["counters"].items()) {
+                (void)value;
+                if (name.rfind(prefix + "[", 0) == 0 && name.size() > suffix.size() &&
+                    name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0)
+                    it->second.push_back(name);
+            }
+        return it->second;
     }
-    return sum;
-}
 
-}  // namespace
+  private:
+    const json& stats_;
+    std::map<std::string, std::vector<std::string>> names_;
+};
 
-json energy_report(const Params& P, const json& stats) {
+// What the energy model reads of a run: its counters' totals through `total` (the run's
+// counts, a sampled run's estimates, or one of their jackknife replicates) and its seconds.
+class EnergyInputs {
+  public:
+    EnergyInputs(const json& stats, BlockNames& names,
+                 std::function<double(const std::string&)> total, double seconds)
+        : stats_(stats), names_(names), total_(std::move(total)), seconds_(seconds) {}
+    const json& stats() const { return stats_; }
+    double seconds() const { return seconds_; }
+    double counter(const std::string& name) const { return total_(name); }
+    // The sum of `suffix` over every block named prefix[i].
+    double sum_blocks(const std::string& prefix, const std::string& suffix) const {
+        double sum = 0;
+        for (const std::string& name : names_.of(prefix, suffix)) sum += total_(name);
+        return sum;
+    }
+
+  private:
+    const json& stats_;
+    BlockNames& names_;
+    std::function<double(const std::string&)> total_;
+    double seconds_;
+};
+
+json energy_of(const Params& P, const EnergyInputs& in) {
+    const json& stats = in.stats();
     const EnergyParams& e = P.energy;
     json per_access = json::object(), blocks = json::object();
     auto line_pj = [&](const CacheParams& c) {
@@ -64,8 +102,7 @@ json energy_report(const Params& P, const json& stats) {
     // written line is a line written, a dirty line written back one read out.
     auto cache = [&](const char* block, const CacheParams& c, bool indexed) {
         auto sum = [&](const char* suffix) {
-            return indexed ? sum_blocks(stats, block, suffix)
-                           : counter(stats, std::string(block) + suffix);
+            return indexed ? in.sum_blocks(block, suffix) : in.counter(std::string(block) + suffix);
         };
         const double accesses = sum(".accesses") + sum(".write_hits") + sum(".write_misses");
         const double misses = sum(".misses") + sum(".writebacks");
@@ -85,9 +122,9 @@ json energy_report(const Params& P, const json& stats) {
     cache("l2", P.l2, false);
     // The ray buffer: an SRAM bank of its capacity / banks, a ray record per access.
     // (Records in memory cost what the L2 and DRAM counted for them.)
-    const double rb = P.ray_buffer.in_memory ? 0.0
-                                             : counter(stats, "ray_buffer.reads") +
-                                                   counter(stats, "ray_buffer.writes");
+    const double rb = P.ray_buffer.in_memory
+                          ? 0.0
+                          : in.counter("ray_buffer.reads") + in.counter("ray_buffer.writes");
     if (rb > 0) {
         const double bytes = double(P.ray_buffer.capacity_rays) * P.ray_buffer.ray_bytes /
                              double(std::max<uint32_t>(1, P.ray_buffer.banks));
@@ -96,8 +133,7 @@ json energy_report(const Params& P, const json& stats) {
         blocks["ray_buffer"] = rb * pj;
     }
     // The crossbar: bits times the distance they travel.
-    const double xbar_bytes =
-        counter(stats, "crossbar.bytes") + counter(stats, "crossbar.write_bytes");
+    const double xbar_bytes = in.counter("crossbar.bytes") + in.counter("crossbar.write_bytes");
     if (xbar_bytes > 0) {
         const double mm = e.crossbar_mm > 0 ? e.crossbar_mm : std::sqrt(double(P.core_count));
         per_access["crossbar_pj_per_byte"] = 8.0 * e.wire_pj_per_bit_mm * mm;
@@ -111,13 +147,13 @@ json energy_report(const Params& P, const json& stats) {
     per_access["box_test_pj"] = box_pj;
     per_access["triangle_test_pj"] = tri_pj;
     const auto box = size_t(StepKind::Node);
-    const double box_ops = sum_blocks(stats, "box_unit", ".ops"),
-                 tri_ops = sum_blocks(stats, "triangle_unit", ".ops");
+    const double box_ops = in.sum_blocks("box_unit", ".ops"),
+                 tri_ops = in.sum_blocks("triangle_unit", ".ops");
     if (box_ops > 0) blocks["box_unit"] = box_ops * P.unit[box].width * box_pj;
     if (tri_ops > 0) blocks["triangle_unit"] = tri_ops * tri_pj;
     // DRAM: the command-level model's own figure (scaled to a sampled run's estimated reads),
     // else bytes times a cost per byte.
-    const double dram_bytes = counter(stats, "dram.bytes");
+    const double dram_bytes = in.counter("dram.bytes");
     const json::json_pointer cmd("/bandwidth/dram/energy_pj/total");
     if (stats.contains(cmd)) {
         const double measured = stats["counters"].value("dram.bytes", 0.0);
@@ -133,12 +169,55 @@ json energy_report(const Params& P, const json& stats) {
         total += pj.get<double>();
     }
     const double rays = stats["rays"]["total"].get<double>();
-    const double seconds = stats.value("simulated_seconds", 0.0);
+    const double seconds = in.seconds();
     return {{"blocks_pj", blocks},
             {"total_pj", total},
             {"per_ray_nj", rays > 0 ? total / rays / 1e3 : 0.0},
             {"average_power_w", seconds > 0 ? total * 1e-12 / seconds : 0.0},
             {"per_access_pj", per_access}};
+}
+
+}  // namespace
+
+json energy_report(const Params& P, const json& stats) {
+    BlockNames names(stats);
+    return energy_of(
+        P, EnergyInputs(
+               stats, names, [&](const std::string& name) { return counter(stats, name); },
+               stats.value("simulated_seconds", 0.0)));
+}
+
+json sampled_energy(const Params& P, const json& stats, const JointEstimates& joint,
+                    double clock_hz) {
+    const json point = stats.at("energy");
+    // The figures, in this order: total, per ray, power, then each block present.
+    std::vector<std::string> names = {"total_pj", "per_ray_nj", "average_power_w"};
+    for (const auto& [block, pj] : point["blocks_pj"].items()) {
+        (void)pj;
+        names.push_back(block);
+    }
+    BlockNames block_names(stats);
+    const std::vector<Estimate> est = joint.of_many([&](const JointEstimates::Lookup& total) {
+        const json e =
+            energy_of(P, EnergyInputs(stats, block_names, total, total("cycles") / clock_hz));
+        std::vector<double> v = {e["total_pj"].get<double>(), e["per_ray_nj"].get<double>(),
+                                 e["average_power_w"].get<double>()};
+        for (size_t i = 3; i < names.size(); ++i) v.push_back(e["blocks_pj"].value(names[i], 0.0));
+        return v;
+    });
+    auto entry = [](const Estimate& e) {
+        return json{
+            {"value", e.value},
+            {"lo", e.lo()},
+            {"hi", e.hi()},
+            {"half_width_pct", e.value != 0 ? 100.0 * e.half_width / std::abs(e.value) : 0.0}};
+    };
+    json out = {{"total_pj", entry(est[0])},
+                {"per_ray_nj", entry(est[1])},
+                {"average_power_w", entry(est[2])},
+                {"blocks_pj", json::object()}};
+    for (size_t i = 3; i < names.size(); ++i) out["blocks_pj"][names[i]] = entry(est[i]);
+    return out;
 }
 
 }  // namespace rtsim

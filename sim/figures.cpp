@@ -95,8 +95,10 @@ std::vector<FigureDef> make_figures() {
          false, "/sampling/figures/dram_bytes_per_cycle"},
         {"DRAM utilisation", R::Points, true, at("/bandwidth/dram/utilization")},
         {"DRAM row hit rate", R::Points, true, at("/bandwidth/dram/row_hit_rate")},
-        {"energy per ray (nJ)", R::Ratio, false, at("/energy/per_ray_nj")},
-        {"power (W)", R::Ratio, false, at("/energy/average_power_w")},
+        {"energy per ray (nJ)", R::Ratio, false, at("/energy/per_ray_nj"), false,
+         "/sampling/energy/per_ray_nj"},
+        {"power (W)", R::Ratio, false, at("/energy/average_power_w"), false,
+         "/sampling/energy/average_power_w"},
         // The command-level DRAM model's energy (absent from other models' stats).
         {"DRAM energy per ray (nJ)", R::Ratio, false,
          [](const json& j) { return per_ray(j, "/bandwidth/dram/energy_pj/total") / 1e3; }},

@@ -75,11 +75,23 @@ std::string summed_counter_name(std::string name) {
     return name;
 }
 
-std::optional<double> Reference::value(const std::string& column, uint64_t unit) const {
-    const auto col = matched.cols.find(column);
-    const auto row = row_of_unit.find(unit);
-    if (col == matched.cols.end() || row == row_of_unit.end()) return std::nullopt;
-    return col->second[row->second];
+const std::vector<double>* Reference::column(const std::string& name) const {
+    const auto col = matched.cols.find(name);
+    return col == matched.cols.end() ? nullptr : &col->second;
+}
+
+std::vector<size_t> Reference::rows_of(const std::vector<uint64_t>& units) const {
+    std::vector<size_t> rows(units.size());
+    for (size_t i = 0; i < units.size(); ++i) {
+        const auto row = row_of_unit.find(units[i]);
+        if (row == row_of_unit.end())
+            throw InputError(
+                fmt::format("--reference {}: its matched sample has no unit {} "
+                            "(delete its matched-*.csv files to run it again)",
+                            dir, units[i]));
+        rows[i] = row->second;
+    }
+    return rows;
 }
 
 namespace {

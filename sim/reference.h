@@ -21,7 +21,6 @@
 #include <cstdint>
 #include <map>
 #include <nlohmann/json.hpp>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -57,9 +56,11 @@ struct Reference {
     // sample: a sampled run's own drain follows its last detailed rays, not the frame's, and
     // the pair corrects it by the reference's difference (exactly, for the reference design).
     double drain_full_cycles = 0, drain_matched_cycles = 0;
-    // The reference's value of `column` in measured unit `unit`; nullopt if it has no such
-    // column.
-    std::optional<double> value(const std::string& column, uint64_t unit) const;
+    // The matched sample's column `name` (a row per measured unit); nullptr if it has none.
+    const std::vector<double>* column(const std::string& name) const;
+    // The matched sample's row of each of `units`; throws InputError, naming DIR, for a unit it
+    // did not measure.
+    std::vector<size_t> rows_of(const std::vector<uint64_t>& units) const;
 };
 
 // Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json

@@ -344,6 +344,9 @@ int run_command(const RunOptions& opt) {
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);
     out["energy"] = energy_report(cfg.typed, out);
+    if (sampler && !sampler->joint_estimates().empty())
+        out["sampling"]["energy"] =
+            sampled_energy(cfg.typed, out, sampler->joint_estimates(), cfg.typed.clock_ghz * 1e9);
     if (opt.bound) out["bound"] = bound_section(out, run_bound(opt));
 
     if (recorder) {

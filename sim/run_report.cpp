@@ -167,6 +167,11 @@ void print_run_summary(const json& out, const std::string& stats_path) {
             fmt::print(", DRAM {:.2f} MB +- {:.1f}%", d["value"].get<double>() / 1e6,
                        d["half_width_pct"].get<double>());
         }
+        if (sm.contains("energy")) {
+            const json& e = sm["energy"]["per_ray_nj"];
+            fmt::print(", energy {:.3g} nJ/ray +- {:.1f}%", e["value"].get<double>(),
+                       e["half_width_pct"].get<double>());
+        }
         fmt::print("\n");
         const bool skip = sm.value("fast_forward", std::string()) == "skip";
         if (skip)

@@ -295,8 +295,8 @@ json estimate_json(const Estimate& e, double scale, double offset = 0) {
 }
 }  // namespace
 
-json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
-                                uint64_t units) const {
+json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
+                                JointEstimates& joint) const {
     // Counters that move by a known amount per first fill of a BVH line in the L2 (its
     // compulsory misses, the most of a frame's DRAM traffic). The frame's first fills are its
     // distinct lines, known exactly, so only the rest (capacity misses, writes) is estimated:
@@ -321,7 +321,9 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
                                         [&](const auto& p) { return p.first == e[c].name; });
         const std::string column = summed_counter_name(e[c].name);
         if (fill_counters != 1 || known == per_fill.end() || known->second == 0) {
-            counters[e[c].name] = estimate_json(total(deltas_[c], column, 0.0), 1.0);
+            Estimate est = total(deltas_[c], column, 0.0);
+            counters[e[c].name] = estimate_json(est, 1.0);
+            joint.add(e[c].name, std::move(est));
             continue;
         }
         const double k = known->second;
@@ -335,7 +337,9 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
             k * 3.0 * double(units) / double(std::max<size_t>(1, rest.size()));
         est.half_width = std::max(est.half_width, rule_of_three);
         est.value += k * frame_first_fills;
+        for (double& r : est.replicates) r += k * frame_first_fills;
         counters[e[c].name] = estimate_json(est, 1.0);
+        joint.add(e[c].name, std::move(est));
     }
     return counters;
 }
@@ -411,23 +415,27 @@ json Sampler::report(Cycle end_cycle) {
     // reference design's figure in the same unit first where there is one.
     std::vector<Auxiliary> with_reference(kAuxiliaries + 1);
     std::copy(aux.begin(), aux.end(), with_reference.begin() + 1);
+    // The matched sample's rows and first fills are looked up once, not per counter and unit.
+    const std::vector<size_t> ref_rows =
+        reference_ ? reference_->rows_of(unit_index_) : std::vector<size_t>();
+    const std::vector<double>* ref_fills =
+        reference_ ? reference_->column("l2.first_fills") : nullptr;
     auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
         if (reference_ && reference_->totals.count(column) &&
             (per_fill == 0 || reference_->totals.count("l2.first_fills"))) {
+            const std::vector<double>* ref = reference_->column(column);
+            if (!ref || (per_fill != 0 && !ref_fills))
+                throw InputError(
+                    fmt::format("--reference {}: its matched sample has no column {} (delete its "
+                                "matched-*.csv files to run it again)",
+                                reference_->dir, ref ? "l2.first_fills" : column));
             Auxiliary& r = with_reference[0];
-            r.x.assign(y.size(), 0.0);
+            r.x.resize(y.size());
             r.total = reference_->totals.at(column);
             if (per_fill != 0) r.total -= per_fill * reference_->totals.at("l2.first_fills");
-            for (size_t i = 0; i < y.size(); ++i) {
-                const auto v = reference_->value(column, unit_index_[i]);
-                const auto fills = reference_->value("l2.first_fills", unit_index_[i]);
-                if (!v || (per_fill != 0 && !fills))
-                    throw InputError(
-                        fmt::format("--reference {}: its matched sample has no unit {} (delete its "
-                                    "matched-*.csv files to run it again)",
-                                    reference_->dir, unit_index_[i]));
-                r.x[i] = *v - (per_fill != 0 ? per_fill * *fills : 0.0);
-            }
+            for (size_t i = 0; i < y.size(); ++i)
+                r.x[i] = (*ref)[ref_rows[i]] -
+                         (per_fill != 0 ? per_fill * (*ref_fills)[ref_rows[i]] : 0.0);
             // A figure the reference's sample never moved (DRAM traffic beyond first fills, in a
             // frame whose lines fit its L2) says nothing of this design's.
             if (std::any_of(r.x.begin(), r.x.end(), [](double x) { return x != 0; }))
@@ -441,9 +449,15 @@ json Sampler::report(Cycle end_cycle) {
     const double drain =
         double(end_cycle - last_handout_) +
         (reference_ ? reference_->drain_full_cycles - reference_->drain_matched_cycles : 0.0);
-    out["total_cycles"] = estimate_json(total(cycles_, "cycles", 0.0), 1.0, drain);
+    JointEstimates joint(cycles_.size(), units);
+    Estimate cycles = total(cycles_, "cycles", 0.0);
+    out["total_cycles"] = estimate_json(cycles, 1.0, drain);
+    cycles.value += drain;
+    for (double& r : cycles.replicates) r += drain;
+    joint.add("cycles", std::move(cycles));
     out["counters"] = counter_estimates(
-        total, skip ? aux[kNewLines].total : double(total_aux_[kNewLines]), units);
+        total, skip ? aux[kNewLines].total : double(total_aux_[kNewLines]), units, joint);
+    joint_ = std::move(joint);
     out["figures"] = figures(units);
     return out;
 }

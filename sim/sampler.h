@@ -166,6 +166,10 @@ class Sampler {
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
     nlohmann::json report(Cycle end_cycle);
+    // After report: every counter's estimate and the frame's cycles ("cycles"), with their
+    // jackknife replicates, for figures that combine them (energy; sim/energy.h). Empty when
+    // report made no estimates.
+    const JointEstimates& joint_estimates() const { return joint_; }
     // One line per measured unit (after report): its index, auxiliaries, cycles and the change of
     // every counter (like blocks' summed into one column), as CSV with a header. With every unit
     // measured (sample_period_units = 1) it is the frame's per-unit truth, for studying
@@ -217,8 +221,9 @@ class Sampler {
     // `total(y, column, per_fill)`: the total of y, the change of the counter summed into
     // sampled_units.csv's `column`, less per_fill times the unit's L2 first fills.
     using TotalFn = std::function<Estimate(const std::vector<double>&, const std::string&, double)>;
-    nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills,
-                                     uint64_t units) const;
+    // Each counter's estimate as stats.json holds it, also added to `joint`.
+    nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
+                                     JointEstimates& joint) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
@@ -254,6 +259,7 @@ class Sampler {
     LineTracker lines_;
     const FrameProfile* profile_ = nullptr;
     const Reference* reference_ = nullptr;
+    JointEstimates joint_;
     MemoryPort* l2_ = nullptr;
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -317,6 +318,7 @@ Estimate regression_total(const std::vector<double>& y, const std::vector<Auxili
         mean /= n;
         for (double t : replicate) variance += (t - mean) * (t - mean);
         variance *= fpc * (n - 1.0) / n;
+        e.replicates = std::move(replicate);
     } else {
         // A unit the fit cannot do without (the only one where an auxiliary moves): the
         // residuals' formula.
@@ -328,8 +330,99 @@ Estimate regression_total(const std::vector<double>& y, const std::vector<Auxili
         }
         variance = N * N * fpc * ss / (n - double(p)) / n;
     }
-    e.half_width = student_t_quantile(0.5 + confidence / 2.0, n - double(p)) * std::sqrt(variance);
+    e.t_quantile = student_t_quantile(0.5 + confidence / 2.0, n - double(p));
+    e.half_width = e.t_quantile * std::sqrt(variance);
     return e;
+}
+
+void JointEstimates::add(const std::string& name, Estimate e) {
+    if (!e.replicates.empty() && e.replicates.size() != units_)
+        throw std::invalid_argument("JointEstimates: " + name + " has " +
+                                    std::to_string(e.replicates.size()) + " replicates, not " +
+                                    std::to_string(units_));
+    totals_[name] = std::move(e);
+}
+
+double JointEstimates::jackknife_variance(const std::vector<double>& r) const {
+    if (r.empty()) return 0.0;
+    const double n = double(r.size()), N = double(population_);
+    const double fpc = N > 0 ? std::max(0.0, 1.0 - n / N) : 1.0;
+    double mean = 0;
+    for (double t : r) mean += t;
+    mean /= n;
+    double ss = 0;
+    for (double t : r) ss += (t - mean) * (t - mean);
+    return fpc * (n - 1.0) / n * ss;  // as regression_total's
+}
+
+Estimate JointEstimates::of(const std::function<double(const Lookup&)>& f,
+                            double confidence) const {
+    return of_many([&](const Lookup& total) { return std::vector<double>{f(total)}; }, confidence)
+        .front();
+}
+
+std::vector<Estimate> JointEstimates::of_many(
+    const std::function<std::vector<double>(const Lookup&)>& f, double confidence) const {
+    std::map<std::string, const Estimate*> used;
+    const std::vector<double> values = f([&](const std::string& name) {
+        const auto it = totals_.find(name);
+        if (it == totals_.end()) return 0.0;
+        used[name] = &it->second;
+        return it->second.value;
+    });
+    const size_t k = values.size();
+    double t = 0;
+    bool infinite = false;
+    for (const auto& [name, est] : used) {
+        (void)name;
+        t = std::max(t, est->t_quantile);
+        infinite = infinite || std::isinf(est->half_width);
+    }
+    // Each unit left out of every total at once.
+    std::vector<double> variance(k, 0.0);
+    if (std::any_of(used.begin(), used.end(),
+                    [](const auto& u) { return !u.second->replicates.empty(); })) {
+        std::vector<std::vector<double>> replicates(k, std::vector<double>(units_));
+        for (size_t i = 0; i < units_; ++i) {
+            const std::vector<double> r = f([&](const std::string& name) {
+                const auto it = used.find(name);
+                if (it == used.end()) return 0.0;
+                return it->second->replicates.empty() ? it->second->value
+                                                      : it->second->replicates[i];
+            });
+            for (size_t j = 0; j < k; ++j) replicates[j][i] = r[j];
+        }
+        for (size_t j = 0; j < k; ++j) variance[j] = jackknife_variance(replicates[j]);
+    }
+    // What a total's interval holds beyond its jackknife, through f's slope in it.
+    for (const auto& [name, est] : used) {
+        if (est->t_quantile <= 0 || std::isinf(est->half_width)) continue;
+        const double own = est->half_width / est->t_quantile;
+        const double extra = own * own - jackknife_variance(est->replicates);
+        if (!(extra > 1e-12 * own * own)) continue;
+        const double step = 1e-6 * std::max(std::fabs(est->value), 1.0);
+        const std::vector<double> moved = f([&, n = name](const std::string& asked) {
+            const auto it = used.find(asked);
+            if (it == used.end()) return 0.0;
+            return it->second->value + (asked == n ? step : 0.0);
+        });
+        for (size_t j = 0; j < k; ++j) {
+            const double slope = (moved[j] - values[j]) / step;
+            variance[j] += slope * slope * extra;
+        }
+    }
+    std::vector<Estimate> out(k);
+    for (size_t j = 0; j < k; ++j) {
+        Estimate& e = out[j];
+        e.confidence = confidence;
+        e.units = units_;
+        e.population = population_;
+        e.value = values[j];
+        e.t_quantile = infinite ? 0.0 : t;
+        e.half_width =
+            infinite ? std::numeric_limits<double>::infinity() : t * std::sqrt(variance[j]);
+    }
+    return out;
 }
 
 Estimate combined_ratio_estimate(const std::vector<RatioStratum>& strata, double confidence) {

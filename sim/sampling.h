@@ -12,6 +12,9 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <map>
+#include <string>
 #include <vector>
 
 namespace rtsim {
@@ -28,6 +31,10 @@ struct Estimate {
     double confidence = 0;    // nominal coverage, e.g. 0.95
     uint64_t units = 0;       // n: units measured
     uint64_t population = 0;  // N: units in the run
+    double t_quantile = 0;    // Student's t the half-width used (0: an exact or infinite one)
+    // The delete-one jackknife's replicates of `value` (unit i left out of the fit), when the
+    // half-width came from them; empty otherwise.
+    std::vector<double> replicates;
     double lo() const { return value - half_width; }
     double hi() const { return value + half_width; }
     // half_width / |value| (0 when the value is 0 and the interval empty; infinite when the
@@ -76,5 +83,35 @@ struct RatioStratum {
 // freedom. With one stratum it is ratio_estimate. A stratum with fewer than 2 measured units
 // borrows nothing and adds no variance: its units count at the ratio of the others.
 Estimate combined_ratio_estimate(const std::vector<RatioStratum>& strata, double confidence = 0.95);
+
+// Totals estimated from one sample (a run's counters and cycles), for figures that are functions
+// of several of them: energy is a sum of counters times costs per event, power that over the
+// cycles. A function's interval is the delete-one jackknife of the function itself (unit i left
+// out of every total at once, so the totals' covariances count; Wolter 2007, 4.5), plus,
+// independently, whatever width a total carries beyond its own jackknife (the rule of three's
+// floor, the residuals' formula where leaving a unit out was singular), times the function's
+// slope in it. t is the largest of the totals' (the fewest degrees of freedom).
+class JointEstimates {
+  public:
+    using Lookup = std::function<double(const std::string&)>;
+    JointEstimates() = default;
+    // n units measured of N.
+    JointEstimates(size_t units, uint64_t population) : units_(units), population_(population) {}
+    void add(const std::string& name, Estimate e);
+    bool empty() const { return totals_.empty(); }
+    // The estimate of f over the totals; a total f asks for that was not added counts 0 (a
+    // counter that never moved in a measured unit).
+    Estimate of(const std::function<double(const Lookup&)>& f, double confidence = 0.95) const;
+    // The same for several functions at once (f returns their values, always as many).
+    std::vector<Estimate> of_many(const std::function<std::vector<double>(const Lookup&)>& f,
+                                  double confidence = 0.95) const;
+
+  private:
+    // The jackknife's variance of replicates r (0 with none).
+    double jackknife_variance(const std::vector<double>& r) const;
+    size_t units_ = 0;
+    uint64_t population_ = 0;
+    std::map<std::string, Estimate> totals_;
+};
 
 }  // namespace rtsim

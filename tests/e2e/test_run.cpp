@@ -365,6 +365,17 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     EXPECT_TRUE(holds(fig["rays_per_second"], f["rays_per_second"].get<double>()))
         << fig["rays_per_second"];
     EXPECT_TRUE(fig["stall_shares"].contains("l1"));
+    // Energy too (sim/energy.h): its value is the energy section's, from the counters'
+    // estimates; its interval, from their joint jackknife, holds the full run's here.
+    const json& se = sm["energy"];
+    for (const char* figure : {"total_pj", "per_ray_nj", "average_power_w"}) {
+        EXPECT_EQ(se[figure]["value"], sa["energy"][figure]) << figure;
+        EXPECT_GT(se[figure]["half_width_pct"].get<double>(), 0.0) << figure;
+        EXPECT_TRUE(holds(se[figure], f["energy"][figure].get<double>()))
+            << figure << " " << se[figure] << " full " << f["energy"][figure];
+    }
+    EXPECT_TRUE(holds(se["blocks_pj"]["box_unit"], f["energy"]["blocks_pj"]["box_unit"]))
+        << se["blocks_pj"]["box_unit"];
     // compare shows a sampled run's estimates with their intervals.
     const Result cmp = run_rtsim("compare '" + full.string() + "' '" + a.string() + "'");
     ASSERT_EQ(cmp.status, 0) << cmp.err;
@@ -376,6 +387,14 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
         std::string::npos)
         << line;
     EXPECT_NE(cmp.out.find("95% interval"), std::string::npos);
+    const size_t energy_row = cmp.out.find("\nenergy per ray (nJ) ");
+    ASSERT_NE(energy_row, std::string::npos) << cmp.out;
+    const std::string energy_line =
+        cmp.out.substr(energy_row + 1, cmp.out.find('\n', energy_row + 1) - energy_row - 1);
+    EXPECT_NE(energy_line.find(
+                  fmt::format("+-{:.1f}%", se["per_ray_nj"]["half_width_pct"].get<double>())),
+              std::string::npos)
+        << energy_line;
 }
 
 // --target-error: a pilot of the whole frame sizes the sample; the intervals of the frame's
@@ -536,6 +555,17 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
             l1_hits += v.get<double>();
     EXPECT_GT(l1_hits, 0);
     EXPECT_EQ(column_sum(csv, "l1.hits"), l1_hits);
+    // Energy from every unit's counters is the full run's, with no interval.
+    const json& se = sm["energy"];
+    for (const char* figure : {"total_pj", "per_ray_nj", "average_power_w"}) {
+        const double want = f["energy"][figure].get<double>();
+        EXPECT_NEAR(se[figure]["value"].get<double>(), want, 1e-9 * want) << figure;
+        EXPECT_EQ(se[figure]["half_width_pct"].get<double>(), 0.0) << figure;
+    }
+    for (const auto& [block, pj] : f["energy"]["blocks_pj"].items())
+        EXPECT_NEAR(se["blocks_pj"][block]["value"].get<double>(), pj.get<double>(),
+                    1e-9 * pj.get<double>())
+            << block;
 }
 
 // The units a skip run measures take what the same units took in the full run (the run that

@@ -415,3 +415,115 @@ TEST(Sampling, RegressionDoesNotExtrapolateFromARecordedSparseSample) {
     EXPECT_LT(e.value, 2.0 * truth);
     EXPECT_TRUE(std::isfinite(e.half_width));
 }
+
+// Figures combining several totals (energy: counts times costs per event; power: that over the
+// cycles) take their interval from the jackknife of the combination, unit i left out of every
+// total at once.
+TEST(Sampling, JointEstimatesOfALinearCombinationAreTheRegressionOfTheCombinedFigure) {
+    // With the same auxiliaries for each total, the fit is linear in y: 3 T1 + 5 T2 from the
+    // two totals' replicates must equal regression_total of 3 y1 + 5 y2 itself, value and
+    // interval (the latter computed by regression_total's own jackknife of that one series).
+    std::mt19937_64 rng(7);
+    const size_t N = 2000;
+    std::vector<double> y1(N), y2(N), x(N), x2(N);
+    std::uniform_int_distribution<int> work(20, 200);
+    std::normal_distribution<double> noise(0.0, 15.0);
+    for (size_t i = 0; i < N; ++i) {
+        x[i] = work(rng);
+        x2[i] = std::floor(x[i] / 7.0) + (i % 5);
+        const double shared = noise(rng);  // y1 and y2 move together: their covariance counts
+        y1[i] = std::max(0.0, 2.0 * x[i] + shared + noise(rng));
+        y2[i] = std::max(0.0, 0.5 * x[i] - shared + 3.0 * x2[i]);
+    }
+    std::vector<double> both(N);
+    for (size_t i = 0; i < N; ++i) both[i] = 3.0 * y1[i] + 5.0 * y2[i];
+    const std::vector<size_t> pick = draw(N, 80, rng);
+    auto sample = [&](const std::vector<double>& v) {
+        std::vector<double> s;
+        for (size_t i : pick) s.push_back(v[i]);
+        return s;
+    };
+    const std::vector<Auxiliary> aux = {{sample(x), total(x)}, {sample(x2), total(x2)}};
+    JointEstimates joint(pick.size(), N);
+    joint.add("a", regression_total(sample(y1), aux, N));
+    joint.add("b", regression_total(sample(y2), aux, N));
+    const Estimate combined =
+        joint.of([](const JointEstimates::Lookup& t) { return 3.0 * t("a") + 5.0 * t("b"); });
+    const Estimate direct = regression_total(sample(both), aux, N);
+    EXPECT_NEAR(combined.value, direct.value, 1e-9 * direct.value);
+    EXPECT_NEAR(combined.half_width, direct.half_width, 1e-6 * direct.half_width);
+    EXPECT_GT(combined.half_width, 0.0);
+    // Treated as independent, the two totals' intervals would give another width: the
+    // covariance matters here (y1 and y2 share a term with opposite signs).
+    const Estimate a = regression_total(sample(y1), aux, N),
+                   b = regression_total(sample(y2), aux, N);
+    const double independent = std::hypot(3.0 * a.half_width, 5.0 * b.half_width);
+    EXPECT_GT(std::fabs(independent - combined.half_width), 0.05 * combined.half_width);
+    // A total f does not ask for adds nothing; a name never added counts 0.
+    const Estimate only_a =
+        joint.of([](const JointEstimates::Lookup& t) { return 3.0 * t("a") + 0.0 * t("missing"); });
+    EXPECT_NEAR(only_a.half_width, 3.0 * a.half_width, 1e-6 * only_a.half_width);
+}
+
+TEST(Sampling, JointEstimatesCarryWidthBeyondTheJackknife) {
+    // A total whose interval is not its jackknife's (the rule of three's floor, or the
+    // residuals' formula) adds its own variance through f's slope: 2 T of a total with a
+    // half-width of 10 at t = 2, no replicates, has a half-width of 20; T / 4 of 2.5.
+    JointEstimates joint(5, 100);
+    Estimate e;
+    e.value = 1000;
+    e.half_width = 10;
+    e.t_quantile = 2.0;
+    joint.add("t", e);
+    EXPECT_NEAR(joint.of([](const JointEstimates::Lookup& t) { return 2.0 * t("t"); }).half_width,
+                20.0, 1e-3);
+    EXPECT_NEAR(joint.of([](const JointEstimates::Lookup& t) { return t("t") / 4.0; }).half_width,
+                2.5, 1e-3);
+    // A ratio's slope: d(T / 50)/dT = 1/50.
+    const std::vector<Estimate> two = joint.of_many([](const JointEstimates::Lookup& t) {
+        return std::vector<double>{t("t") / 50.0, 7.0};
+    });
+    EXPECT_NEAR(two[0].half_width, 10.0 / 50.0, 1e-5);
+    EXPECT_EQ(two[1].half_width, 0.0);  // a constant
+    // Replicates of the wrong count are refused.
+    Estimate bad = e;
+    bad.replicates = {1, 2, 3};
+    EXPECT_THROW(joint.add("bad", bad), std::invalid_argument);
+}
+
+TEST(Sampling, JointEstimatesOfARatioCoverAtTheirNominalRate) {
+    // Power is energy over time: the ratio of two regression totals from the same units. Its
+    // joint jackknife interval must hold the population's ratio at about the nominal 95%.
+    std::mt19937_64 rng(11);
+    const size_t N = 3000;
+    std::vector<double> energy(N), cycles(N), x(N);
+    std::uniform_int_distribution<int> work(30, 300);
+    std::normal_distribution<double> noise(0.0, 1.0);
+    for (size_t i = 0; i < N; ++i) {
+        x[i] = work(rng);
+        const double stall = std::exp(0.5 * noise(rng));  // skewed, shared by both
+        cycles[i] = 1.5 * x[i] + 40.0 * stall;
+        energy[i] = 9.0 * x[i] + 60.0 * stall * (1.0 + 0.3 * noise(rng));
+    }
+    const double truth = total(energy) / total(cycles);
+    int covered = 0;
+    const int trials = 1000;
+    for (int t = 0; t < trials; ++t) {
+        const std::vector<size_t> pick = draw(N, 80, rng);
+        std::vector<double> se, sc, sx;
+        for (size_t i : pick) {
+            se.push_back(energy[i]);
+            sc.push_back(cycles[i]);
+            sx.push_back(x[i]);
+        }
+        const std::vector<Auxiliary> aux = {{sx, total(x)}};
+        JointEstimates joint(pick.size(), N);
+        joint.add("energy", regression_total(se, aux, N));
+        joint.add("cycles", regression_total(sc, aux, N));
+        const Estimate p =
+            joint.of([](const JointEstimates::Lookup& v) { return v("energy") / v("cycles"); });
+        covered += p.lo() <= truth && truth <= p.hi();
+    }
+    EXPECT_GT(double(covered) / trials, 0.92);
+    EXPECT_LT(double(covered) / trials, 0.98);
+}
