@@ -15,6 +15,13 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
     scripts/bench_fidelity.py [--rtsim build/rtsim] [--res 64x64]
                               [--scenes a,b] [--kinds primary,ao,diffuse] [--configs a,b] [-j 2]
                               [--out bench/results]
+
+The sampled mode's run time against its error (issue 16) is the other half of this benchmark:
+    scripts/bench_fidelity.py --sampled [ARGS...]
+runs scripts/bench_sampled.py with ARGS (its own options: 6 scenes x primary, AO, diffuse and a
+2-bounce path at 1920x1080, several sampling periods and --target-error against the full run of
+each frame, 100 sample seeds per cell for the intervals' coverage, a Pareto plot of host seconds
+against error; --skip for the skip design, --reference-set for matched pairs).
 """
 import argparse
 import concurrent.futures
@@ -90,6 +97,10 @@ def compare(fast, ref):
 
 
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--sampled":
+        # Its matrix (1080p frames, sample seeds, periods) shares nothing with the one below.
+        script = os.path.join(ROOT, "scripts", "bench_sampled.py")
+        os.execv(sys.executable, [sys.executable, script] + sys.argv[2:])
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
     ap.add_argument("--res", default="64x64")

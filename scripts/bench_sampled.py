@@ -10,7 +10,8 @@ runs once in full (the fast model, the truth here) and then sampled:
     exact coverage, not an estimate from random seeds;
   * with --target-error T for each T in --target-errors (Stein's two-stage procedure: a pilot
     sizes the sample), from --adaptive-starts starts.
-Per cell and mode it reports the error of the estimated total cycles and DRAM bytes against
+Per cell and mode it reports the error of the estimated total cycles, DRAM bytes and energy per
+ray (stats.json's sampling.energy, from the counters' joint jackknife) against
 the full run (mean and worst absolute percent, mean signed), the mean half-width of their
 intervals and their coverage, the share of rays run in detail, and the host time: median
 seconds of the sampled runs against the median of --full-repeats full runs (on this shared
@@ -53,7 +54,7 @@ WORKLOADS = {"primary": ["--rays", "primary"],
              "ao": ["--rays", "ao"],
              "diffuse": ["--rays", "diffuse", "--diffuse-depth", "1"],
              "path2": ["--rays", "diffuse", "--diffuse-depth", "2"]}
-FIGURES = ("cycles", "dram_bytes")
+FIGURES = ("cycles", "dram_bytes", "energy")
 
 
 def starts_for(period, most):
@@ -294,6 +295,7 @@ def main(argv=None):
             cell = {"scene": scene, "workload": wl, "rays": truth["rays"]["total"],
                     "full": {"total_cycles": truth["total_cycles"],
                              "dram_bytes": truth["counters"]["dram.bytes"],
+                             "energy": truth["energy"]["per_ray_nj"],
                              "host_s": statistics.median(f["host"]["run_time_s"] for f in fulls)},
                     "modes": []}
             for mode in [f"1/{p}" for p in periods] + [f"target {t:g}%" for t in targets]:
@@ -315,12 +317,17 @@ def main(argv=None):
                            "units_measured": sm["units_measured"],
                            "host_s": st["host"]["run_time_s"] - matched_s,
                            "matched_host_s": matched_s}
+                    if "energy" not in sm:
+                        sys.exit(f"bench_sampled: {scene}/{wl}: a sampled run without "
+                                 "sampling.energy (an rtsim older than its energy intervals)")
                     for name, t, est in (("cycles", truth["total_cycles"], sm["total_cycles"]),
                                          ("dram_bytes", truth["counters"]["dram.bytes"],
                                           # absent: no measured unit moved a DRAM byte
                                           sm["counters"].get("dram.bytes", {
                                               "value": 0.0, "lo": 0.0, "hi": 0.0,
-                                              "half_width_pct": 0.0}))):
+                                              "half_width_pct": 0.0})),
+                                         ("energy", truth["energy"]["per_ray_nj"],
+                                          sm["energy"]["per_ray_nj"])):
                         # An unbounded interval is written as null: it holds anything, but
                         # says nothing, so it counts as a miss with an infinite width.
                         if est["lo"] is None or est["hi"] is None:
@@ -375,18 +382,19 @@ def main(argv=None):
              "2-core machine, several runs at a time.", "",
              "| scene | workload | rays | mode | runs | detailed | units | cycles mean abs err "
              "| max | mean | half-width | cov | DRAM mean abs err | max | half-width | cov "
-             "| host s | x |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| energy/ray mean abs err | max | half-width | cov | host s | x |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+             "---|---|"]
     for c in cells:
         lines.append(f"| {c['scene']} | {c['workload']} | {c['rays']} | full | "
-                     f"{args.full_repeats} | 100% | | | | | | | | | | | "
+                     f"{args.full_repeats} | 100% | | | | | | | | | | | | | | | "
                      f"{c['full']['host_s']:.2f} | 1 |")
         for m in c["modes"]:
             if m["runs"] == 0:
                 lines.append(f"| | | | {m['mode']} | 0 ({m['no_estimate']} without an estimate: "
-                             "too few units) | | | | | | | | | | | | | |")
+                             "too few units) | | | | | | | | | | | | | | | | | |")
                 continue
-            cy, dr = m["cycles"], m["dram_bytes"]
+            cy, dr, en = m["cycles"], m["dram_bytes"], m["energy"]
             lines.append(
                 f"| | | | {m['mode']} | {m['runs']}"
                 f"{' (+' + str(m['no_estimate']) + ' without)' if m['no_estimate'] else ''} | "
@@ -396,12 +404,16 @@ def main(argv=None):
                 f"{cy['mean_half_width_pct']:.2f}% | {100 * cy['coverage']:.0f}% | "
                 f"{dr['mean_abs_error_pct']:.2f}% | {dr['max_abs_error_pct']:.2f}% | "
                 f"{dr['mean_half_width_pct']:.2f}% | {100 * dr['coverage']:.0f}% | "
+                f"{en['mean_abs_error_pct']:.2f}% | {en['max_abs_error_pct']:.2f}% | "
+                f"{en['mean_half_width_pct']:.2f}% | {100 * en['coverage']:.0f}% | "
                 f"{m['host_s']:.2f} | {m['speedup']:.2f} |")
     # Per mode over every cell: the figures the issue's targets are stated in.
     lines += ["", "Per mode, over every cell:", "",
               "| mode | cells | cycles mean abs err (worst cell) | cycles coverage (worst cell) "
-              "| DRAM mean abs err (worst cell) | DRAM coverage (worst cell) | x (worst cell) |",
-              "|---|---|---|---|---|---|---|"]
+              "| DRAM mean abs err (worst cell) | DRAM coverage (worst cell) "
+              "| energy/ray mean abs err (worst cell) | energy/ray coverage (worst cell) "
+              "| x (worst cell) |",
+              "|---|---|---|---|---|---|---|---|---|"]
     mode_names = [m["mode"] for m in cells[0]["modes"]] if cells else []
     for mode in mode_names:
         ms = [m for c in cells for m in c["modes"] if m["mode"] == mode and m["runs"] > 0]
@@ -409,6 +421,7 @@ def main(argv=None):
             continue
         cy = [m["cycles"] for m in ms]
         dr = [m["dram_bytes"] for m in ms]
+        en = [m["energy"] for m in ms]
         lines.append(
             f"| {mode} | {len(ms)} | "
             f"{statistics.mean(x['mean_abs_error_pct'] for x in cy):.2f}% "
@@ -419,6 +432,10 @@ def main(argv=None):
             f"({max(x['mean_abs_error_pct'] for x in dr):.2f}%) | "
             f"{100 * statistics.mean(x['coverage'] for x in dr):.0f}% "
             f"({100 * min(x['coverage'] for x in dr):.0f}%) | "
+            f"{statistics.mean(x['mean_abs_error_pct'] for x in en):.2f}% "
+            f"({max(x['mean_abs_error_pct'] for x in en):.2f}%) | "
+            f"{100 * statistics.mean(x['coverage'] for x in en):.0f}% "
+            f"({100 * min(x['coverage'] for x in en):.0f}%) | "
             f"{statistics.mean(m['speedup'] for m in ms):.2f} "
             f"({min(m['speedup'] for m in ms):.2f}) |")
     if profiles:

@@ -297,20 +297,41 @@ Estimate regression_total(const std::vector<double>& y, const std::vector<Auxili
     const double n = double(n_units), N = double(population);
     const double fpc = N > 0 ? std::max(0.0, 1.0 - n / N) : 1.0;
     if (fpc == 0) return e;  // every unit measured: the total is known, the interval empty
-    std::vector<double> replicate(n_units), mi(p * p), vi(p), ci;
+    // Each left-out fit in closed form (Sherman-Morrison; Cook and Weisberg 1982, 2.2): with
+    // M the weighted normal matrix, unit i of weight w, auxiliaries x_i and residual r_i,
+    // b_(i) = b - M^-1 x_i w r_i / (1 - h_i), h_i = w x_i' M^-1 x_i its leverage, so the
+    // total moves by (X' M^-1 x_i) w r_i / (1 - h_i): O(p^2) a unit instead of a p x p solve
+    // (which was 12-18% of a 1-in-20 or 1-in-50 run's host time, 222 counters x 162-405 units).
+    // h_i = 1: the fit cannot do without unit i (the only one where an auxiliary moves).
+    std::vector<double> inverse(p * p), unit_vector(p), column;
+    for (size_t c = 0; c < p; ++c) {
+        std::fill(unit_vector.begin(), unit_vector.end(), 0.0);
+        unit_vector[c] = 1.0;
+        solve_small(mf, unit_vector, column);
+        for (size_t a = 0; a < p; ++a) inverse[a * p + c] = column[a];
+    }
+    std::vector<double> lambda(p, 0.0);  // M^-1 X
+    for (size_t a = 0; a < p; ++a)
+        for (size_t c = 0; c < p; ++c) lambda[a] += inverse[a * p + c] * aux[fitted[c]].total;
+    std::vector<double> replicate(n_units), xi(p);
     double mean = 0;
     bool singular = false;
     for (size_t i = 0; i < n_units && !singular; ++i) {
         const double w = weight(i);
+        double fitted_y = 0, moved = 0, leverage = 0;
         for (size_t a = 0; a < p; ++a) {
-            const double xa = aux[fitted[a]].x[i];
-            vi[a] = vf[a] - w * xa * y[i];
-            for (size_t c = 0; c < p; ++c)
-                mi[a * p + c] = mf[a * p + c] - w * xa * aux[fitted[c]].x[i];
+            xi[a] = aux[fitted[a]].x[i];
+            fitted_y += coef[a] * xi[a];
+            moved += lambda[a] * xi[a];
         }
-        // In place: a copy per unit and counter was most of a 1-in-20 run's estimation time.
-        singular = !solve_in_place(mi, vi, ci);
-        replicate[i] = singular ? 0.0 : total_of(ci);
+        for (size_t a = 0; a < p; ++a) {
+            double u = 0;
+            for (size_t c = 0; c < p; ++c) u += inverse[a * p + c] * xi[c];
+            leverage += xi[a] * u;
+        }
+        leverage *= w;
+        singular = !(1.0 - leverage > 1e-10);
+        replicate[i] = singular ? 0.0 : e.value - moved * w * (y[i] - fitted_y) / (1.0 - leverage);
         mean += replicate[i];
     }
     double variance = 0;

@@ -527,3 +527,45 @@ TEST(Sampling, JointEstimatesOfARatioCoverAtTheirNominalRate) {
     EXPECT_GT(double(covered) / trials, 0.92);
     EXPECT_LT(double(covered) / trials, 0.98);
 }
+
+// The jackknife's replicates come from a closed form (each left-out fit by Sherman-Morrison);
+// each must be the total the fit gives with that unit really left out.
+TEST(Sampling, JackknifeReplicatesAreTheFitsWithEachUnitLeftOut) {
+    std::mt19937_64 rng(5);
+    const size_t N = 1000;
+    std::vector<double> y(N), x1(N), x2(N);
+    std::uniform_int_distribution<int> work(10, 400);
+    std::exponential_distribution<double> lines(1.0 / 8.0);
+    std::normal_distribution<double> noise(0.0, 25.0);
+    for (size_t i = 0; i < N; ++i) {
+        x1[i] = work(rng);
+        x2[i] = std::floor(lines(rng));
+        y[i] = std::max(1.0, 1.3 * x1[i] + 40.0 * x2[i] + noise(rng));
+    }
+    const UnitSample u = draw_units(30, rng, y, {&x1, &x2});
+    const Estimate e = regression_total(u.y, u.aux, N);
+    ASSERT_EQ(e.replicates.size(), u.y.size());
+    for (size_t i = 0; i < u.y.size(); ++i) {
+        std::vector<double> yi;
+        std::vector<Auxiliary> ai(u.aux.size());
+        for (size_t j = 0; j < u.y.size(); ++j) {
+            if (j == i) continue;
+            yi.push_back(u.y[j]);
+            for (size_t k = 0; k < ai.size(); ++k) ai[k].x.push_back(u.aux[k].x[j]);
+        }
+        for (size_t k = 0; k < ai.size(); ++k) ai[k].total = u.aux[k].total;
+        const double refit = regression_total(yi, ai, N).value;
+        EXPECT_NEAR(e.replicates[i], refit, 1e-9 * std::fabs(refit)) << "unit " << i;
+    }
+    // A unit the fit cannot do without (the only one where the second auxiliary moves): the
+    // residuals' formula, no replicates, a finite interval.
+    std::vector<double> ys = {10, 21, 29, 42, 50, 61, 70, 79, 91, 100, 111, 118};
+    std::vector<double> a1 = {1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12};
+    std::vector<double> a2(12, 0.0);
+    a2[4] = 3;
+    ys[4] += 30;
+    const Estimate lone = regression_total(ys, {{a1, 500.0}, {a2, 40.0}}, 100);
+    EXPECT_TRUE(lone.replicates.empty());
+    EXPECT_TRUE(std::isfinite(lone.half_width));
+    EXPECT_GT(lone.half_width, 0.0);
+}
