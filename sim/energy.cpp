@@ -90,10 +90,28 @@ class EnergyInputs {
     double seconds_;
 };
 
-json energy_of(const Params& P, const EnergyInputs& in) {
+// The model's figures; blocks and per-access costs by name (in name order, as stats.json has
+// them).
+struct EnergyFigures {
+    std::map<std::string, double> blocks_pj, per_access_pj;
+    double total_pj = 0, per_ray_nj = 0, average_power_w = 0;
+    json to_json() const {
+        return {{"blocks_pj", blocks_pj},
+                {"total_pj", total_pj},
+                {"per_ray_nj", per_ray_nj},
+                {"average_power_w", average_power_w},
+                {"per_access_pj", per_access_pj}};
+    }
+};
+
+// Plain figures rather than JSON: a sampled run evaluates the model once per jackknife
+// replicate.
+EnergyFigures energy_of(const Params& P, const EnergyInputs& in) {
     const json& stats = in.stats();
     const EnergyParams& e = P.energy;
-    json per_access = json::object(), blocks = json::object();
+    EnergyFigures out;
+    auto& per_access = out.per_access_pj;
+    auto& blocks = out.blocks_pj;
     auto line_pj = [&](const CacheParams& c) {
         return sram_word_pj(e, double(c.size_bytes) / std::max(1, c.banks)) * double(c.line_bytes) /
                8.0;
@@ -164,17 +182,16 @@ json energy_of(const Params& P, const EnergyInputs& in) {
         blocks["dram"] = dram_bytes * e.dram_pj_per_byte;
     }
     double total = 0;
-    for (const auto& [name, pj] : blocks.items()) {
+    for (const auto& [name, pj] : blocks) {
         (void)name;
-        total += pj.get<double>();
+        total += pj;
     }
     const double rays = stats["rays"]["total"].get<double>();
     const double seconds = in.seconds();
-    return {{"blocks_pj", blocks},
-            {"total_pj", total},
-            {"per_ray_nj", rays > 0 ? total / rays / 1e3 : 0.0},
-            {"average_power_w", seconds > 0 ? total * 1e-12 / seconds : 0.0},
-            {"per_access_pj", per_access}};
+    out.total_pj = total;
+    out.per_ray_nj = rays > 0 ? total / rays / 1e3 : 0.0;
+    out.average_power_w = seconds > 0 ? total * 1e-12 / seconds : 0.0;
+    return out;
 }
 
 }  // namespace
@@ -182,9 +199,10 @@ json energy_of(const Params& P, const EnergyInputs& in) {
 json energy_report(const Params& P, const json& stats) {
     BlockNames names(stats);
     return energy_of(
-        P, EnergyInputs(
-               stats, names, [&](const std::string& name) { return counter(stats, name); },
-               stats.value("simulated_seconds", 0.0)));
+               P, EnergyInputs(
+                      stats, names, [&](const std::string& name) { return counter(stats, name); },
+                      stats.value("simulated_seconds", 0.0)))
+        .to_json();
 }
 
 json sampled_energy(const Params& P, const json& stats, const JointEstimates& joint,
@@ -198,11 +216,13 @@ json sampled_energy(const Params& P, const json& stats, const JointEstimates& jo
     }
     BlockNames block_names(stats);
     const std::vector<Estimate> est = joint.of_many([&](const JointEstimates::Lookup& total) {
-        const json e =
+        const EnergyFigures e =
             energy_of(P, EnergyInputs(stats, block_names, total, total("cycles") / clock_hz));
-        std::vector<double> v = {e["total_pj"].get<double>(), e["per_ray_nj"].get<double>(),
-                                 e["average_power_w"].get<double>()};
-        for (size_t i = 3; i < names.size(); ++i) v.push_back(e["blocks_pj"].value(names[i], 0.0));
+        std::vector<double> v = {e.total_pj, e.per_ray_nj, e.average_power_w};
+        for (size_t i = 3; i < names.size(); ++i) {
+            const auto b = e.blocks_pj.find(names[i]);
+            v.push_back(b == e.blocks_pj.end() ? 0.0 : b->second);
+        }
         return v;
     });
     auto entry = [](const Estimate& e) {
