@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <iterator>
 #include <random>
 
 #include "sim/reference.h"
@@ -486,9 +487,11 @@ std::string Sampler::units_csv() const {
             a[k] = profile_ && unit_index_[i] < profile_->units.size()
                        ? profile_->units[unit_index_[i]][k]
                        : uint64_t(aux_[k][i]);
-        out += fmt::format("{},{},{},{},{},{}", unit_index_[i], a[kWork], a[kNewLines],
-                           a[kNodeSteps], a[kRays], cycles_[i]);
-        for (const auto& c : cols) out += fmt::format(",{}", c[i]);
+        // Formatted in place: a string per value was 4% of a 1-in-50 run of a small frame.
+        auto to = std::back_inserter(out);
+        fmt::format_to(to, "{},{},{},{},{},{}", unit_index_[i], a[kWork], a[kNewLines],
+                       a[kNodeSteps], a[kRays], cycles_[i]);
+        for (const auto& c : cols) fmt::format_to(to, ",{}", c[i]);
         out += "\n";
     }
     return out;
