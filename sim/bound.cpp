@@ -1,16 +1,21 @@
 #include "sim/bound.h"
 
+#include <fcntl.h>
+#include <fmt/format.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "workloads/error.h"
 
 namespace rtsim {
 
@@ -61,11 +66,30 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
     std::vector<char*> cargv;
     for (std::string& a : args) cargv.push_back(a.data());
     cargv.push_back(nullptr);
+    // The child's messages go to a file: on failure its error becomes part of this run's one
+    // line; on success its warnings (a cache entry rebuilt, say) are passed on.
+    const std::string err_path = (fs::path(dir) / "stderr.txt").string();
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
     pid_t pid;
-    if (posix_spawn(&pid, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0)
+    const int spawned = posix_spawn(&pid, cargv[0], &files, nullptr, cargv.data(), environ);
+    posix_spawn_file_actions_destroy(&files);
+    if (spawned != 0) {
+        std::error_code ec;
+        fs::remove_all(dir, ec);
         throw std::runtime_error(std::string(what) + ": cannot start the run");
+    }
     int status = 0;
     waitpid(pid, &status, 0);
+    std::string messages;
+    {
+        std::ifstream err(err_path);
+        std::stringstream text;
+        text << err.rdbuf();
+        messages = text.str();
+    }
     const std::string path = (fs::path(dir) / "stats.json").string();
     std::ifstream in(path);
     json b = json::parse(in, nullptr, false);
@@ -79,8 +103,24 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
     }
     std::error_code ec;
     fs::remove_all(dir, ec);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded() || !csv_ok)
-        throw std::runtime_error(std::string(what) + ": the run failed");
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded() || !csv_ok) {
+        // Its last line says why (rtsim's errors are one line).
+        std::string why;
+        std::istringstream lines(messages);
+        for (std::string line; std::getline(lines, line);)
+            if (!line.empty()) why = line;
+        if (why.rfind("rtsim: ", 0) == 0) why.erase(0, 7);
+        if (why.rfind("error: ", 0) == 0) why.erase(0, 7);
+        const std::string message =
+            std::string(what) + ": the run failed" +
+            (why.empty()           ? std::string()
+             : WIFSIGNALED(status) ? fmt::format(" (signal {}): {}", WTERMSIG(status), why)
+                                   : ": " + why);
+        // Refused input in the child (exit status 2) is refused input here too.
+        if (WIFEXITED(status) && WEXITSTATUS(status) == 2) throw InputError(message);
+        throw std::runtime_error(message);
+    }
+    std::fputs(messages.c_str(), stderr);
     return b;
 }
 

@@ -98,7 +98,7 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     return w.finish();
 }
 
-FrameProfile deserialize(const std::string& bytes, const std::string& key, uint64_t tiles) {
+FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_t tiles) {
     CacheEntryReader r =
         open_cache_entry(bytes, kMagic, "not a frame profile", "checksum mismatch");
     std::vector<char> stored;
@@ -139,10 +139,11 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
         (fs::path(dir) /
          fmt::format("profile-{:016x}.bin", fnv1a(kFnvOffset, full_key.data(), full_key.size())))
             .string();
-    std::string outcome = "built", bytes;
-    if (read_cache_entry(path, bytes)) {
+    std::string outcome = "built";
+    CacheEntryBytes bytes;
+    if (bytes.map(path)) {
         try {
-            FrameProfile p = deserialize(bytes, full_key, uint64_t(gen.tile_count()));
+            FrameProfile p = deserialize(bytes.view(), full_key, uint64_t(gen.tile_count()));
             p.cache = "hit";
             p.seconds =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -228,7 +228,9 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         args.insert(args.begin() + (args.empty() ? 0 : 1), {"--config", tmpl});
         json child;
         try {
-            child = run_rtsim_child(args, "--reference", &matched);
+            const std::string what = fmt::format(
+                "--reference {}: the reference design's sample of this run's units", r.dir);
+            child = run_rtsim_child(args, what.c_str(), &matched);
         } catch (...) {
             fs::remove(tmpl);
             throw;

@@ -1,6 +1,9 @@
 #include "workloads/bvh_cache.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/mman.h>
+#include <sys/stat.h>
 #include <unistd.h>
 #include <xxhash.h>
 
@@ -105,7 +108,7 @@ std::string serialize(const Bvh& b, uint64_t key) {
     return w.finish();
 }
 
-Bvh deserialize(const std::string& bytes, uint64_t key, const BvhBuildOptions& want) {
+Bvh deserialize(std::string_view bytes, uint64_t key, const BvhBuildOptions& want) {
     Reader r = open_cache_entry(bytes, kMagic, "not a BVH cache entry",
                                 "checksum mismatch (a damaged or truncated file)");
     if (r.pod<uint32_t>() != kFormatVersion) throw Unusable{"an older entry format"};
@@ -208,10 +211,10 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     const uint64_t key = st.key = bvh_cache_key(st.scene_hash, scene, options, layout_sizes);
     st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
     st.outcome = BvhCacheOutcome::Built;
-    std::string bytes;
-    if (read_cache_entry(st.path, bytes)) {
+    CacheEntryBytes bytes;
+    if (bytes.map(st.path)) {
         try {
-            Bvh b = deserialize(bytes, key, options);
+            Bvh b = deserialize(bytes.view(), key, options);
             st.outcome = BvhCacheOutcome::Hit;
             st.seconds = seconds();
             b.quality.build_seconds = st.seconds;  // what this run spent to have the tree
@@ -233,7 +236,7 @@ std::string CacheEntryWriter::finish() {
     return std::move(out_);
 }
 
-CacheEntryReader open_cache_entry(const std::string& bytes, const char (&magic)[8],
+CacheEntryReader open_cache_entry(std::string_view bytes, const char (&magic)[8],
                                   const char* not_entry, const char* bad_checksum) {
     uint64_t sum;
     if (bytes.size() < sizeof magic + sizeof sum ||
@@ -260,6 +263,32 @@ void store_cache_entry(const std::string& path, const std::string& bytes, const 
         fs::remove(tmp, ec);
         warn(fmt::format("{}: cannot write the {} (the run goes on)", path, what));
     }
+}
+
+bool CacheEntryBytes::map(const std::string& path) {
+    unmap();
+    const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return false;
+    struct stat st;
+    bool ok = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode);
+    if (ok && st.st_size > 0) {
+        void* p = ::mmap(nullptr, size_t(st.st_size), PROT_READ, MAP_PRIVATE, fd, 0);
+        ok = p != MAP_FAILED;
+        if (ok) {
+            data_ = static_cast<const char*>(p);
+            size_ = size_t(st.st_size);
+            mapped_ = true;
+        }
+    }
+    ::close(fd);
+    return ok;
+}
+
+void CacheEntryBytes::unmap() {
+    if (mapped_) ::munmap(const_cast<char*>(data_), size_);
+    data_ = nullptr;
+    size_ = 0;
+    mapped_ = false;
 }
 
 bool read_cache_entry(const std::string& path, std::string& bytes) {

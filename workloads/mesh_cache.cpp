@@ -44,7 +44,7 @@ std::string serialize(const Scene& s, uint64_t file_hash, uint64_t file_size, ui
     return w.finish();
 }
 
-void deserialize(const std::string& bytes, uint64_t file_hash, uint64_t file_size, Scene& s,
+void deserialize(std::string_view bytes, uint64_t file_hash, uint64_t file_size, Scene& s,
                  uint64_t& scene_hash) {
     CacheEntryReader r = open_cache_entry(bytes, kMagic, "not a mesh cache entry",
                                           "checksum mismatch (a damaged or truncated file)");
@@ -86,12 +86,12 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
     const std::string path =
         (fs::path(dir) / fmt::format("{:016x}-{}.mesh", hash, kMagic[7])).string();
     st.outcome = "built";
-    std::string entry;
-    if (read_cache_entry(path, entry)) {
+    CacheEntryBytes entry;
+    if (entry.map(path)) {
         try {
             Scene s;
             uint64_t scene_hash = 0;
-            deserialize(entry, hash, size, s, scene_hash);
+            deserialize(entry.view(), hash, size, s, scene_hash);
             s.name = fs::path(spec).filename().string();
             s.source = spec;
             st.outcome = "hit";

@@ -855,6 +855,19 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     std::ofstream(old_schema / "stats.json") << stats.dump();
     expect_one_line_error(run_rtsim(sampled + "'" + old_schema.string() + "'"),
                           "bad_ref_schema: its config does not load in this rtsim (l1.size_kib");
+    // A config that loads but cannot run sampled: the reference's matched sample (a child run)
+    // fails, and its reason is part of this run's one line.
+    const fs::path no_run = work_dir() / "bad_ref_no_run";
+    fs::remove_all(no_run);
+    fs::copy(ref, no_run);
+    stats = json::parse(slurp(no_run / "stats.json"));
+    stats["config"]["traversal"]["mode"] = "treelet";
+    stats["config"]["bvh"]["treelet_bytes"] = 32768;
+    std::ofstream(no_run / "stats.json") << stats.dump();
+    expect_one_line_error(run_rtsim(sampled + "'" + no_run.string() + "'"),
+                          "bad_ref_no_run: the reference design's sample of this run's units: "
+                          "the run failed: sim.fidelity=sampled: not yet with "
+                          "traversal.mode=treelet");
     // Not a sampled run.
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),
