@@ -267,8 +267,14 @@ class Sampler {
     LinePass line_pass_;
     std::vector<uint32_t> last_touches_;  // warm_l2_lines: the replay's last touches
     Aux total_aux_{};                     // of every ray judged
-    Aux current_aux_{};                   // of the ray just judged
-    Aux unit_aux_{};                      // of the open unit's rays handed out so far
+    Aux detailed_aux_{};                  // of the rays run in detail
+    // Counters the functional tracer knows the frame's total of (box and triangle operations:
+    // node and triangle steps), calibrated to it in `joint` and `counters` (stats.json's), if
+    // this run's own detailed rays show the identity; returns what was applied.
+    nlohmann::json apply_functional_totals(nlohmann::json& counters, JointEstimates& joint,
+                                           const std::array<double, kAuxiliaries>& frame) const;
+    Aux current_aux_{};  // of the ray just judged
+    Aux unit_aux_{};     // of the open unit's rays handed out so far
     // Per measured unit: its auxiliaries, cycles, and each counter's change.
     std::array<std::vector<double>, kAuxiliaries> aux_;
     std::vector<uint64_t> unit_index_;

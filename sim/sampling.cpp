@@ -364,6 +364,40 @@ void JointEstimates::add(const std::string& name, Estimate e) {
     totals_[name] = std::move(e);
 }
 
+const Estimate* JointEstimates::find(const std::string& name) const {
+    const auto it = totals_.find(name);
+    return it == totals_.end() ? nullptr : &it->second;
+}
+
+bool JointEstimates::calibrate(const std::vector<std::string>& names, double known) {
+    std::vector<Estimate*> group;
+    for (const std::string& n : names) {
+        const auto it = totals_.find(n);
+        if (it == totals_.end()) continue;  // never moved in a measured unit: 0
+        if (it->second.replicates.size() != units_ || !std::isfinite(it->second.half_width))
+            return false;
+        group.push_back(&it->second);
+    }
+    double sum = 0;
+    for (const Estimate* e : group) sum += e->value;
+    if (group.empty() || !(sum > 0)) return false;
+    for (size_t i = 0; i < units_; ++i) {
+        double s = 0;
+        for (const Estimate* e : group) s += e->replicates[i];
+        if (!(s > 0)) return false;
+    }
+    for (size_t i = 0; i < units_; ++i) {
+        double s = 0;
+        for (const Estimate* e : group) s += e->replicates[i];
+        for (Estimate* e : group) e->replicates[i] *= known / s;
+    }
+    for (Estimate* e : group) {
+        e->value *= known / sum;
+        e->half_width = e->t_quantile * std::sqrt(jackknife_variance(e->replicates));
+    }
+    return true;
+}
+
 double JointEstimates::jackknife_variance(const std::vector<double>& r) const {
     if (r.empty()) return 0.0;
     const double n = double(r.size()), N = double(population_);

@@ -99,6 +99,14 @@ class JointEstimates {
     JointEstimates(size_t units, uint64_t population) : units_(units), population_(population) {}
     void add(const std::string& name, Estimate e);
     bool empty() const { return totals_.empty(); }
+    // The estimate added as `name`, or nullptr.
+    const Estimate* find(const std::string& name) const;
+    // Totals whose sum is known exactly (box operations summed over the units are the frame's
+    // node steps): each total and each of its replicates scaled so that the totals sum to
+    // `known`, half-widths from the scaled replicates. The split between them stays estimated;
+    // their sum, and anything that depends on it alone, is then exact. False (nothing changed)
+    // when a total has no replicates or they sum to zero.
+    bool calibrate(const std::vector<std::string>& names, double known);
     // The estimate of f over the totals; a total f asks for that was not added counts 0 (a
     // counter that never moved in a measured unit).
     Estimate of(const std::function<double(const Lookup&)>& f, double confidence = 0.95) const;

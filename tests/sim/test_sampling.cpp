@@ -569,3 +569,50 @@ TEST(Sampling, JackknifeReplicatesAreTheFitsWithEachUnitLeftOut) {
     EXPECT_TRUE(std::isfinite(lone.half_width));
     EXPECT_GT(lone.half_width, 0.0);
 }
+
+// Totals whose sum is known (box operations over every box unit: the frame's node steps) are
+// scaled to it, each jackknife replicate too: their sum is then exact, with no interval, while
+// each one's share stays estimated.
+TEST(Sampling, JointEstimatesCalibratedToAKnownSum) {
+    std::mt19937_64 rng(9);
+    const size_t N = 500;
+    std::vector<double> a(N), b(N), x(N);
+    std::uniform_int_distribution<int> work(10, 100);
+    for (size_t i = 0; i < N; ++i) {
+        x[i] = work(rng);
+        a[i] = 0.6 * x[i] + (i % 7);  // two blocks sharing a unit's work unevenly
+        b[i] = 0.4 * x[i] + (i % 3);
+    }
+    const std::vector<size_t> pick = draw(N, 40, rng);
+    std::vector<double> sa, sb, sx;
+    for (size_t i : pick) {
+        sa.push_back(a[i]);
+        sb.push_back(b[i]);
+        sx.push_back(x[i]);
+    }
+    const std::vector<Auxiliary> aux = {{sx, total(x)}};
+    JointEstimates joint(pick.size(), N);
+    joint.add("a", regression_total(sa, aux, N));
+    joint.add("b", regression_total(sb, aux, N));
+    auto sum = [](const JointEstimates::Lookup& t) { return t("a") + t("b"); };
+    EXPECT_GT(joint.of(sum).half_width, 0.0);
+    const double known = total(a) + total(b);
+    ASSERT_TRUE(joint.calibrate({"a", "b", "never_moved"}, known));
+    const Estimate s = joint.of(sum);
+    EXPECT_NEAR(s.value, known, 1e-9 * known);
+    EXPECT_NEAR(s.half_width, 0.0, 1e-6 * known);
+    const Estimate* ea = joint.find("a");
+    ASSERT_NE(ea, nullptr);
+    EXPECT_GT(ea->half_width, 0.0);  // the split is still an estimate
+    for (size_t i = 0; i < pick.size(); ++i)
+        EXPECT_NEAR(ea->replicates[i] + joint.find("b")->replicates[i], known, 1e-9 * known);
+    // A total without replicates (the residuals' formula) cannot be calibrated: nothing changes.
+    JointEstimates other(3, 10);
+    Estimate plain;
+    plain.value = 5;
+    plain.half_width = 1;
+    plain.t_quantile = 2;
+    other.add("p", plain);
+    EXPECT_FALSE(other.calibrate({"p"}, 9.0));
+    EXPECT_EQ(other.find("p")->value, 5.0);
+}
