@@ -61,6 +61,10 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
                         if ((info & kTileLineRays) != kTileLineRays) ++info;
                     }
                 });
+            for (const Step& s : g.steps) {
+                p.fetch_lines += lines.lines_spanned(s);
+                p.fetch_bytes += s.size_bytes;
+            }
             work.rays = 1;
             work.steps.swap(g.steps);
             const AuxFigures a = ray_auxiliaries(work, lines);
@@ -80,7 +84,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '5'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '6'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -95,6 +99,8 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.vec(p.tile_lines);
     w.vec(p.tile_line_info);
     w.vec(p.tile_rays);
+    w.pod(p.fetch_lines);
+    w.pod(p.fetch_bytes);
     return w.finish();
 }
 
@@ -113,6 +119,8 @@ FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_
     r.vec(p.tile_lines);
     r.vec(p.tile_line_info);
     r.vec(p.tile_rays);
+    p.fetch_lines = r.pod<uint64_t>();
+    p.fetch_bytes = r.pod<uint64_t>();
     if (!r.done()) throw Unusable{"trailing bytes"};
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
     if (p.unit_tiles == 0 || p.tile_line_start.size() != tiles + 1 ||

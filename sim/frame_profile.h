@@ -49,6 +49,11 @@ class LineTracker {
         });
         return fresh;
     }
+    // The lines a step's fetch spans (as a cache of this line size counts its accesses).
+    uint64_t lines_spanned(const Step& s) const {
+        return ((s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_) -
+               (s.addr >> line_shift_) + 1;
+    }
     // The byte address of line k of the range, and how many lines it has.
     uint64_t address(uint64_t k) const { return (first_line_ + k) << line_shift_; }
     uint64_t lines() const { return lines_; }
@@ -89,8 +94,11 @@ struct FrameProfile {
     std::vector<uint32_t> tile_lines;
     std::vector<uint8_t> tile_line_info;
     std::vector<uint32_t> tile_rays;  // per tile, its rays (those that fetch nothing too)
-    double seconds = 0;               // host time to compute (or load) it
-    std::string cache;                // "off", "hit", "built", "rebuilt: why"
+    // The frame's fetches: lines (at line_bytes) and bytes over every step of every ray, which
+    // a core's L1 counts as its accesses and bytes requested.
+    uint64_t fetch_lines = 0, fetch_bytes = 0;
+    double seconds = 0;  // host time to compute (or load) it
+    std::string cache;   // "off", "hit", "built", "rebuilt: why"
 };
 
 // Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)

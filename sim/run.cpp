@@ -312,7 +312,8 @@ int run_command(const RunOptions& opt) {
         sampler->set_cache_sizes(uint32_t(cfg.typed.l2.line_bytes),
                                  chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
                                  cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes,
-                                 cfg.typed.l2.replacement == "lru");
+                                 cfg.typed.l2.replacement == "lru",
+                                 uint32_t(cfg.typed.l1.line_bytes));
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

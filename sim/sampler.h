@@ -156,11 +156,13 @@ class Sampler {
     // lines an L1 holds and whether the L2 replaces the least recently used line
     // (replay_skipped_tiles).
     void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines,
-                         bool l2_lru) {
+                         bool l2_lru, uint32_t l1_line_bytes) {
         l2_line_bytes_ = l2_line_bytes;
         dram_bytes_per_fill_ = dram_bytes_per_fill;
         l1_lines_ = l1_lines;
         l2_lru_ = l2_lru;
+        l1_line_bytes_ = l1_line_bytes;
+        l1_fetch_lines_ = LineTracker(0, 0, l1_line_bytes);
     }
 
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
@@ -268,6 +270,12 @@ class Sampler {
     std::vector<uint32_t> last_touches_;  // warm_l2_lines: the replay's last touches
     Aux total_aux_{};                     // of every ray judged
     Aux detailed_aux_{};                  // of the rays run in detail
+    // The lines (at the L1's line size) and bytes the rays' steps fetch: of the rays run in
+    // detail, and of every ray judged.
+    uint64_t detailed_fetch_lines_ = 0, detailed_fetch_bytes_ = 0;
+    uint64_t total_fetch_lines_ = 0, total_fetch_bytes_ = 0;
+    uint32_t l1_line_bytes_ = 0;
+    LineTracker l1_fetch_lines_{0, 0, 64};
     // Counters the functional tracer knows the frame's total of (box and triangle operations:
     // node and triangle steps), calibrated to it in `joint` and `counters` (stats.json's), if
     // this run's own detailed rays show the identity; returns what was applied.

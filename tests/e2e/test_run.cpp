@@ -316,6 +316,27 @@ TEST(Sampled, MeasuringEveryUnitIsTheFullRun) {
                 0.02 * f["counters"]["dram.bytes"].get<double>());
 }
 
+// The full run's count of `suffix` over blocks whose names start with one of `prefixes`, and a
+// sampled run's estimates of the same counters summed.
+namespace {
+
+std::pair<double, double> full_and_estimated(const json& full, const json& sampled,
+                                             const std::vector<std::string>& prefixes,
+                                             const std::string& suffix) {
+    double f = 0, e = 0;
+    for (const auto& [name, v] : full["counters"].items())
+        for (const std::string& p : prefixes)
+            if (name.rfind(p, 0) == 0 && name.size() > suffix.size() &&
+                name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+                f += v.get<double>();
+                if (sampled["sampling"]["counters"].contains(name))
+                    e += sampled["sampling"]["counters"][name]["value"].get<double>();
+            }
+    return {f, e};
+}
+
+}  // namespace
+
 // One unit in five measured: most rays never reach a core, the run is deterministic for a seed,
 // another seed measures other units, and on this frame the intervals hold the full run's figures
 // (a 95% interval may miss; this seed and frame were checked not to, against the full run).
@@ -376,15 +397,14 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     }
     // Box and triangle operations are the rays' node and triangle steps, known for the whole
     // frame: their estimates sum to the full run's counts.
-    for (const char* unit : {"box_unit[", "triangle_unit["}) {
-        double full_ops = 0, estimated = 0;
-        for (const auto& [name, v] : f["counters"].items())
-            if (name.rfind(unit, 0) == 0 && name.find(".ops") != std::string::npos) {
-                full_ops += v.get<double>();
-                estimated += sm["counters"][name]["value"].get<double>();
-            }
-        EXPECT_GT(full_ops, 0) << unit;
-        EXPECT_NEAR(estimated, full_ops, 1e-9 * full_ops) << unit;
+    for (const auto& [prefixes, suffix] :
+         std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"box_unit["}, ".ops"},
+             {{"triangle_unit["}, ".ops"},
+             {{"l1[", "l1_tri["}, ".accesses"}}) {
+        const auto [full_count, estimated] = full_and_estimated(f, sa, prefixes, suffix);
+        EXPECT_GT(full_count, 0) << suffix;
+        EXPECT_NEAR(estimated, full_count, 1e-9 * full_count) << prefixes[0] << suffix;
     }
     EXPECT_NEAR(se["blocks_pj"]["box_unit"]["value"].get<double>(),
                 f["energy"]["blocks_pj"]["box_unit"].get<double>(),
@@ -658,6 +678,18 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
     EXPECT_TRUE(holds(sm["total_cycles"], f["total_cycles"].get<double>())) << sm["total_cycles"];
     EXPECT_TRUE(holds(sm["counters"]["dram.bytes"], f["counters"]["dram.bytes"].get<double>()))
         << sm["counters"]["dram.bytes"];
+    // Counters that follow the rays' steps alone are the profile's totals: the full run's.
+    for (const auto& [prefixes, suffix] :
+         std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"box_unit["}, ".ops"},
+             {{"triangle_unit["}, ".ops"},
+             {{"l1[", "l1_tri["}, ".accesses"},
+             {{"l1[", "l1_tri["}, ".bytes_requested"}}) {
+        const auto [full_count, estimated] = full_and_estimated(f, sa, prefixes, suffix);
+        EXPECT_GT(full_count, 0) << suffix;
+        EXPECT_NEAR(estimated, full_count, 1e-9 * full_count) << prefixes[0] << suffix;
+    }
+    EXPECT_EQ(sm["functional_totals"].size(), 4u) << sm["functional_totals"];
 }
 
 // --target-error in the skip design: the period is chosen before any tile is generated (the
