@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <numeric>
 #include <random>
 
@@ -419,6 +420,26 @@ TEST(Sampling, RegressionDoesNotExtrapolateFromARecordedSparseSample) {
 // Figures combining several totals (energy: counts times costs per event; power: that over the
 // cycles) take their interval from the jackknife of the combination, unit i left out of every
 // total at once.
+
+namespace {
+
+// The units `pick` of a population: each figure's total by regression on x, in one
+// JointEstimates.
+JointEstimates joint_totals(const std::vector<size_t>& pick, const std::vector<double>& x,
+                            const std::map<std::string, const std::vector<double>*>& figures) {
+    std::vector<double> sx;
+    for (size_t i : pick) sx.push_back(x[i]);
+    const std::vector<Auxiliary> aux = {{sx, total(x)}};
+    JointEstimates joint(pick.size(), x.size());
+    for (const auto& [name, y] : figures) {
+        std::vector<double> sy;
+        for (size_t i : pick) sy.push_back((*y)[i]);
+        joint.add(name, regression_total(sy, aux, x.size()));
+    }
+    return joint;
+}
+
+}  // namespace
 TEST(Sampling, JointEstimatesOfALinearCombinationAreTheRegressionOfTheCombinedFigure) {
     // With the same auxiliaries for each total, the fit is linear in y: 3 T1 + 5 T2 from the
     // two totals' replicates must equal regression_total of 3 y1 + 5 y2 itself, value and
@@ -509,17 +530,8 @@ TEST(Sampling, JointEstimatesOfARatioCoverAtTheirNominalRate) {
     int covered = 0;
     const int trials = 1000;
     for (int t = 0; t < trials; ++t) {
-        const std::vector<size_t> pick = draw(N, 80, rng);
-        std::vector<double> se, sc, sx;
-        for (size_t i : pick) {
-            se.push_back(energy[i]);
-            sc.push_back(cycles[i]);
-            sx.push_back(x[i]);
-        }
-        const std::vector<Auxiliary> aux = {{sx, total(x)}};
-        JointEstimates joint(pick.size(), N);
-        joint.add("energy", regression_total(se, aux, N));
-        joint.add("cycles", regression_total(sc, aux, N));
+        const JointEstimates joint =
+            joint_totals(draw(N, 80, rng), x, {{"energy", &energy}, {"cycles", &cycles}});
         const Estimate p =
             joint.of([](const JointEstimates::Lookup& v) { return v("energy") / v("cycles"); });
         covered += p.lo() <= truth && truth <= p.hi();
@@ -584,16 +596,7 @@ TEST(Sampling, JointEstimatesCalibratedToAKnownSum) {
         b[i] = 0.4 * x[i] + (i % 3);
     }
     const std::vector<size_t> pick = draw(N, 40, rng);
-    std::vector<double> sa, sb, sx;
-    for (size_t i : pick) {
-        sa.push_back(a[i]);
-        sb.push_back(b[i]);
-        sx.push_back(x[i]);
-    }
-    const std::vector<Auxiliary> aux = {{sx, total(x)}};
-    JointEstimates joint(pick.size(), N);
-    joint.add("a", regression_total(sa, aux, N));
-    joint.add("b", regression_total(sb, aux, N));
+    JointEstimates joint = joint_totals(pick, x, {{"a", &a}, {"b", &b}});
     auto sum = [](const JointEstimates::Lookup& t) { return t("a") + t("b"); };
     EXPECT_GT(joint.of(sum).half_width, 0.0);
     const double known = total(a) + total(b);
