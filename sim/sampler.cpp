@@ -6,7 +6,6 @@
 #include <cstring>
 #include <iterator>
 #include <random>
-#include <tuple>
 
 #include "sim/reference.h"
 #include "sim/sampling.h"
@@ -500,7 +499,7 @@ json Sampler::apply_functional_totals(json& counters, JointEstimates& joint,
     const bool skip = params_.skip;
     // The profile counts fetches at its own line size: its totals serve an L1 of that size.
     const bool l1_known = !skip || (profile_ && profile_->line_bytes == l1_line_bytes_);
-    const double no = -1;
+    const double kUnknown = -1;
     const std::vector<Known> known = {
         {"box_unit.ops",
          {"box_unit["},
@@ -516,14 +515,14 @@ json Sampler::apply_functional_totals(json& counters, JointEstimates& joint,
          {"l1[", "l1_tri["},
          ".accesses",
          double(detailed_fetch_lines_),
-         !l1_known ? no
+         !l1_known ? kUnknown
          : skip    ? double(profile_->fetch_lines)
                    : double(total_fetch_lines_)},
         {"l1.bytes_requested",
          {"l1[", "l1_tri["},
          ".bytes_requested",
          double(detailed_fetch_bytes_),
-         !l1_known ? no
+         !l1_known ? kUnknown
          : skip    ? double(profile_->fetch_bytes)
                    : double(total_fetch_bytes_)},
     };
@@ -576,7 +575,6 @@ std::string Sampler::units_csv() const {
             a[k] = profile_ && unit_index_[i] < profile_->units.size()
                        ? profile_->units[unit_index_[i]][k]
                        : uint64_t(aux_[k][i]);
-        // Formatted in place: a string per value was 4% of a 1-in-50 run of a small frame.
         auto to = std::back_inserter(out);
         fmt::format_to(to, "{},{},{},{},{},{}", unit_index_[i], a[kWork], a[kNewLines],
                        a[kNodeSteps], a[kRays], cycles_[i]);
