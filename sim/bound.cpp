@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "workloads/error.h"
+#include "workloads/output_file.h"
 
 namespace rtsim {
 
@@ -83,23 +84,16 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
     }
     int status = 0;
     waitpid(pid, &status, 0);
-    std::string messages;
-    {
-        std::ifstream err(err_path);
-        std::stringstream text;
-        text << err.rdbuf();
-        messages = text.str();
-    }
+    const std::string messages = read_file_text(err_path).value_or("");
     const std::string path = (fs::path(dir) / "stats.json").string();
     std::ifstream in(path);
     json b = json::parse(in, nullptr, false);
     bool csv_ok = true;
     if (units_csv) {
-        std::ifstream csv(fs::path(dir) / "sampled_units.csv");
-        std::stringstream text;
-        text << csv.rdbuf();
-        *units_csv = text.str();
+        std::optional<std::string> csv =
+            read_file_text((fs::path(dir) / "sampled_units.csv").string());
         csv_ok = bool(csv);
+        *units_csv = csv.value_or("");
     }
     std::error_code ec;
     fs::remove_all(dir, ec);

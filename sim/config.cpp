@@ -14,6 +14,7 @@
 #include "models/replacement.h"
 #include "models/traversal_mode.h"
 #include "workloads/error.h"
+#include "workloads/output_file.h"
 
 namespace rtsim {
 
@@ -354,12 +355,10 @@ std::string config_reference_markdown() {
 }
 
 json read_json_file(const std::string& path, const std::string& what) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(fmt::format("{}: cannot open {}", path, what));
-    std::stringstream ss;
-    ss << in.rdbuf();
+    const std::optional<std::string> text = read_file_text(path);
+    if (!text) throw InputError(fmt::format("{}: cannot open {}", path, what));
     try {
-        return json::parse(ss.str());
+        return json::parse(*text);
     } catch (const json::parse_error& e) {
         std::string msg = e.what();
         const auto pos = msg.find("] ");

@@ -32,11 +32,9 @@ bool ends_with(const std::string& s, const std::string& tail) {
 }
 
 std::string read_text(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw InputError(fmt::format("{}: cannot open", path));
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
+    std::optional<std::string> text = read_file_text(path);
+    if (!text) throw InputError(fmt::format("{}: cannot open", path));
+    return std::move(*text);
 }
 
 }  // namespace

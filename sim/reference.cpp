@@ -12,7 +12,6 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "sim/bound.h"
 #include "workloads/error.h"
@@ -96,14 +95,6 @@ std::vector<size_t> Reference::rows_of(const std::vector<uint64_t>& units) const
 
 namespace {
 
-std::string read_text(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    if (!in) return {};
-    std::stringstream s;
-    s << in.rdbuf();
-    return s.str();
-}
-
 // An exclusive advisory lock on a file, held for the object's life.
 class PlanLock {
   public:
@@ -133,7 +124,8 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         "a reference is the output folder of a run of the reference design on the same frame "
         "with --set sim.fidelity=sampled --set sim.sample_fast_forward=skip --set "
         "sim.sample_period_units=1";
-    const json ref = json::parse(read_text(dir / "stats.json"), nullptr, false);
+    const json ref =
+        json::parse(read_file_text((dir / "stats.json").string()).value_or(""), nullptr, false);
     if (ref.is_discarded() || !ref.is_object())
         throw InputError(fmt::format("{}: no readable stats.json ({})", where, how));
     const json& sm = ref.value("sampling", json::object());
@@ -201,9 +193,11 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     const PlanLock lock((dir / (stem + ".lock")).string());
     // The drain is written before the table, so a table is read only beside its drain (an
     // interrupted write is run again).
-    const json drain = json::parse(read_text(cached_drain), nullptr, false);
-    std::string matched =
-        drain.is_object() && drain.contains("drain_cycles") ? read_text(cached) : std::string();
+    const json drain =
+        json::parse(read_file_text(cached_drain.string()).value_or(""), nullptr, false);
+    std::string matched = drain.is_object() && drain.contains("drain_cycles")
+                              ? read_file_text(cached.string()).value_or("")
+                              : std::string();
     const bool hit = !matched.empty();
     double child_s = 0;
     if (!hit) {

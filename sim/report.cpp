@@ -5,9 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <functional>
-#include <sstream>
 
 #include "sim/compare.h"
 #include "sim/config.h"
@@ -186,10 +184,7 @@ std::string settings_section(const Comparison& c) {
 }
 
 std::string slurp(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
+    return read_file_text(p.string()).value_or("");
 }
 
 }  // namespace

@@ -4,6 +4,8 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 #include "workloads/error.h"
@@ -79,6 +81,14 @@ void write_file_atomically(const std::string& path, const std::string& text) {
     AtomicOutputFile f(path);
     f.write(text);
     f.commit();
+}
+
+std::optional<std::string> read_file_text(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return std::nullopt;
+    std::ostringstream text;
+    text << in.rdbuf();
+    return text.str();
 }
 
 }  // namespace rtsim

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdio>
+#include <optional>
 #include <string>
 
 namespace rtsim {
@@ -30,5 +31,8 @@ class AtomicOutputFile {
 
 // Writes text to path atomically.
 void write_file_atomically(const std::string& path, const std::string& text);
+
+// The whole file's bytes; nullopt if it cannot be opened.
+std::optional<std::string> read_file_text(const std::string& path);
 
 }  // namespace rtsim
