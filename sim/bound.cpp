@@ -55,29 +55,36 @@ json run_child(const RunOptions& opt, const std::vector<std::string>& extra, con
     return run_rtsim_child(args, what);
 }
 
-json run_rtsim_child(const std::vector<std::string>& arguments, const char* what,
-                     std::string* units_csv) {
+pid_t spawn_rtsim(const std::vector<std::string>& arguments, const std::string& stderr_path,
+                  bool discard_stdout) {
     std::vector<std::string> args = {"/proc/self/exe"};
     args.insert(args.end(), arguments.begin(), arguments.end());
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t files;
+    posix_spawn_file_actions_init(&files);
+    posix_spawn_file_actions_addopen(&files, 2, stderr_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
+    if (discard_stdout) posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
+    pid_t pid;
+    const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
+    posix_spawn_file_actions_destroy(&files);
+    return rc == 0 ? pid : -1;
+}
+
+json run_rtsim_child(const std::vector<std::string>& arguments, const char* what,
+                     std::string* units_csv) {
     char tmpl[] = "/tmp/rtsim-child-XXXXXX";
     const char* dir = mkdtemp(tmpl);
     if (!dir) throw std::runtime_error(std::string(what) + ": cannot create a temporary folder");
-    for (const char* a : {"--quiet", "--out"}) args.push_back(a);
-    args.push_back(dir);
-    std::vector<char*> cargv;
-    for (std::string& a : args) cargv.push_back(a.data());
-    cargv.push_back(nullptr);
+    std::vector<std::string> args = arguments;
+    args.insert(args.end(), {"--quiet", "--out", dir});
     // The child's messages go to a file: on failure its error becomes part of this run's one
     // line; on success its warnings (a cache entry rebuilt, say) are passed on.
     const std::string err_path = (fs::path(dir) / "stderr.txt").string();
-    posix_spawn_file_actions_t files;
-    posix_spawn_file_actions_init(&files);
-    posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
-    pid_t pid;
-    const int spawned = posix_spawn(&pid, cargv[0], &files, nullptr, cargv.data(), environ);
-    posix_spawn_file_actions_destroy(&files);
-    if (spawned != 0) {
+    const pid_t pid = spawn_rtsim(args, err_path, false);
+    if (pid < 0) {
         std::error_code ec;
         fs::remove_all(dir, ec);
         throw std::runtime_error(std::string(what) + ": cannot start the run");

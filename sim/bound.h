@@ -1,6 +1,8 @@
 // rtsim run --bound: the same rays again with ideal memory and unlimited units.
 #pragma once
 
+#include <sys/types.h>
+
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -25,6 +27,12 @@ nlohmann::json run_child(const RunOptions& opt, const std::vector<std::string>& 
 std::vector<std::string> child_arguments(const std::vector<std::string>& argv,
                                          const std::vector<std::string>& flags,
                                          const std::vector<std::string>& valued);
+
+// Starts this rtsim with `arguments` (those after argv[0]), its stderr written to
+// `stderr_path` and, with `discard_stdout`, its stdout to /dev/null; returns the child's pid, or
+// -1 if it could not be started.
+pid_t spawn_rtsim(const std::vector<std::string>& arguments, const std::string& stderr_path,
+                  bool discard_stdout);
 
 // rtsim with `arguments` (and --quiet --out <a temporary folder>) in a child process; returns its
 // stats.json, and in `units_csv` (if given) its sampled_units.csv. Throws std::runtime_error

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "sim/sampler.h"
 #include "workloads/reduced_box.h"
 
 namespace rtsim {
@@ -225,18 +226,11 @@ json sampled_energy(const Params& P, const json& stats, const JointEstimates& jo
         }
         return v;
     });
-    auto entry = [](const Estimate& e) {
-        return json{
-            {"value", e.value},
-            {"lo", e.lo()},
-            {"hi", e.hi()},
-            {"half_width_pct", e.value != 0 ? 100.0 * e.half_width / std::abs(e.value) : 0.0}};
-    };
-    json out = {{"total_pj", entry(est[0])},
-                {"per_ray_nj", entry(est[1])},
-                {"average_power_w", entry(est[2])},
+    json out = {{"total_pj", estimate_json(est[0])},
+                {"per_ray_nj", estimate_json(est[1])},
+                {"average_power_w", estimate_json(est[2])},
                 {"blocks_pj", json::object()}};
-    for (size_t i = 3; i < names.size(); ++i) out["blocks_pj"][names[i]] = entry(est[i]);
+    for (size_t i = 3; i < names.size(); ++i) out["blocks_pj"][names[i]] = estimate_json(est[i]);
     return out;
 }
 

@@ -54,6 +54,7 @@ class LineTracker {
         return ((s.addr + std::max<uint32_t>(s.size_bytes, 1) - 1) >> line_shift_) -
                (s.addr >> line_shift_) + 1;
     }
+    uint32_t line_bytes() const { return uint32_t(1) << line_shift_; }
     // The byte address of line k of the range, and how many lines it has.
     uint64_t address(uint64_t k) const { return (first_line_ + k) << line_shift_; }
     uint64_t lines() const { return lines_; }

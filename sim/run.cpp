@@ -150,12 +150,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
         sampling->tiles = uint64_t(w.gen->tile_count());
         sampling->tile_rays = w.profile->tile_rays;
-        // A tile the profile saw send no ray to the cores (background, or primaries whose
-        // secondaries all missed) hands on nothing: not generated at all. A sparse frame's
-        // warm-ups reach back over many of them (1080p camel diffuse, 1 in 50: 2,000 tiles
-        // generated, their primaries traced, for the 73 that had rays).
-        want_tile = [design = SampleDesign(*sampling), rays = w.profile->tile_rays](int tile) {
-            return design.wants_tile(uint64_t(tile)) && rays[size_t(tile)] > 0;
+        want_tile = [design = SampleDesign(*sampling)](int tile) {
+            return design.wants_tile(uint64_t(tile));
         };
     }
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,

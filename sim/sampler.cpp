@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cstring>
 #include <iterator>
 #include <random>
 
@@ -211,12 +210,15 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
     a = ray_auxiliaries(work, lines_);
     for (size_t k = 0; k < kAuxiliaries; ++k) total_aux_[k] += a[k];
     uint64_t fetch_lines = 0, fetch_bytes = 0;
-    for (const Step& s : work.steps) {
-        fetch_lines += l1_fetch_lines_.lines_spanned(s);
-        fetch_bytes += s.size_bytes;
+    // The skip design's frame totals are the profile's: only its detailed rays are counted.
+    if (detailed || !params_.skip) {
+        for (const Step& s : work.steps) {
+            fetch_lines += l1_fetch_lines_.lines_spanned(s);
+            fetch_bytes += s.size_bytes;
+        }
+        total_fetch_lines_ += fetch_lines;
+        total_fetch_bytes_ += fetch_bytes;
     }
-    total_fetch_lines_ += fetch_lines;
-    total_fetch_bytes_ += fetch_bytes;
     if (detailed) {
         detailed_ += work.rays;
         for (size_t k = 0; k < kAuxiliaries; ++k) detailed_aux_[k] += a[k];
@@ -297,7 +299,13 @@ void Sampler::close_unit(const Aux& aux, Cycle end) {
 }
 
 namespace {
-json estimate_json(const Estimate& e, double scale, double offset = 0) {
+bool matches(const std::string& n, const std::string& prefix, const std::string& suffix) {
+    return n.size() >= prefix.size() + suffix.size() && n.compare(0, prefix.size(), prefix) == 0 &&
+           n.compare(n.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+}  // namespace
+
+json estimate_json(const Estimate& e, double scale, double offset) {
     const double v = e.value * scale + offset;
     const double hw = e.half_width * scale;
     return {{"value", v},
@@ -305,7 +313,6 @@ json estimate_json(const Estimate& e, double scale, double offset = 0) {
             {"hi", v + hw},
             {"half_width_pct", v != 0 ? 100.0 * hw / std::abs(v) : 0.0}};
 }
-}  // namespace
 
 json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
                                 JointEstimates& joint) const {
@@ -498,7 +505,8 @@ json Sampler::apply_functional_totals(json& counters, JointEstimates& joint,
     };
     const bool skip = params_.skip;
     // The profile counts fetches at its own line size: its totals serve an L1 of that size.
-    const bool l1_known = !skip || (profile_ && profile_->line_bytes == l1_line_bytes_);
+    const bool l1_known =
+        !skip || (profile_ && profile_->line_bytes == l1_fetch_lines_.line_bytes());
     const double kUnknown = -1;
     const std::vector<Known> known = {
         {"box_unit.ops",
@@ -530,19 +538,15 @@ json Sampler::apply_functional_totals(json& counters, JointEstimates& joint,
     const auto& e = counters_.entries();
     for (const Known& k : known) {
         if (k.frame < 0) continue;
-        const size_t n = std::strlen(k.suffix);
         std::vector<std::string> names;
         double counted = 0;
-        for (const auto& entry : e) {
-            const bool in_block =
-                std::any_of(k.prefixes.begin(), k.prefixes.end(),
-                            [&](const std::string& p) { return entry.name.rfind(p, 0) == 0; });
-            if (in_block && entry.name.size() > n &&
-                entry.name.compare(entry.name.size() - n, n, k.suffix) == 0) {
+        for (const auto& entry : e)
+            if (std::any_of(k.prefixes.begin(), k.prefixes.end(), [&](const std::string& p) {
+                    return matches(entry.name, p, k.suffix);
+                })) {
                 names.push_back(entry.name);
                 counted += double(*entry.value);
             }
-        }
         if (names.empty() || counted != k.run || !joint.calibrate(names, k.frame)) continue;
         for (const std::string& name : names)
             if (const Estimate* est = joint.find(name)) counters[name] = estimate_json(*est, 1.0);
@@ -607,12 +611,6 @@ void Sampler::add_rayless_units(uint64_t units) {
 
 // Per measured unit, the change of the counters named `prefix`...`suffix` (l1[*].hits: "l1[",
 // ".hits"; an exact name: the name and "").
-namespace {
-bool matches(const std::string& n, const std::string& prefix, const std::string& suffix) {
-    return n.size() >= prefix.size() + suffix.size() && n.compare(0, prefix.size(), prefix) == 0 &&
-           n.compare(n.size() - suffix.size(), suffix.size(), suffix) == 0;
-}
-}  // namespace
 
 std::vector<double> Sampler::unit_sums(const std::string& prefix, const std::string& suffix,
                                        size_t* blocks) const {

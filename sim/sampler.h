@@ -68,6 +68,10 @@ struct SamplingParams {
     std::vector<uint32_t> tile_rays;
 };
 
+// An estimate as stats.json holds it ({value, lo, hi, half_width_pct}), scaled by `scale` and
+// moved by `offset`.
+nlohmann::json estimate_json(const Estimate& e, double scale = 1.0, double offset = 0.0);
+
 // Which units a sample measures, and in the skip design what becomes of each tile; a value
 // type, so the work source's helper thread can ask it which tiles to generate.
 class SampleDesign {
@@ -80,7 +84,14 @@ class SampleDesign {
     // Skip design: what becomes of tile t.
     enum class TileRole { Skipped, Warming, Warmup, Measured, After };
     TileRole tile_role(uint64_t tile) const;
-    bool wants_tile(uint64_t tile) const { return tile_role(tile) != TileRole::Skipped; }
+    // Whether tile t is generated at all: not when skipped, nor when its rays are known and it
+    // has none (it would hand nothing on; a sparse frame's warm-ups reach back over many:
+    // 1080p camel diffuse, 1 in 50, generated 2,000 tiles and traced their primaries for the
+    // 73 that had rays).
+    bool wants_tile(uint64_t tile) const {
+        return tile_role(tile) != TileRole::Skipped &&
+               (params_.tile_rays.size() != params_.tiles || params_.tile_rays[tile] > 0);
+    }
     // Skip design: units in the frame.
     uint64_t units() const {
         return (params_.tiles + params_.unit_tiles - 1) / std::max<uint64_t>(1, params_.unit_tiles);
@@ -161,7 +172,6 @@ class Sampler {
         dram_bytes_per_fill_ = dram_bytes_per_fill;
         l1_lines_ = l1_lines;
         l2_lru_ = l2_lru;
-        l1_line_bytes_ = l1_line_bytes;
         l1_fetch_lines_ = LineTracker(0, 0, l1_line_bytes);
     }
 
@@ -226,6 +236,11 @@ class Sampler {
     // Each counter's estimate as stats.json holds it, also added to `joint`.
     nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
                                      JointEstimates& joint) const;
+    // Counters the functional tracer knows the frame's total of (box and triangle operations,
+    // L1 accesses and bytes requested), calibrated to it in `joint` and `counters` (stats.json's)
+    // where this run's own detailed rays show the identity; returns what was applied.
+    nlohmann::json apply_functional_totals(nlohmann::json& counters, JointEstimates& joint,
+                                           const std::array<double, kAuxiliaries>& frame) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
     bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
@@ -271,16 +286,10 @@ class Sampler {
     Aux total_aux_{};                     // of every ray judged
     Aux detailed_aux_{};                  // of the rays run in detail
     // The lines (at the L1's line size) and bytes the rays' steps fetch: of the rays run in
-    // detail, and of every ray judged.
+    // detail, and (the design without a profile) of every ray judged.
     uint64_t detailed_fetch_lines_ = 0, detailed_fetch_bytes_ = 0;
     uint64_t total_fetch_lines_ = 0, total_fetch_bytes_ = 0;
-    uint32_t l1_line_bytes_ = 0;
     LineTracker l1_fetch_lines_{0, 0, 64};
-    // Counters the functional tracer knows the frame's total of (box and triangle operations:
-    // node and triangle steps), calibrated to it in `joint` and `counters` (stats.json's), if
-    // this run's own detailed rays show the identity; returns what was applied.
-    nlohmann::json apply_functional_totals(nlohmann::json& counters, JointEstimates& joint,
-                                           const std::array<double, kAuxiliaries>& frame) const;
     Aux current_aux_{};  // of the ray just judged
     Aux unit_aux_{};     // of the open unit's rays handed out so far
     // Per measured unit: its auxiliaries, cycles, and each counter's change.

@@ -381,16 +381,13 @@ bool JointEstimates::calibrate(const std::vector<std::string>& names, double kno
     double sum = 0;
     for (const Estimate* e : group) sum += e->value;
     if (group.empty() || !(sum > 0)) return false;
+    std::vector<double> replicate_sums(units_, 0.0);
     for (size_t i = 0; i < units_; ++i) {
-        double s = 0;
-        for (const Estimate* e : group) s += e->replicates[i];
-        if (!(s > 0)) return false;
+        for (const Estimate* e : group) replicate_sums[i] += e->replicates[i];
+        if (!(replicate_sums[i] > 0)) return false;
     }
-    for (size_t i = 0; i < units_; ++i) {
-        double s = 0;
-        for (const Estimate* e : group) s += e->replicates[i];
-        for (Estimate* e : group) e->replicates[i] *= known / s;
-    }
+    for (size_t i = 0; i < units_; ++i)
+        for (Estimate* e : group) e->replicates[i] *= known / replicate_sums[i];
     for (Estimate* e : group) {
         e->value *= known / sum;
         e->half_width = e->t_quantile * std::sqrt(jackknife_variance(e->replicates));

@@ -3,8 +3,6 @@
 #include <cerrno>
 #include <csignal>
 
-#include <fcntl.h>
-#include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -17,6 +15,7 @@
 #include <fstream>
 #include <map>
 
+#include "sim/bound.h"
 #include "sim/compare.h"
 #include "sim/config.h"
 #include "sim/interrupt.h"
@@ -27,8 +26,6 @@
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 #include "workloads/trace_file.h"
-
-extern char** environ;
 
 namespace rtsim {
 
@@ -256,22 +253,10 @@ pid_t spawn_point(const std::string& out_dir, const SweepPoint& p) {
     // What this folder's run is, for --resume; a stale stats.json would pass for it.
     fs::remove(dir / "stats.json", ec);
     write_file_atomically((dir / "run.json").string(), json({{"args", p.run_args}}).dump(1) + "\n");
-    std::vector<std::string> args = {"/proc/self/exe", "run", "--quiet"};
+    std::vector<std::string> args = {"run", "--quiet"};
     args.insert(args.end(), p.run_args.begin(), p.run_args.end());
     args.insert(args.end(), {"--out", dir.string()});
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    posix_spawn_file_actions_t files;
-    posix_spawn_file_actions_init(&files);
-    const std::string err_path = (dir / "stderr.txt").string();
-    posix_spawn_file_actions_addopen(&files, 2, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
-                                     0644);
-    posix_spawn_file_actions_addopen(&files, 1, "/dev/null", O_WRONLY, 0);
-    pid_t pid;
-    const int rc = posix_spawn(&pid, argv[0], &files, nullptr, argv.data(), environ);
-    posix_spawn_file_actions_destroy(&files);
-    return rc == 0 ? pid : -1;
+    return spawn_rtsim(args, (dir / "stderr.txt").string(), true);
 }
 
 // Runs the points `jobs` at a time (points finished before, with --resume, are skipped) and

@@ -291,16 +291,4 @@ void CacheEntryBytes::unmap() {
     mapped_ = false;
 }
 
-bool read_cache_entry(const std::string& path, std::string& bytes) {
-    std::ifstream in(path, std::ios::binary | std::ios::ate);
-    if (!in) return false;
-    // Sized once and read in one call, not copied through a stringstream.
-    const std::streamoff size = in.tellg();
-    if (size < 0) return false;
-    bytes.resize(size_t(size));
-    in.seekg(0);
-    in.read(bytes.data(), size);
-    return in.gcount() == size;
-}
-
 }  // namespace rtsim

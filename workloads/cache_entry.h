@@ -110,7 +110,4 @@ class CacheEntryBytes {
     bool mapped_ = false;
 };
 
-// The file's bytes; false if it cannot be read.
-bool read_cache_entry(const std::string& path, std::string& bytes);
-
 }  // namespace rtsim

@@ -6,10 +6,11 @@
 #include <cmath>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
+#include <optional>
 
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
+#include "workloads/output_file.h"
 
 namespace rtsim {
 
@@ -74,13 +75,14 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
         st.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         return s;
     };
-    std::string bytes;
+    std::optional<std::string> read;
     if (spec.rfind("builtin:", 0) == 0 || dir.empty() || !fs::is_regular_file(spec) ||
-        !read_cache_entry(spec, bytes)) {
+        !(read = read_file_text(spec))) {
         // Built-in scenes are made, not read; an unreadable file gets load_scene's own error.
         st.outcome = spec.rfind("builtin:", 0) == 0 ? "builtin" : "off";
         return done(load_scene(spec));
     }
+    const std::string& bytes = *read;
     const uint64_t hash = hash_bytes(bytes), size = bytes.size();
     // The format's revision in the name: an entry of an older one is never read (nor warned of).
     const std::string path =

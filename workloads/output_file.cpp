@@ -84,8 +84,18 @@ void write_file_atomically(const std::string& path, const std::string& text) {
 }
 
 std::optional<std::string> read_file_text(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
+    std::ifstream in(path, std::ios::binary | std::ios::ate);
     if (!in) return std::nullopt;
+    // A file of known size is sized once and read in one call; a pipe (tellg fails) or a file
+    // that reports no size (/proc) is copied through a stream.
+    const std::streamoff size = in.tellg();
+    if (size > 0 && in.seekg(0)) {
+        std::string bytes(size_t(size), '\0');
+        in.read(bytes.data(), size);
+        if (in.gcount() == size) return bytes;
+        return std::nullopt;
+    }
+    in.clear();
     std::ostringstream text;
     text << in.rdbuf();
     return text.str();

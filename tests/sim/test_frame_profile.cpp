@@ -60,6 +60,11 @@ TEST(SkipDesign, WarmupReachesBackUntilItHoldsEnoughRays) {
     const R want[12] = {R::Warmup, R::Warmup, R::Measured, R::Measured, R::After, R::Warming,
                         R::Warmup, R::Warmup, R::Measured, R::Measured, R::After, R::Skipped};
     for (uint64_t t = 0; t < 12; ++t) EXPECT_EQ(int(d.tile_role(t)), int(want[t])) << "tile " << t;
+    // A warm-up tile without rays is not generated (it hands nothing on); one with rays is.
+    EXPECT_FALSE(d.wants_tile(1));
+    EXPECT_FALSE(d.wants_tile(7));
+    EXPECT_TRUE(d.wants_tile(0));
+    EXPECT_TRUE(d.wants_tile(6));
     // Without the rays, the warm-up is its one tile again.
     p.tile_rays.clear();
     const SampleDesign tiles_only(p);
