@@ -300,16 +300,16 @@ int run_command(const RunOptions& opt) {
         sampler->set_write_warming(std::move(cores));
         const BvhLayout& L = w.layout();
         if (reference) sampler->set_reference(reference.get());
+        sampler->set_cache_sizes(
+            uint32_t(cfg.typed.l2.line_bytes),
+            chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
+            cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes, cfg.typed.l1.replacement == "lru",
+            cfg.typed.l2.replacement == "lru", uint32_t(cfg.typed.l1.line_bytes));
         if (w.profile)  // the skip design: the frame's lines are the profile's
             sampler->set_profile(w.profile.get(), chip.l2.get());
         else
             sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
                                     uint32_t(cfg.typed.l2.line_bytes));
-        sampler->set_cache_sizes(uint32_t(cfg.typed.l2.line_bytes),
-                                 chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
-                                 cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes,
-                                 cfg.typed.l2.replacement == "lru",
-                                 uint32_t(cfg.typed.l1.line_bytes));
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

@@ -130,6 +130,41 @@ class LinePass {
     uint32_t now_ = 0;
 };
 
+// LinePass per (core, line), for up to 64 cores: a stamp and a mask of the cores met per line.
+class CoreLinePass {
+  public:
+    static constexpr size_t kMaxCores = 64;
+    void resize(size_t lines) {
+        stamp_.assign(lines, 0);
+        cores_.assign(lines, 0);
+        now_ = 0;
+    }
+    void next() {
+        if (++now_ == 0) {
+            std::fill(stamp_.begin(), stamp_.end(), 0);
+            now_ = 1;
+        }
+    }
+    size_t size() const { return stamp_.size(); }
+    // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
+    // pass.
+    uint64_t first(uint32_t line, uint64_t cores) {
+        if (stamp_[line] != now_) {
+            stamp_[line] = now_;
+            cores_[line] = cores;
+            return cores;
+        }
+        const uint64_t fresh = cores & ~cores_[line];
+        cores_[line] |= cores;
+        return fresh;
+    }
+
+  private:
+    std::vector<uint32_t> stamp_;
+    std::vector<uint64_t> cores_;
+    uint32_t now_ = 0;
+};
+
 class Sampler {
   public:
     // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
@@ -158,19 +193,23 @@ class Sampler {
         profile_ = profile;
         l2_ = l2;
         const auto& lines = profile->tile_lines;
-        line_pass_.resize(lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1);
+        const size_t distinct =
+            lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1;
+        line_pass_.resize(distinct);
+        if (l1_lru_ && ports_.size() <= CoreLinePass::kMaxCores) core_line_pass_.resize(distinct);
     }
     // Skip design: matched-pair estimates against a reference design's figures in the same
     // units (sim/reference.h); each figure is regressed on the reference's first.
     void set_reference(const Reference* reference) { reference_ = reference; }
     // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
-    // lines an L1 holds and whether the L2 replaces the least recently used line
-    // (replay_skipped_tiles).
+    // lines an L1 holds and whether the L1s and the L2 replace the least recently used line
+    // (replay_skipped_tiles). Before set_profile.
     void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines,
-                         bool l2_lru, uint32_t l1_line_bytes) {
+                         bool l1_lru, bool l2_lru, uint32_t l1_line_bytes) {
         l2_line_bytes_ = l2_line_bytes;
         dram_bytes_per_fill_ = dram_bytes_per_fill;
         l1_lines_ = l1_lines;
+        l1_lru_ = l1_lru;
         l2_lru_ = l2_lru;
         l1_fetch_lines_ = LineTracker(0, 0, l1_line_bytes);
     }
@@ -254,6 +293,7 @@ class Sampler {
     uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
     uint64_t dram_bytes_per_fill_ = 0;
     uint64_t l1_lines_ = 0;  // 0: every skipped tile's lines go through the L1s
+    bool l1_lru_ = false;
     bool l2_lru_ = false;
     const StatsRegistry& counters_;
     uint64_t index_ = 0;     // rays judged so far
@@ -283,8 +323,11 @@ class Sampler {
     // replay_skipped_tiles' L1 window and warm_l2_lines' last touches each meet a line once.
     LinePass line_pass_;
     std::vector<uint32_t> last_touches_;  // warm_l2_lines: the replay's last touches
-    Aux total_aux_{};                     // of every ray judged
-    Aux detailed_aux_{};                  // of the rays run in detail
+    // The L1 window's last touches, (line entry, core), from the last.
+    CoreLinePass core_line_pass_;
+    std::vector<std::pair<uint32_t, uint32_t>> l1_last_touches_;
+    Aux total_aux_{};     // of every ray judged
+    Aux detailed_aux_{};  // of the rays run in detail
     // The lines (at the L1's line size) and bytes the rays' steps fetch: of the rays run in
     // detail, and (the design without a profile) of every ray judged.
     uint64_t detailed_fetch_lines_ = 0, detailed_fetch_bytes_ = 0;

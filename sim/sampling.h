@@ -71,6 +71,29 @@ struct Auxiliary {
 Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence = 0.95);
 
+// regression_total in two steps: the fit's design (which auxiliaries are fitted, their normal
+// equations, each unit's weight, leverage and pull on the total) depends on the auxiliaries
+// alone, so a sample's many counters regressed on the same auxiliaries share one; total(y) is
+// regression_total(y, aux, population, confidence), figure for figure.
+class RegressionDesign {
+  public:
+    RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t population);
+    Estimate total(const std::vector<double>& y, double confidence = 0.95) const;
+
+  private:
+    size_t n_ = 0;  // units measured
+    uint64_t population_ = 0;
+    std::vector<size_t> fitted_;             // the auxiliaries fitted, in order
+    std::vector<double> weight_;             // per unit: 1 / x_0 (1 where x_0 is 0)
+    std::vector<double> x_;                  // per unit, the fitted auxiliaries (row-major)
+    std::vector<double> totals_;             // the fitted auxiliaries' population totals
+    std::vector<double> normal_;             // their weighted normal equations, p x p
+    std::vector<double> moved_weight_;       // per unit: (X' M^-1 x_i) w_i
+    std::vector<double> one_less_leverage_;  // per unit: 1 - h_i
+    double fpc_ = 1;                         // 1 - n / N
+    bool singular_ = false;                  // some unit's leverage is 1
+};
+
 // A stratum of a stratified sample: its measured units' pairs and how many units it has.
 struct RatioStratum {
     std::vector<double> y, x;

@@ -582,6 +582,49 @@ TEST(Sampling, JackknifeReplicatesAreTheFitsWithEachUnitLeftOut) {
     EXPECT_GT(lone.half_width, 0.0);
 }
 
+// A sample's counters share one design (sim/sampler.cpp regresses every counter without a
+// reference column on the same auxiliaries): a series exactly linear in the auxiliaries gets its
+// known total, the ratio estimator's total is sum(y) / sum(x) X, and a design used for other
+// series in between gives each the same estimate as a design of its own.
+TEST(Sampling, OneRegressionDesignServesManySeries) {
+    std::mt19937_64 rng(11);
+    const size_t N = 800;
+    std::vector<double> x1(N), x2(N), cycles(N);
+    std::uniform_int_distribution<int> work(20, 300), lines(0, 30);
+    std::normal_distribution<double> noise(0.0, 15.0);
+    for (size_t i = 0; i < N; ++i) {
+        x1[i] = work(rng);
+        x2[i] = lines(rng);
+        cycles[i] = std::max(1.0, 0.9 * x1[i] + 25.0 * x2[i] + noise(rng));
+    }
+    const UnitSample u = draw_units(60, rng, cycles, {&x1, &x2});
+    const RegressionDesign design(u.aux, N);
+    std::vector<double> linear(u.y.size());
+    for (size_t i = 0; i < linear.size(); ++i)
+        linear[i] = 2.0 * u.aux[0].x[i] + 3.0 * u.aux[1].x[i];
+    const Estimate first = design.total(u.y);
+    const Estimate exact = design.total(linear);
+    const double known = 2.0 * u.aux[0].total + 3.0 * u.aux[1].total;
+    EXPECT_NEAR(exact.value, known, 1e-9 * known);
+    EXPECT_LT(exact.half_width, 1e-6 * known);
+    const Estimate again = design.total(u.y);
+    EXPECT_EQ(again.value, first.value);
+    EXPECT_EQ(again.half_width, first.half_width);
+    EXPECT_EQ(again.replicates, first.replicates);
+    const Estimate own = RegressionDesign(u.aux, N).total(u.y);
+    EXPECT_EQ(own.value, first.value);
+    EXPECT_EQ(own.half_width, first.half_width);
+    // One auxiliary: the ratio estimator.
+    const RegressionDesign ratio({u.aux[0]}, N);
+    double sy = 0, sx = 0;
+    for (size_t i = 0; i < u.y.size(); ++i) {
+        sy += u.y[i];
+        sx += u.aux[0].x[i];
+    }
+    EXPECT_NEAR(ratio.total(u.y).value, sy / sx * u.aux[0].total, 1e-9 * sy / sx * u.aux[0].total);
+    EXPECT_THROW(design.total(std::vector<double>(u.y.size() + 1, 1.0)), std::invalid_argument);
+}
+
 // Totals whose sum is known (box operations over every box unit: the frame's node steps) are
 // scaled to it, each jackknife replicate too: their sum is then exact, with no interval, while
 // each one's share stays estimated.
