@@ -371,6 +371,53 @@ TEST(Cache, WarmingLeavesTheStateTimedAccessesLeave) {
     }
 }
 
+// The sampler's replay (sim/sampler.cpp) warms an LRU L1 with only the last touch of each line
+// of its window, in their order: the cache must end as the whole stream leaves it, its lines
+// held before included, down to the recency order (which the next lines' evictions show).
+TEST(Cache, LastTouchesLeaveAnLruCacheAsTheWholeStream) {
+    CacheParams p;
+    p.size_bytes = 4096;
+    p.ways = 4;
+    p.replacement = "lru";
+    test::FixedLatencyMemory mem_a(100), mem_b(100);
+    Cache a(sc_core::sc_gen_unique_name("l1"), p, &mem_a);
+    Cache b(sc_core::sc_gen_unique_name("l1"), p, &mem_b);
+    std::mt19937_64 rng(8);
+    auto line_addr = [](uint64_t line) { return line * 64; };
+    for (uint64_t line = 1000; line < 1040; ++line) {  // lines held before the window
+        a.warm(line_addr(line), 64);
+        b.warm(line_addr(line), 64);
+    }
+    // Lines met again and again; set s (of 16) gets s % 6 + 1 distinct ones, so that some sets
+    // keep lines from before the window below the window's own.
+    std::vector<uint64_t> stream;
+    for (int i = 0; i < 600; ++i) {
+        const uint64_t set = rng() % 16;
+        stream.push_back(set + 16 * (rng() % (set % 6 + 1)));
+    }
+    std::vector<uint64_t> last;
+    std::set<uint64_t> seen;
+    for (size_t i = stream.size(); i-- > 0;)
+        if (seen.insert(stream[i]).second) last.push_back(stream[i]);
+    ASSERT_LT(last.size(), stream.size() * 9 / 10);
+    for (uint64_t line : stream) a.warm(line_addr(line), 64);
+    for (size_t i = last.size(); i-- > 0;) b.warm(line_addr(last[i]), 64);
+    auto same = [&]() {
+        for (uint64_t line = 0; line < 2048; ++line)
+            if (a.contains(line_addr(line)) != b.contains(line_addr(line))) return false;
+        return true;
+    };
+    EXPECT_TRUE(same());
+    int held_before = 0;
+    for (uint64_t line = 1000; line < 1040; ++line) held_before += b.contains(line_addr(line));
+    EXPECT_GT(held_before, 0);  // some sets kept lines from before the window
+    for (uint64_t line = 1100; line < 1164; ++line) {  // fresh lines evict in recency order
+        a.warm(line_addr(line), 64);
+        b.warm(line_addr(line), 64);
+        ASSERT_TRUE(same()) << "after line " << line;
+    }
+}
+
 TEST(Cache, FifoAndRandomReplacement) {
     // One set of 2 ways: A, B, then A again, then C. LRU evicts B (A was used last), FIFO evicts A
     // (filled first). Random is deterministic: two caches see the same victims.
