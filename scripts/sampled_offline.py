@@ -30,7 +30,7 @@ import statistics
 import sys
 
 AUX = ["work", "new_lines", "node_steps", "rays"]
-MIN_UNITS_PER_AUX = 10  # sim/sampling.cpp: auxiliary k is fitted only with 10 k units
+MIN_UNITS_PER_AUX = 4  # sim/sampling.cpp: auxiliary k only with 4 k informative units
 MAX_WEIGHT_SHIFT = 10.0
 
 
@@ -57,7 +57,10 @@ def solve(m, v):
 
 
 def t975(df):
-    """Student's t 97.5% quantile (Cornish-Fisher expansion; within 0.1% for df >= 3)."""
+    """Student's t 97.5% quantile (Cornish-Fisher expansion; within 0.1% for df >= 3; tables'
+    values below)."""
+    if df < 3:
+        return {1: 12.7062, 2: 4.3027}[df]
     z = 1.959963985
     g1 = (z ** 3 + z) / 4
     g2 = (5 * z ** 5 + 16 * z ** 3 + 3 * z) / 96
@@ -70,6 +73,8 @@ def regression_total(y, X, totals, N):
     1 / x_0, auxiliaries admitted in order, the weights' shift bounded, jackknife variance."""
     n, K = len(y), len(X)
     w = [1.0 / X[0][i] if X[0][i] > 0 else 1.0 for i in range(n)]
+    # Units where every auxiliary is zero (tiles without rays) inform no fit.
+    informative = sum(any(X[k][i] != 0 for k in range(K)) for i in range(n))
 
     def normal(cols):
         m = [[sum(w[i] * X[a][i] * X[b][i] for i in range(n)) for b in cols] for a in cols]
@@ -79,7 +84,7 @@ def regression_total(y, X, totals, N):
     fitted = []
     for j in range(K):
         diag = sum(w[i] * X[j][i] ** 2 for i in range(n))
-        if j > 0 and (n < MIN_UNITS_PER_AUX * j or diag <= 0):
+        if j > 0 and (informative < MIN_UNITS_PER_AUX * j or diag <= 0):
             continue
         pivot = diag
         if fitted:
@@ -113,8 +118,10 @@ def regression_total(y, X, totals, N):
 
     T, p = total(coef), len(fitted)
     fpc = max(0.0, 1 - n / N)
-    if n <= p or fpc == 0:
-        return T, 0.0 if n == N else math.inf
+    if fpc == 0:
+        return T, 0.0
+    if informative <= p:
+        return T, math.inf
     reps = []
     for i in range(n):
         mi = [[m[a][b] - w[i] * X[fa][i] * X[fb][i] for b, fb in enumerate(fitted)]
@@ -131,7 +138,7 @@ def regression_total(y, X, totals, N):
     else:
         ss = sum((y[i] - sum(c * X[a][i] for c, a in zip(coef, fitted))) ** 2 for i in range(n))
         var = N * N * fpc * ss / (n - p) / n
-    return T, t975(n - p) * math.sqrt(var)
+    return T, t975(informative - p) * math.sqrt(var)
 
 
 def stratified_pick(N, P, seed):

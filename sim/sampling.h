@@ -63,11 +63,13 @@ struct Auxiliary {
 // residual variance proportional to the first auxiliary (the ratio estimator's model), total =
 // sum_k b_k X_k, its variance by the delete-one jackknife of that total with the finite-
 // population correction (1 - n/N) (the residuals' N^2 (1 - n/N) s_e^2 / n when leaving out a unit
-// leaves the fit singular), t with n - p degrees of freedom for p auxiliaries fitted. The first
-// auxiliary is always fitted; auxiliary k (k >= 1) only with at least 10 k measured units (fewer
-// leave too few degrees of freedom per coefficient), and not when it is zero in every unit or
-// (nearly) a combination of those before it. With one auxiliary it is the ratio estimator's total.
-// `value` is the total.
+// leaves the fit singular), t with m - p degrees of freedom for p auxiliaries fitted on m
+// informative units (those where some auxiliary is not zero: a tile without rays informs no fit).
+// The first auxiliary is always fitted; auxiliary k (k >= 1) only with at least 4 k informative
+// units (fewer leave too few degrees of freedom per coefficient), and not when it is zero in every
+// unit or (nearly) a combination of those before it. With one auxiliary it is the ratio
+// estimator's total. `value` is the total; the interval is infinite with m <= p (and empty when
+// every unit was measured).
 Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence = 0.95);
 
@@ -81,7 +83,8 @@ class RegressionDesign {
     Estimate total(const std::vector<double>& y, double confidence = 0.95) const;
 
   private:
-    size_t n_ = 0;  // units measured
+    size_t n_ = 0;            // units measured
+    size_t informative_ = 0;  // of them, where some auxiliary is not zero
     uint64_t population_ = 0;
     std::vector<size_t> fitted_;             // the auxiliaries fitted, in order
     std::vector<double> weight_;             // per unit: 1 / x_0 (1 where x_0 is 0)

@@ -369,19 +369,36 @@ TEST(Sampling, RegressionLeavesOutWhatItCannotFit) {
     const Estimate both = regression_total(y, {{x0, X0}, {x1, X1}}, 200);
     EXPECT_NEAR(both.value, 3 * X0 + 5 * X1, 1e-6);
     EXPECT_NEAR(both.half_width, 0.0, 1e-6);
-    // A third auxiliary needs 20 units (it has 25) but is x0 + x1: left out, the same fit.
+    // A third auxiliary needs 8 units (it has 25) but is x0 + x1: left out, the same fit.
     std::vector<double> x2;
     for (size_t i = 0; i < x0.size(); ++i) x2.push_back(x0[i] + x1[i]);
     const Estimate same = regression_total(y, {{x0, X0}, {x1, X1}, {x2, 7777}}, 200);
     EXPECT_NEAR(same.value, both.value, 1e-6);
-    // With 9 units the second auxiliary is not fitted: the ratio estimator's total on x0.
-    const std::vector<double> y9(y.begin(), y.begin() + 9), a9(x0.begin(), x0.begin() + 9),
-        b9(x1.begin(), x1.begin() + 9);
-    const Estimate few = regression_total(y9, {{a9, X0}, {b9, X1}}, 200);
-    EXPECT_NEAR(few.value, ratio_estimate(y9, a9, 200).value * X0, 1e-6);
+    // With 3 units the second auxiliary (which needs 4) is not fitted: the ratio estimator's
+    // total on x0. Units where every auxiliary is zero (tiles without rays) do not count: with
+    // 20 of them beside the 3, still the ratio estimator, its interval finite.
+    std::vector<double> y3(y.begin(), y.begin() + 3), a3(x0.begin(), x0.begin() + 3),
+        b3(x1.begin(), x1.begin() + 3);
+    const double ratio_total = ratio_estimate(y3, a3, 200).value * X0;
+    const Estimate few = regression_total(y3, {{a3, X0}, {b3, X1}}, 200);
+    EXPECT_NEAR(few.value, ratio_total, 1e-6);
     EXPECT_GT(few.half_width, 0.0);
+    y3.resize(23, 0.0);
+    a3.resize(23, 0.0);
+    b3.resize(23, 0.0);
+    const Estimate rayless = regression_total(y3, {{a3, X0}, {b3, X1}}, 200);
+    EXPECT_NEAR(rayless.value, ratio_total, 1e-6);
+    EXPECT_GT(rayless.half_width, 0.0);
+    EXPECT_TRUE(std::isfinite(rayless.half_width));
+    // Its t has 3 - 1 degrees of freedom, not 23 - 1.
+    EXPECT_NEAR(rayless.t_quantile, 4.303, 1e-3);
+    // One informative unit leaves no degree of freedom for an interval.
+    const Estimate one = regression_total({30, 0, 0}, {{{10, 0, 0}, X0}}, 200);
+    EXPECT_NEAR(one.value, 3 * X0, 1e-9);
+    EXPECT_TRUE(std::isinf(one.half_width));
     // A first auxiliary of zeros has nothing to scale by.
-    const std::vector<double> zeros(9, 0.0);
+    const std::vector<double> zeros(9, 0.0), y9(y.begin(), y.begin() + 9),
+        a9(x0.begin(), x0.begin() + 9);
     EXPECT_TRUE(std::isinf(regression_total(y9, {{zeros, 0.0}, {a9, X0}}, 200).half_width));
 }
 
