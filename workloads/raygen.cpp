@@ -247,7 +247,8 @@ uint32_t RayGenerator::generate_tile(int index, std::vector<GeneratedRay>& out) 
     // Traces a ray whose hit starts further rays; an emitted one keeps the trace when asked.
     auto trace_for_hit = [&](const Ray& r, bool emitted) {
         GeneratedRay* g = emitted && record_steps_ ? &out.back() : nullptr;
-        const Hit h = trace_ray(bvh_, r, HitQuery::Closest, g ? &g->steps : nullptr);
+        const Hit h = g ? trace_ray_recorded(bvh_, r, HitQuery::Closest, g->steps)
+                        : trace_ray(bvh_, r, HitQuery::Closest);
         if (g) {
             g->traced = true;
             g->prim = h.prim;

@@ -20,7 +20,7 @@ namespace rtsim {
 inline void trace_untraced(const Bvh& bvh, std::vector<GeneratedRay>& rays) {
     for (GeneratedRay& g : rays)
         if (!g.traced) {
-            g.prim = trace_ray(bvh, g.ray, g.query, &g.steps).prim;
+            g.prim = trace_ray_recorded(bvh, g.ray, g.query, g.steps).prim;
             g.traced = true;
         }
 }

@@ -340,6 +340,14 @@ Hit trace_ray(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>*
     return hit;
 }
 
+Hit trace_ray_recorded(const Bvh& bvh, const Ray& ray, HitQuery query, std::vector<Step>& steps) {
+    thread_local std::vector<Step> scratch;
+    scratch.clear();
+    const Hit hit = trace_ray(bvh, ray, query, &scratch);
+    steps.assign(scratch.begin(), scratch.end());
+    return hit;
+}
+
 void trace_subtree(const Bvh& bvh, const Ray& ray, HitQuery query, uint32_t child, uint32_t count,
                    Hit& hit, TraceCounters& counters) {
     NullSink sink;
