@@ -29,7 +29,14 @@ import random
 import statistics
 import sys
 
+# The regression's auxiliaries, in order: the skip design's units carry new_line_rays (the rays
+# that fetched their new lines), which sim/sampler.cpp fits in place of new_lines.
 AUX = ["work", "new_lines", "node_steps", "rays"]
+
+
+def aux_of(rows):
+    return [("new_line_rays" if a == "new_lines" and "new_line_rays" in rows[0] else a)
+            for a in AUX]
 MIN_UNITS_PER_AUX = 4  # sim/sampling.cpp: auxiliary k only with 4 k informative units
 MAX_WEIGHT_SHIFT = 10.0
 
@@ -147,10 +154,11 @@ def stratified_pick(N, P, seed):
 
 
 def population_residual_pct(rows):
-    """Residual standard deviation of the four-auxiliary fit over every unit, over the mean
+    """Residual standard deviation of the four auxiliaries' fit over every unit, over the mean
     unit's cycles: what no sample of these auxiliaries can explain."""
-    n, K = len(rows), len(AUX)
-    X = [[r[a] for r in rows] for a in AUX]
+    aux = aux_of(rows)
+    n, K = len(rows), len(aux)
+    X = [[r[a] for r in rows] for a in aux]
     y = [r["cycles"] for r in rows]
     w = [1 / r["work"] if r["work"] > 0 else 1 for r in rows]
     m = [[sum(w[i] * X[a][i] * X[b][i] for i in range(n)) for b in range(K)] for a in range(K)]
@@ -164,7 +172,8 @@ def resample(args):
     rows = load(args.truth)
     N = len(rows)
     truth = sum(r["cycles"] for r in rows)
-    totals = [sum(r[a] for r in rows) for a in AUX]
+    aux = aux_of(rows)
+    totals = [sum(r[a] for r in rows) for a in aux]
     print(f"{args.truth}: {N} units, {sum(r['rays'] > 0 for r in rows)} with rays; residual of "
           f"the fit over every unit {population_residual_pct(rows):.1f}% of the mean unit")
     for P in [int(p) for p in args.periods.split(",")]:
@@ -172,7 +181,7 @@ def resample(args):
         for seed in range(1, args.seeds + 1):
             idx = stratified_pick(N, P, seed)
             T, hw = regression_total([rows[i]["cycles"] for i in idx],
-                                     [[rows[i][a] for i in idx] for a in AUX], totals, N)
+                                     [[rows[i][a] for i in idx] for a in aux], totals, N)
             errs.append((T - truth) / truth * 100)
             hws.append(hw / truth * 100)
             covered += abs(T - truth) <= hw
@@ -204,9 +213,10 @@ def compare(args):
         # the run's in both).
         idx = [int(r["unit"]) for r in rows]
         units = list(truth.values())
-        totals = [sum(r[a] for r in units) for a in AUX]
+        aux = aux_of(units)
+        totals = [sum(r[a] for r in units) for a in aux]
         T, _ = regression_total([truth[u]["cycles"] for u in idx],
-                                [[truth[u][a] for u in idx] for a in AUX], totals, len(units))
+                                [[truth[u][a] for u in idx] for a in aux], totals, len(units))
         print(f"{d}: estimate {100 * (est - full) / full:+.2f}% = sample "
               f"{100 * (T + drain - full) / full:+.2f}% + simulation "
               f"{100 * (est - T - drain) / full:+.2f}%; "

@@ -28,6 +28,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     p.line_base = lines.address(0);
     const uint64_t tiles = uint64_t(gen.tile_count());
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
+    p.unit_new_line_rays.assign(p.units.size(), 0);
     p.tile_line_start.assign(tiles + 1, 0);
     p.tile_rays.assign(tiles, 0);
     // Per line of the range: the last tile that fetched it, plus one (0: none yet); the last of
@@ -38,8 +39,10 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     TileQueue queue(gen, threads,
                     [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
     std::vector<GeneratedRay> rays;
+    std::vector<size_t> new_entries;  // the tile's entries of lines new to the frame
     RayWork work;
     while (queue.next(rays)) {
+        new_entries.clear();
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
         p.tile_rays[tile] = uint32_t(rays.size());
         const uint32_t stamp = uint32_t(tile + 1);
@@ -49,6 +52,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
             for (const Step& s : g.steps)
                 lines.for_each_line(s, [&](uint64_t k) {
                     if (fetched_by[k] != stamp) {
+                        if (fetched_by[k] == 0) new_entries.push_back(p.tile_lines.size());
                         fetched_by[k] = stamp;
                         last_ray[k] = ray;
                         entry[k] = p.tile_lines.size();
@@ -70,6 +74,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
             const AuxFigures a = ray_auxiliaries(work, lines);
             for (size_t k = 0; k < kAuxiliaries; ++k) p.units[u][k] += a[k];
         }
+        for (size_t e : new_entries) p.unit_new_line_rays[u] += p.tile_line_info[e] & kTileLineRays;
         rays.clear();
         if (p.tile_lines.size() > UINT32_MAX)
             throw std::runtime_error("frame profile: more than 2^32 tile lines (a smaller frame)");
@@ -84,7 +89,7 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '6'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '7'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -95,6 +100,7 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.pod(p.line_bytes);
     w.pod(p.line_base);
     w.vec(p.units);
+    w.vec(p.unit_new_line_rays);
     w.vec(p.tile_line_start);
     w.vec(p.tile_lines);
     w.vec(p.tile_line_info);
@@ -115,6 +121,7 @@ FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_
     p.line_bytes = r.pod<uint32_t>();
     p.line_base = r.pod<uint64_t>();
     r.vec(p.units);
+    r.vec(p.unit_new_line_rays);
     r.vec(p.tile_line_start);
     r.vec(p.tile_lines);
     r.vec(p.tile_line_info);
@@ -125,7 +132,8 @@ FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_
     // Structure: a start per tile and one more, non-decreasing, ending at the lines' count.
     if (p.unit_tiles == 0 || p.tile_line_start.size() != tiles + 1 ||
         p.units.size() != (tiles + p.unit_tiles - 1) / p.unit_tiles ||
-        p.tile_line_start.front() != 0 || p.tile_line_start.back() != p.tile_lines.size() ||
+        p.unit_new_line_rays.size() != p.units.size() || p.tile_line_start.front() != 0 ||
+        p.tile_line_start.back() != p.tile_lines.size() ||
         p.tile_line_info.size() != p.tile_lines.size() || p.tile_rays.size() != tiles ||
         !std::is_sorted(p.tile_line_start.begin(), p.tile_line_start.end()))
         throw Unusable{"inconsistent contents"};

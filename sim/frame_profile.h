@@ -86,8 +86,13 @@ constexpr uint8_t kTileLineRays = 0x7f, kTileLineTriangle = 0x80;
 struct FrameProfile {
     uint64_t unit_tiles = 0;
     uint32_t line_bytes = 0;
-    uint64_t line_base = 0;                 // byte address of line 0
-    std::vector<AuxFigures> units;          // per unit of unit_tiles tiles
+    uint64_t line_base = 0;         // byte address of line 0
+    std::vector<AuxFigures> units;  // per unit of unit_tiles tiles
+    // Per unit, over the lines new to the frame (fetched by no earlier tile), the tile's rays
+    // that fetched each: how many rays wait on the unit's compulsory misses, which a count of
+    // new lines does not say (one miss can stall a whole tile's rays). The sampler's regression
+    // takes it in place of the new lines.
+    std::vector<uint64_t> unit_new_line_rays;
     std::vector<uint32_t> tile_line_start;  // per tile and one more, where its lines start
     // Per tile, the line indices its rays fetch, each once, in the order they were first fetched,
     // and beside each, how many of the tile's rays fetched it (kTileLineRays, at most 127) and

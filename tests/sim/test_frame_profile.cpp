@@ -137,13 +137,15 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
 
     std::set<uint64_t> seen;
     uint64_t shared = 0;  // tile lines more than one ray fetched
-    std::vector<uint64_t> rays(p.units.size()), steps(p.units.size()), fresh(p.units.size());
+    std::vector<uint64_t> rays(p.units.size()), steps(p.units.size()), fresh(p.units.size()),
+        fresh_rays(p.units.size());
     for (int t = 0; t < gen.tile_count(); ++t) {
         std::vector<GeneratedRay> tile;
         gen.generate_tile(t, tile);
         EXPECT_EQ(p.tile_rays[size_t(t)], tile.size()) << "tile " << t;
         // Per line of the tile: the rays that fetched it, and whether it held triangles.
         std::map<uint64_t, std::pair<std::set<size_t>, bool>> tile_lines;
+        std::set<uint64_t> tile_fresh;  // lines no earlier tile fetched
         for (size_t r = 0; r < tile.size(); ++r) {
             GeneratedRay& g = tile[r];
             if (!g.traced) trace_ray(f.bvh, g.ray, g.query, &g.steps);
@@ -151,7 +153,9 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
             steps[size_t(t) / unit_tiles] += g.steps.size();
             for (const Step& s : g.steps)
                 for (uint64_t a = s.addr / 64; a <= (s.addr + s.size_bytes - 1) / 64; ++a) {
-                    fresh[size_t(t) / unit_tiles] += seen.insert(a).second;
+                    const bool first = seen.insert(a).second;
+                    fresh[size_t(t) / unit_tiles] += first;
+                    if (first) tile_fresh.insert(a);
                     tile_lines[a].first.insert(r);
                     tile_lines[a].second |= s.kind == StepKind::Triangle;
                 }
@@ -168,17 +172,23 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
             shared += by.size() > 1;
         }
         EXPECT_EQ(listed.size(), tile_lines.size()) << "tile " << t;
+        // The rays waiting on the tile's new lines: those of the tile that fetched each.
+        for (uint64_t a : tile_fresh)
+            fresh_rays[size_t(t) / unit_tiles] += std::min<size_t>(tile_lines[a].first.size(), 127);
     }
     for (size_t u = 0; u < p.units.size(); ++u) {
         EXPECT_EQ(p.units[u][kAuxRays], rays[u]) << u;
         EXPECT_EQ(p.units[u][kAuxWork], steps[u] + rays[u]) << u;
         EXPECT_EQ(p.units[u][kAuxNewLines], fresh[u]) << u;
+        EXPECT_EQ(p.unit_new_line_rays[u], fresh_rays[u]) << u;
+        EXPECT_GE(fresh_rays[u], fresh[u]) << u;  // each new line, at least its first ray
     }
     EXPECT_GT(p.tile_lines.size(), seen.size());  // tiles share lines (the root's, at least)
     EXPECT_GT(shared, 0u);
     // The same profile on two threads.
     const FrameProfile q = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 2);
     EXPECT_EQ(q.units, p.units);
+    EXPECT_EQ(q.unit_new_line_rays, p.unit_new_line_rays);
     EXPECT_EQ(q.tile_line_start, p.tile_line_start);
     EXPECT_EQ(q.tile_lines, p.tile_lines);
     EXPECT_EQ(q.tile_line_info, p.tile_line_info);
@@ -201,6 +211,7 @@ TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
     const FrameProfile hit = get("a");
     EXPECT_EQ(hit.cache, "hit");
     EXPECT_EQ(hit.units, built.units);
+    EXPECT_EQ(hit.unit_new_line_rays, built.unit_new_line_rays);
     EXPECT_EQ(hit.tile_line_start, built.tile_line_start);
     EXPECT_EQ(hit.tile_lines, built.tile_lines);
     EXPECT_EQ(hit.tile_line_info, built.tile_line_info);
