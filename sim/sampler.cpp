@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <iterator>
+#include <map>
+#include <optional>
 #include <random>
 
 #include "sim/reference.h"
@@ -487,7 +489,13 @@ json Sampler::report(Cycle end_cycle) {
         reference_ ? reference_->column("l2.first_fills") : nullptr;
     // Every counter without a reference column is regressed on the same auxiliaries: one design.
     const RegressionDesign plain(aux, units);
+    // Paired: a design per reference column, which like blocks share (core[0] to core[7]'s
+    // counters are regressed on the reference's core.* sum).
+    std::map<std::pair<std::string, double>, std::optional<RegressionDesign>> paired;
     auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
+        const auto known = paired.find({column, per_fill});
+        if (known != paired.end()) return known->second ? known->second->total(y) : plain.total(y);
+        std::optional<RegressionDesign>& design = paired[{column, per_fill}];
         if (reference_ && reference_->totals.count(column) &&
             (per_fill == 0 || reference_->totals.count("l2.first_fills"))) {
             const std::vector<double>* ref = reference_->column(column);
@@ -505,8 +513,10 @@ json Sampler::report(Cycle end_cycle) {
                          (per_fill != 0 ? per_fill * (*ref_fills)[ref_rows[i]] : 0.0);
             // A figure the reference's sample never moved (DRAM traffic beyond first fills, in a
             // frame whose lines fit its L2) says nothing of this design's.
-            if (std::any_of(r.x.begin(), r.x.end(), [](double x) { return x != 0; }))
-                return regression_total(y, with_reference, units);
+            if (std::any_of(r.x.begin(), r.x.end(), [](double x) { return x != 0; })) {
+                design.emplace(with_reference, units);
+                return design->total(y);
+            }
         }
         return plain.total(y);
     };
