@@ -5,6 +5,7 @@
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <cerrno>
 
 #include <algorithm>
 #include <cstdio>
@@ -89,8 +90,15 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
         fs::remove_all(dir, ec);
         throw std::runtime_error(std::string(what) + ": cannot start the run");
     }
+    // SIGINT and SIGTERM interrupt the wait (their handlers have no SA_RESTART), not the child,
+    // which stops on the same signal: wait on, as a sweep does.
     int status = 0;
-    waitpid(pid, &status, 0);
+    bool lost = false;
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR) {
+            lost = true;
+            break;
+        }
     const std::string messages = read_file_text(err_path).value_or("");
     const std::string path = (fs::path(dir) / "stats.json").string();
     std::ifstream in(path);
@@ -104,7 +112,7 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
     }
     std::error_code ec;
     fs::remove_all(dir, ec);
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded() || !csv_ok) {
+    if (lost || !WIFEXITED(status) || WEXITSTATUS(status) != 0 || b.is_discarded() || !csv_ok) {
         // Its last line says why (rtsim's errors are one line).
         std::string why;
         std::istringstream lines(messages);
