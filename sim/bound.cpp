@@ -74,6 +74,12 @@ pid_t spawn_rtsim(const std::vector<std::string>& arguments, const std::string& 
     return rc == 0 ? pid : -1;
 }
 
+bool wait_rtsim(pid_t pid, int& status) {
+    while (waitpid(pid, &status, 0) < 0)
+        if (errno != EINTR) return false;
+    return true;
+}
+
 json run_rtsim_child(const std::vector<std::string>& arguments, const char* what,
                      std::string* units_csv) {
     char tmpl[] = "/tmp/rtsim-child-XXXXXX";
@@ -90,15 +96,8 @@ json run_rtsim_child(const std::vector<std::string>& arguments, const char* what
         fs::remove_all(dir, ec);
         throw std::runtime_error(std::string(what) + ": cannot start the run");
     }
-    // SIGINT and SIGTERM interrupt the wait (their handlers have no SA_RESTART), not the child,
-    // which stops on the same signal: wait on, as a sweep does.
     int status = 0;
-    bool lost = false;
-    while (waitpid(pid, &status, 0) < 0)
-        if (errno != EINTR) {
-            lost = true;
-            break;
-        }
+    const bool lost = !wait_rtsim(pid, status);
     const std::string messages = read_file_text(err_path).value_or("");
     const std::string path = (fs::path(dir) / "stats.json").string();
     std::ifstream in(path);

@@ -33,6 +33,10 @@ std::vector<std::string> child_arguments(const std::vector<std::string>& argv,
 // -1 if it could not be started.
 pid_t spawn_rtsim(const std::vector<std::string>& arguments, const std::string& stderr_path,
                   bool discard_stdout);
+// Waits for the child `pid` to end, on through the signals that interrupt the wait (SIGINT and
+// SIGTERM's handlers have no SA_RESTART; the child stops on the same signal); its status in
+// `status`. False if it cannot be waited for.
+bool wait_rtsim(pid_t pid, int& status);
 
 // rtsim with `arguments` (and --quiet --out <a temporary folder>) in a child process; returns its
 // stats.json, and in `units_csv` (if given) its sampled_units.csv. Throws std::runtime_error

@@ -493,9 +493,9 @@ json Sampler::report(Cycle end_cycle) {
     // counters are regressed on the reference's core.* sum).
     std::map<std::pair<std::string, double>, std::optional<RegressionDesign>> paired;
     auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
-        const auto known = paired.find({column, per_fill});
-        if (known != paired.end()) return known->second ? known->second->total(y) : plain.total(y);
-        std::optional<RegressionDesign>& design = paired[{column, per_fill}];
+        const auto [entry, first] = paired.try_emplace({column, per_fill});
+        std::optional<RegressionDesign>& design = entry->second;
+        if (!first) return design ? design->total(y) : plain.total(y);
         if (reference_ && reference_->totals.count(column) &&
             (per_fill == 0 || reference_->totals.count("l2.first_fills"))) {
             const std::vector<double>* ref = reference_->column(column);
@@ -678,7 +678,6 @@ void Sampler::add_rayless_units(uint64_t units) {
 
 // Per measured unit, the change of the counters named `prefix`...`suffix` (l1[*].hits: "l1[",
 // ".hits"; an exact name: the name and "").
-
 std::vector<double> Sampler::unit_sums(const std::string& prefix, const std::string& suffix,
                                        size_t* blocks) const {
     std::vector<double> out(cycles_.size(), 0.0);

@@ -130,39 +130,30 @@ class LinePass {
     uint32_t now_ = 0;
 };
 
-// LinePass per (core, line), for up to 64 cores: a stamp and a mask of the cores met per line.
+// LinePass per (core, line), for up to 64 cores: a mask of the cores met per line, reset when
+// the pass meets the line first.
 class CoreLinePass {
   public:
     static constexpr size_t kMaxCores = 64;
     void resize(size_t lines) {
-        stamp_.assign(lines, 0);
+        pass_.resize(lines);
         cores_.assign(lines, 0);
-        now_ = 0;
     }
-    void next() {
-        if (++now_ == 0) {
-            std::fill(stamp_.begin(), stamp_.end(), 0);
-            now_ = 1;
-        }
-    }
-    size_t size() const { return stamp_.size(); }
+    void next() { pass_.next(); }
+    size_t size() const { return cores_.size(); }
     // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
     // pass.
     uint64_t first(uint32_t line, uint64_t cores) {
-        if (stamp_[line] != now_) {
-            stamp_[line] = now_;
-            cores_[line] = cores;
-            return cores;
-        }
-        const uint64_t fresh = cores & ~cores_[line];
-        cores_[line] |= cores;
+        uint64_t& met = cores_[line];
+        if (pass_.first(line)) met = 0;
+        const uint64_t fresh = cores & ~met;
+        met |= cores;
         return fresh;
     }
 
   private:
-    std::vector<uint32_t> stamp_;
+    LinePass pass_;
     std::vector<uint64_t> cores_;
-    uint32_t now_ = 0;
 };
 
 class Sampler {

@@ -454,8 +454,7 @@ bool run_point_now(const std::string& out_dir, const SweepPoint& p) {
     const pid_t pid = spawn_point(out_dir, p);
     if (pid < 0) throw std::runtime_error("sweep: cannot start the run of " + p.name);
     int st = 0;
-    while (waitpid(pid, &st, 0) < 0)
-        if (errno != EINTR) throw std::runtime_error("sweep: lost the run of " + p.name);
+    if (!wait_rtsim(pid, st)) throw std::runtime_error("sweep: lost the run of " + p.name);
     return WIFEXITED(st) && WEXITSTATUS(st) == 0;
 }
 
