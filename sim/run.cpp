@@ -304,7 +304,8 @@ int run_command(const RunOptions& opt) {
             uint32_t(cfg.typed.l2.line_bytes),
             chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
             cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes, cfg.typed.l1.replacement == "lru",
-            cfg.typed.l2.replacement == "lru", uint32_t(cfg.typed.l1.line_bytes));
+            cfg.typed.l2.replacement == "lru", uint32_t(cfg.typed.l1.line_bytes),
+            cfg.typed.l2.sets(), uint32_t(cfg.typed.l2.ways));
         if (w.profile)  // the skip design: the frame's lines are the profile's
             sampler->set_profile(w.profile.get(), chip.l2.get());
         else
@@ -332,6 +333,9 @@ int run_command(const RunOptions& opt) {
                                           chip.total_cycles(), kCalendarCycleLimit),
                               false);
 
+    // The functional count of the L2's misses ran beside the simulation: its host time is the
+    // run's.
+    const double functional_l2_s = sampler ? sampler->wait_functional_l2() : 0.0;
     host.run_time_s = seconds_since(host_start);
     if (w.bvh) {
         host.bvh_build_s = w.bvh->quality.build_seconds;
@@ -341,6 +345,7 @@ int run_command(const RunOptions& opt) {
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
+    if (functional_l2_s > 0) out["host"]["functional_l2_s"] = functional_l2_s;
     if (sampler)
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);

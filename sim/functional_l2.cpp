@@ -1,0 +1,105 @@
+#include "sim/functional_l2.h"
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
+
+namespace rtsim {
+
+namespace {
+
+// An LRU cache of line indices: per set, `stride` tags (the ways, padded to a multiple of 4 with
+// a tag no line has) and their last use. Exact LRU by use stamps, as models/replacement/lru.cpp.
+class LruTags {
+  public:
+    LruTags(uint64_t sets, uint32_t ways)
+        : ways_(ways),
+          stride_((ways + 3) / 4 * 4),
+          tags_(sets * stride_, kNone),
+          stamps_(sets * stride_, 0) {}
+
+    // True on a hit; a miss installs the line over the least recently used way.
+    bool access(uint64_t set, uint32_t line) {
+        uint32_t* tags = &tags_[set * stride_];
+        uint32_t* stamps = &stamps_[set * stride_];
+        const int way = find(tags, line);
+        if (way >= 0) {
+            stamps[way] = ++now_;
+            return true;
+        }
+        uint32_t victim = 0;  // an empty way has stamp 0: filled before any eviction
+        for (uint32_t w = 1; w < ways_; ++w) victim = stamps[w] < stamps[victim] ? w : victim;
+        tags[victim] = line;
+        stamps[victim] = ++now_;
+        return false;
+    }
+
+  private:
+    static constexpr uint32_t kNone = UINT32_MAX;
+    int find(const uint32_t* tags, uint32_t line) const {
+#ifdef __SSE2__
+        if (stride_ > 64) return scan(tags, line);  // more ways than the mask has bits
+        // Every group compared, no early exit (which group holds the line is a coin toss for
+        // the branch predictor); a line is in at most one way.
+        const __m128i key = _mm_set1_epi32(int(line));
+        uint64_t hits = 0;
+        for (uint32_t g = 0; g < stride_; g += 4) {
+            const __m128i four = _mm_loadu_si128(reinterpret_cast<const __m128i*>(tags + g));
+            hits |= uint64_t(_mm_movemask_ps(_mm_castsi128_ps(_mm_cmpeq_epi32(four, key)))) << g;
+        }
+        return hits ? int(__builtin_ctzll(hits)) : -1;
+#else
+        return scan(tags, line);
+#endif
+    }
+    int scan(const uint32_t* tags, uint32_t line) const {
+        for (uint32_t w = 0; w < ways_; ++w)
+            if (tags[w] == line) return int(w);
+        return -1;
+    }
+    uint32_t ways_, stride_;
+    std::vector<uint32_t> tags_, stamps_;
+    uint32_t now_ = 0;
+};
+
+}  // namespace
+
+FunctionalL2 functional_l2_misses(const FrameProfile& p, uint64_t sets, uint32_t ways) {
+    const auto start = std::chrono::steady_clock::now();
+    if (sets == 0 || (sets & (sets - 1)) != 0 || ways == 0 || p.line_bytes == 0)
+        throw std::invalid_argument("functional_l2_misses: sets a power of two, ways >= 1");
+    FunctionalL2 out;
+    out.unit_capacity_misses.assign(p.units.size(), 0);
+    if (p.tile_lines.empty()) return out;
+    // Use stamps count accesses: more than 2^32 - 1 would wrap them.
+    if (p.tile_lines.size() >= UINT32_MAX)
+        throw std::invalid_argument("functional_l2_misses: too many tile lines");
+    // The cache model's set is the line address's low bits; the profile's lines are numbered
+    // from its base, which adds the same to every line: which lines share a set is the same.
+    const uint64_t set_mask = sets - 1;
+    const uint32_t distinct = *std::max_element(p.tile_lines.begin(), p.tile_lines.end()) + 1;
+    std::vector<uint8_t> fetched(distinct, 0);
+    LruTags cache(sets, ways);
+    const size_t tiles = p.tile_line_start.size() - 1;
+    for (size_t t = 0; t < tiles; ++t) {
+        uint32_t& unit = out.unit_capacity_misses[t / p.unit_tiles];
+        for (uint32_t i = p.tile_line_start[t]; i < p.tile_line_start[t + 1]; ++i) {
+            const uint32_t line = p.tile_lines[i];
+            if (cache.access(line & set_mask, line)) continue;
+            ++out.misses;
+            if (fetched[line]) {
+                ++unit;
+                ++out.capacity_misses;
+            }
+            fetched[line] = 1;
+        }
+    }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+}
+
+}  // namespace rtsim
