@@ -161,6 +161,7 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
         try {
             FrameProfile p = deserialize(bytes.view(), full_key, uint64_t(gen.tile_count()));
             p.cache = "hit";
+            p.key = full_key;
             p.seconds =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
             return p;
@@ -171,6 +172,7 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
     FrameProfile p = profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads);
     store_cache_entry(path, serialize(p, full_key), "frame profile");
     p.cache = outcome;
+    p.key = full_key;
     p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return p;
 }

@@ -105,6 +105,7 @@ struct FrameProfile {
     uint64_t fetch_lines = 0, fetch_bytes = 0;
     double seconds = 0;  // host time to compute (or load) it
     std::string cache;   // "off", "hit", "built", "rebuilt: why"
+    std::string key;     // what its cache entry is keyed by (empty: not cached)
 };
 
 // Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)

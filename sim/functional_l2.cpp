@@ -1,8 +1,14 @@
 #include "sim/functional_l2.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <numeric>
 #include <stdexcept>
+
+#include "workloads/cache_entry.h"
 
 #ifdef __SSE2__
 #include <emmintrin.h>
@@ -73,6 +79,7 @@ FunctionalL2 functional_l2_misses(const FrameProfile& p, uint64_t sets, uint32_t
     if (sets == 0 || (sets & (sets - 1)) != 0 || ways == 0 || p.line_bytes == 0)
         throw std::invalid_argument("functional_l2_misses: sets a power of two, ways >= 1");
     FunctionalL2 out;
+    out.cache = "off";
     out.unit_capacity_misses.assign(p.units.size(), 0);
     if (p.tile_lines.empty()) return out;
     // Use stamps count accesses: more than 2^32 - 1 would wrap them.
@@ -100,6 +107,69 @@ FunctionalL2 functional_l2_misses(const FrameProfile& p, uint64_t sets, uint32_t
     }
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return out;
+}
+
+namespace {
+
+constexpr char kMagic[8] = {'R', 'T', 'S', 'L', '2', 'M', 'S', '1'};
+
+std::string serialize(const FunctionalL2& f, const std::string& key) {
+    CacheEntryWriter w(kMagic);
+    w.vec(std::vector<char>(key.begin(), key.end()));
+    w.pod(f.misses);
+    w.pod(f.capacity_misses);
+    w.vec(f.unit_capacity_misses);
+    return w.finish();
+}
+
+FunctionalL2 deserialize(std::string_view bytes, const std::string& key, size_t units) {
+    CacheEntryReader r =
+        open_cache_entry(bytes, kMagic, "not an L2 miss count", "checksum mismatch");
+    std::vector<char> stored;
+    r.vec(stored);
+    if (std::string(stored.begin(), stored.end()) != key) throw CacheEntryUnusable{"key mismatch"};
+    FunctionalL2 f;
+    f.misses = r.pod<uint64_t>();
+    f.capacity_misses = r.pod<uint64_t>();
+    r.vec(f.unit_capacity_misses);
+    if (!r.done()) throw CacheEntryUnusable{"trailing bytes"};
+    if (f.unit_capacity_misses.size() != units || f.capacity_misses > f.misses ||
+        std::accumulate(f.unit_capacity_misses.begin(), f.unit_capacity_misses.end(),
+                        uint64_t(0)) != f.capacity_misses)
+        throw CacheEntryUnusable{"inconsistent contents"};
+    return f;
+}
+
+}  // namespace
+
+FunctionalL2 functional_l2_misses_cached(const FrameProfile& p, uint64_t sets, uint32_t ways,
+                                         const std::string& dir) {
+    if (dir.empty() || p.key.empty()) return functional_l2_misses(p, sets, ways);
+    const auto start = std::chrono::steady_clock::now();
+    const std::string key = fmt::format("{} l2 sets={} ways={} {}", p.key, sets, ways,
+                                        std::string(kMagic, sizeof kMagic));
+    const std::string path =
+        (std::filesystem::path(dir) /
+         fmt::format("l2misses-{:016x}.bin", fnv1a(kFnvOffset, key.data(), key.size())))
+            .string();
+    std::string outcome = "built";
+    CacheEntryBytes bytes;
+    if (bytes.map(path)) {
+        try {
+            FunctionalL2 f = deserialize(bytes.view(), key, p.units.size());
+            f.cache = "hit";
+            f.seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            return f;
+        } catch (const CacheEntryUnusable& u) {
+            outcome = "rebuilt: " + u.why;
+        }
+    }
+    FunctionalL2 f = functional_l2_misses(p, sets, ways);
+    store_cache_entry(path, serialize(f, key), "L2 miss count");
+    f.cache = outcome;
+    f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return f;
 }
 
 }  // namespace rtsim

@@ -76,6 +76,7 @@ struct Workload {
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
     std::unique_ptr<FrameProfile> profile;  // a sampled run's skip design
+    std::string cache_dir;                  // meshes, BVHs, profiles (empty: none)
     const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
 };
 
@@ -117,7 +118,7 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     }
     const RayGenOptions& rg = opt.workload.gen;
     // Meshes, BVHs and frame profiles share one cache folder.
-    const std::string cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
+    const std::string cache_dir = w.cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
     w.scene =
         std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
     w.bvh = std::make_unique<Bvh>(
@@ -307,7 +308,7 @@ int run_command(const RunOptions& opt) {
             cfg.typed.l2.replacement == "lru", uint32_t(cfg.typed.l1.line_bytes),
             cfg.typed.l2.sets(), uint32_t(cfg.typed.l2.ways));
         if (w.profile)  // the skip design: the frame's lines are the profile's
-            sampler->set_profile(w.profile.get(), chip.l2.get());
+            sampler->set_profile(w.profile.get(), chip.l2.get(), w.cache_dir);
         else
             sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
                                     uint32_t(cfg.typed.l2.line_bytes));
@@ -345,7 +346,10 @@ int run_command(const RunOptions& opt) {
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
-    if (functional_l2_s > 0) out["host"]["functional_l2_s"] = functional_l2_s;
+    if (sampler && !sampler->functional_l2_cache().empty()) {
+        out["host"]["functional_l2_s"] = functional_l2_s;
+        out["host"]["functional_l2_cache"] = sampler->functional_l2_cache();
+    }
     if (sampler)
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);

@@ -116,7 +116,8 @@ void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
     lines_ = LineTracker(base, end, line_bytes);
 }
 
-void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2) {
+void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
+                          const std::string& cache_dir) {
     profile_ = profile;
     l2_ = l2;
     const auto& lines = profile->tile_lines;
@@ -129,8 +130,8 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2) {
     if (!reference_ && l2_lru_ && l2_sets_ > 0 && l2_ways_ > 0 &&
         profile->line_bytes == l2_line_bytes_)
         functional_l2_pending_ =
-            std::async(std::launch::async, [profile, sets = l2_sets_, ways = l2_ways_] {
-                return functional_l2_misses(*profile, sets, ways);
+            std::async(std::launch::async, [profile, sets = l2_sets_, ways = l2_ways_, cache_dir] {
+                return functional_l2_misses_cached(*profile, sets, ways, cache_dir);
             });
 }
 
@@ -526,11 +527,10 @@ json Sampler::report(Cycle end_cycle) {
         // A fifth auxiliary where the frame outgrows the L2: the units' capacity misses as
         // counted functionally (sim/functional_l2.h). Cornell 2-bounce path frames, 1080p: the
         // residual over every unit fell from 28.2% to 15.6% of the mean unit's cycles, a 1-in-20
-        // sample's error from 0.88% to 0.54% (sampled_estimators.md, section 13). Zero in every
-        // unit (a frame whose lines fit), it is not fitted.
-        // Fitted only where at least 4 measured units had some: a unit alone in having them
-        // has a leverage of 1 (a 96x96 bunny frame with 23 capacity misses left the jackknife
-        // without replicates).
+        // sample's error from 0.88% to 0.54% (sampled_estimators.md, section 13). Fitted only
+        // where at least 4 measured units had some: a unit alone in having them has a leverage
+        // of 1 (a 96x96 bunny frame with 23 capacity misses left the jackknife without
+        // replicates).
         if (!functional_l2_.unit_capacity_misses.empty()) {
             Auxiliary c;
             c.x.resize(cycles_.size());

@@ -26,7 +26,9 @@
 // frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
 // tile fetched, which are loaded into the caches where the tile would have run.
 // Without the profile the totals could only be expanded from the measured units (+-20-50% on
-// 1080p frames at 1 in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10).
+// 1080p frames at 1 in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10). The
+// profile's tile lines, run through an LRU of the L2's geometry, also count the frame's capacity
+// misses unit by unit (sim/functional_l2.h), known then like its first fills.
 #pragma once
 
 #include <algorithm>
@@ -182,8 +184,10 @@ class Sampler {
     // L2, loaded with the lines of the tiles it skips where no core's memories are known (they
     // go through the cores' L1s otherwise). The run's own line counting (set_line_range) is
     // then not needed. Without a reference design and with an LRU L2, the frame's L2 misses are
-    // counted functionally here, unit by unit (sim/functional_l2.h).
-    void set_profile(const FrameProfile* profile, MemoryPort* l2);
+    // counted functionally here, unit by unit (sim/functional_l2.h), through the cache in
+    // `cache_dir` (the profile's folder; empty: none).
+    void set_profile(const FrameProfile* profile, MemoryPort* l2,
+                     const std::string& cache_dir = std::string());
     // Skip design: matched-pair estimates against a reference design's figures in the same
     // units (sim/reference.h); each figure is regressed on the reference's first.
     void set_reference(const Reference* reference) { reference_ = reference; }
@@ -207,6 +211,8 @@ class Sampler {
     // Waits for the functional count of the frame's L2 misses (set_profile starts it on a thread
     // of its own) and returns its host seconds (0: none), so that a run's host time includes it.
     double wait_functional_l2();
+    // What the cache of that count did ("off", "hit", "built", "rebuilt: why"; empty: no count).
+    const std::string& functional_l2_cache() const { return functional_l2_.cache; }
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
     nlohmann::json report(Cycle end_cycle);

@@ -734,6 +734,25 @@ TEST(Sampled, SkipDesignCountsCapacityMissesFunctionally) {
     EXPECT_LE(d["lo"].get<double>(), dram) << d;
     EXPECT_GE(d["hi"].get<double>(), dram) << d;
     EXPECT_LT(d["half_width_pct"].get<double>(), 8.0) << d;
+    EXPECT_EQ(p["host"]["functional_l2_cache"], "off");
+    // Cached beside the profile: counted once, then read, the same figures.
+    const fs::path cache = work_dir() / "cm_cache";
+    std::string with_cache = common + sampled + "--set sim.sample_period_units=4 ";
+    with_cache.replace(with_cache.find("--bvh-cache off"), 15,
+                       "--bvh-cache '" + cache.string() + "'");
+    json cached[2];
+    for (int i = 0; i < 2; ++i) {
+        const fs::path out = work_dir() / ("cm_cached" + std::to_string(i));
+        ASSERT_EQ(run_rtsim(with_cache + "-o '" + out.string() + "'").status, 0);
+        cached[i] = stats_of(out);
+    }
+    EXPECT_EQ(cached[0]["host"]["functional_l2_cache"], "built");
+    EXPECT_EQ(cached[1]["host"]["functional_l2_cache"], "hit");
+    for (json& c : cached) c["sampling"].erase("profile");
+    EXPECT_EQ(cached[1]["sampling"], cached[0]["sampling"]);
+    json uncached = p["sampling"];
+    uncached.erase("profile");
+    EXPECT_EQ(cached[0]["sampling"], uncached);
     // Another replacement policy has no functional model: no count, the regression as before.
     ASSERT_EQ(run_rtsim(common + sampled +
                         "--set sim.sample_period_units=4 --set l2.replacement=fifo -o '" +

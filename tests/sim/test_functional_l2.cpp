@@ -2,6 +2,8 @@
 // tiny caches, and against the cache model itself on random streams.
 #include <gtest/gtest.h>
 
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <set>
 
@@ -10,6 +12,7 @@
 #include "sim/functional_l2.h"
 
 using namespace rtsim;
+namespace fs = std::filesystem;
 
 namespace {
 
@@ -111,4 +114,69 @@ TEST(FunctionalL2, AgreesWithTheCacheModel) {
         EXPECT_EQ(f.misses, misses) << ways << " ways";
         EXPECT_GT(f.capacity_misses, 0u) << ways << " ways";
     }
+}
+
+// The count's cache: stored, then served; an entry damaged, truncated, of another key or not
+// fitting the profile is counted again and stored over, never used.
+TEST(FunctionalL2, CacheServesValidEntriesAndRefusesDamagedOnes) {
+    FrameProfile p = profile_of({{0, 2}, {0}, {1, 3}, {2, 1}, {0, 3}, {2}});
+    p.key = "frame a";
+    const fs::path dir = fs::path(::testing::TempDir()) / "rtsim_l2misses_cache";
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    EXPECT_EQ(functional_l2_misses_cached(p, 2, 1, "").cache, "off");
+    const FunctionalL2 want = functional_l2_misses(p, 2, 1);
+    auto get = [&](const FrameProfile& q, uint32_t ways = 1) {
+        return functional_l2_misses_cached(q, 2, ways, dir.string());
+    };
+    auto same = [&](const FunctionalL2& f) {
+        return f.unit_capacity_misses == want.unit_capacity_misses && f.misses == want.misses &&
+               f.capacity_misses == want.capacity_misses;
+    };
+    const FunctionalL2 built = get(p);
+    EXPECT_EQ(built.cache, "built");
+    EXPECT_TRUE(same(built));
+    const FunctionalL2 hit = get(p);
+    EXPECT_EQ(hit.cache, "hit");
+    EXPECT_TRUE(same(hit));
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
+    ASSERT_EQ(files.size(), 1u);
+    const fs::path entry = files[0];
+    auto bytes = [](const fs::path& f) {
+        std::ifstream in(f, std::ios::binary);
+        return std::string(std::istreambuf_iterator<char>(in), {});
+    };
+    auto put = [](const fs::path& f, const std::string& s) {
+        std::ofstream(f, std::ios::binary | std::ios::trunc) << s;
+    };
+    const std::string good = bytes(entry);
+    std::string flipped = good;
+    flipped[flipped.size() / 2] ^= 0x10;
+    put(entry, flipped);
+    const FunctionalL2 again = get(p);
+    EXPECT_EQ(again.cache, "rebuilt: checksum mismatch");
+    EXPECT_TRUE(same(again));
+    EXPECT_EQ(bytes(entry), good);  // stored over
+    put(entry, good.substr(0, good.size() / 2));
+    EXPECT_EQ(get(p).cache.rfind("rebuilt: ", 0), 0u);
+    // Another geometry is another entry; another key's entry under this one's name is refused.
+    EXPECT_EQ(get(p, 2).cache, "built");
+    FrameProfile other = p;
+    other.key = "frame b";
+    get(other);
+    std::string foreign;
+    for (const auto& e : fs::directory_iterator(dir))
+        if (bytes(e.path()).find("frame b") != std::string::npos) foreign = bytes(e.path());
+    ASSERT_FALSE(foreign.empty());
+    put(entry, foreign);
+    EXPECT_EQ(get(p).cache, "rebuilt: key mismatch");
+    EXPECT_EQ(get(p).cache, "hit");
+    // The same key over a profile of other units (a stale key): the entry does not fit it.
+    FrameProfile fewer = profile_of({{0, 2}, {0}, {1, 3}});
+    fewer.key = p.key;
+    const FunctionalL2 refit = get(fewer);
+    EXPECT_EQ(refit.cache, "rebuilt: inconsistent contents");
+    EXPECT_EQ(refit.unit_capacity_misses, functional_l2_misses(fewer, 2, 1).unit_capacity_misses);
+    fs::remove_all(dir);
 }
