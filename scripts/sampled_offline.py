@@ -39,11 +39,13 @@ def aux_of(rows):
            for a in AUX]
     # The skip design's fifth auxiliary where the L2 is LRU and no reference design is used: the
     # units' capacity misses as counted functionally, fitted where at least 4 measured units had
-    # some (regression_total below applies that rule to the sample).
+    # some (sample_design below applies that rule to a sample).
     if "functional_capacity_misses" in rows[0]:
         aux.append("functional_capacity_misses")
     return aux
-MIN_UNITS_WITH_CAPACITY_MISSES = 4
+
+
+MIN_UNITS_WITH_CAPACITY_MISSES = 4  # sim/sampler.cpp, report
 MIN_UNITS_PER_AUX = 4  # sim/sampling.cpp: auxiliary k only with 4 k informative units
 MAX_WEIGHT_SHIFT = 10.0
 

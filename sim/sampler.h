@@ -189,12 +189,13 @@ class Sampler {
     void set_profile(const FrameProfile* profile, MemoryPort* l2,
                      const std::string& cache_dir = std::string());
     // Skip design: matched-pair estimates against a reference design's figures in the same
-    // units (sim/reference.h); each figure is regressed on the reference's first.
+    // units (sim/reference.h); each figure is regressed on the reference's first. Before
+    // set_profile (a paired run does not count capacity misses).
     void set_reference(const Reference* reference) { reference_ = reference; }
     // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
     // lines an L1 holds and whether the L1s and the L2 replace the least recently used line
     // (replay_skipped_tiles), and the L2's sets and ways (its misses counted functionally over
-    // the whole frame: sim/functional_l2.h). Before set_reference and set_profile.
+    // the whole frame: sim/functional_l2.h). Before set_profile, as set_reference is.
     void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines,
                          bool l1_lru, bool l2_lru, uint32_t l1_line_bytes, uint64_t l2_sets,
                          uint32_t l2_ways) {
