@@ -825,6 +825,10 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     json sa = stats_of(a), sb = stats_of(b);
     EXPECT_EQ(sa["sampling"]["reference"]["matched_sample"], "ran");
     EXPECT_EQ(sb["sampling"]["reference"]["matched_sample"], "cached");
+    // The reference's units carry its capacity misses: a paired run counts none functionally
+    // (its reference, unpaired, did).
+    EXPECT_FALSE(sa["sampling"].contains("functional_l2"));
+    EXPECT_TRUE(stats_of(ref)["sampling"].contains("functional_l2"));
     for (json* s : {&sa, &sb}) {
         (*s)["sampling"].erase("reference");
         (*s)["sampling"].erase("profile");
