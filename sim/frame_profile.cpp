@@ -95,7 +95,7 @@ using Unusable = CacheEntryUnusable;
 
 std::string serialize(const FrameProfile& p, const std::string& key) {
     CacheEntryWriter w(kMagic);
-    w.vec(std::vector<char>(key.begin(), key.end()));
+    w.key(key);
     w.pod(p.unit_tiles);
     w.pod(p.line_bytes);
     w.pod(p.line_base);
@@ -113,9 +113,7 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
 FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_t tiles) {
     CacheEntryReader r =
         open_cache_entry(bytes, kMagic, "not a frame profile", "checksum mismatch");
-    std::vector<char> stored;
-    r.vec(stored);
-    if (std::string(stored.begin(), stored.end()) != key) throw Unusable{"key mismatch"};
+    r.expect_key(key);
     FrameProfile p;
     p.unit_tiles = r.pod<uint64_t>();
     p.line_bytes = r.pod<uint32_t>();
@@ -155,22 +153,15 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
         (fs::path(dir) /
          fmt::format("profile-{:016x}.bin", fnv1a(kFnvOffset, full_key.data(), full_key.size())))
             .string();
-    std::string outcome = "built";
-    CacheEntryBytes bytes;
-    if (bytes.map(path)) {
-        try {
-            FrameProfile p = deserialize(bytes.view(), full_key, uint64_t(gen.tile_count()));
-            p.cache = "hit";
-            p.key = full_key;
-            p.seconds =
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-            return p;
-        } catch (const Unusable& u) {
-            outcome = "rebuilt: " + u.why;
-        }
-    }
-    FrameProfile p = profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads);
-    store_cache_entry(path, serialize(p, full_key), "frame profile");
+    std::string outcome;
+    FrameProfile p = through_cache_entry(
+        path,
+        [&](std::string_view bytes) {
+            return deserialize(bytes, full_key, uint64_t(gen.tile_count()));
+        },
+        [&] { return profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads); },
+        [&](const FrameProfile& built) { return serialize(built, full_key); }, "frame profile",
+        outcome);
     p.cache = outcome;
     p.key = full_key;
     p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -115,7 +115,7 @@ constexpr char kMagic[8] = {'R', 'T', 'S', 'L', '2', 'M', 'S', '1'};
 
 std::string serialize(const FunctionalL2& f, const std::string& key) {
     CacheEntryWriter w(kMagic);
-    w.vec(std::vector<char>(key.begin(), key.end()));
+    w.key(key);
     w.pod(f.misses);
     w.pod(f.capacity_misses);
     w.vec(f.unit_capacity_misses);
@@ -125,9 +125,7 @@ std::string serialize(const FunctionalL2& f, const std::string& key) {
 FunctionalL2 deserialize(std::string_view bytes, const std::string& key, size_t units) {
     CacheEntryReader r =
         open_cache_entry(bytes, kMagic, "not an L2 miss count", "checksum mismatch");
-    std::vector<char> stored;
-    r.vec(stored);
-    if (std::string(stored.begin(), stored.end()) != key) throw CacheEntryUnusable{"key mismatch"};
+    r.expect_key(key);
     FunctionalL2 f;
     f.misses = r.pod<uint64_t>();
     f.capacity_misses = r.pod<uint64_t>();
@@ -152,21 +150,11 @@ FunctionalL2 functional_l2_misses_cached(const FrameProfile& p, uint64_t sets, u
         (std::filesystem::path(dir) /
          fmt::format("l2misses-{:016x}.bin", fnv1a(kFnvOffset, key.data(), key.size())))
             .string();
-    std::string outcome = "built";
-    CacheEntryBytes bytes;
-    if (bytes.map(path)) {
-        try {
-            FunctionalL2 f = deserialize(bytes.view(), key, p.units.size());
-            f.cache = "hit";
-            f.seconds =
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-            return f;
-        } catch (const CacheEntryUnusable& u) {
-            outcome = "rebuilt: " + u.why;
-        }
-    }
-    FunctionalL2 f = functional_l2_misses(p, sets, ways);
-    store_cache_entry(path, serialize(f, key), "L2 miss count");
+    std::string outcome;
+    FunctionalL2 f = through_cache_entry(
+        path, [&](std::string_view bytes) { return deserialize(bytes, key, p.units.size()); },
+        [&] { return functional_l2_misses(p, sets, ways); },
+        [&](const FunctionalL2& built) { return serialize(built, key); }, "L2 miss count", outcome);
     f.cache = outcome;
     f.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return f;

@@ -33,6 +33,8 @@ class CacheEntryWriter {
         pod(uint64_t(v.size()));
         if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
     }
+    // A text key, stored first: CacheEntryReader::expect_key reads it back.
+    void key(const std::string& k) { vec(std::vector<char>(k.begin(), k.end())); }
     // The entry: the fields written, then their checksum.
     std::string finish();
 
@@ -55,6 +57,14 @@ class CacheEntryReader {
         if (n > uint64_t(end_ - p_) / sizeof(T)) throw CacheEntryUnusable{"truncated"};
         v.resize(size_t(n));
         take(v.data(), size_t(n) * sizeof(T));
+    }
+    // The text key CacheEntryWriter::key stored; throws "key mismatch" if it is not `k` (another
+    // key's entry under this one's name).
+    void expect_key(const std::string& k) {
+        std::vector<char> stored;
+        vec(stored);
+        if (std::string(stored.begin(), stored.end()) != k)
+            throw CacheEntryUnusable{"key mismatch"};
     }
     bool done() const { return p_ == end_; }
 
@@ -109,5 +119,30 @@ class CacheEntryBytes {
     size_t size_ = 0;
     bool mapped_ = false;
 };
+
+// A value through an on-disk cache entry at `path`: `load(bytes)` turns a stored entry into the
+// value (throwing CacheEntryUnusable for one that cannot be used), `build()` makes it afresh and
+// `serialize(value)` makes its entry, stored over the old one (`what` names it in a warning when
+// the folder cannot be written). `outcome` gets "hit", "built" or "rebuilt: why".
+template <class Load, class Build, class Serialize>
+auto through_cache_entry(const std::string& path, Load&& load, Build&& build, Serialize&& serialize,
+                         const char* what, std::string& outcome) -> decltype(build()) {
+    outcome = "built";
+    {
+        CacheEntryBytes bytes;
+        if (bytes.map(path)) {
+            try {
+                auto value = load(bytes.view());
+                outcome = "hit";
+                return value;
+            } catch (const CacheEntryUnusable& u) {
+                outcome = "rebuilt: " + u.why;
+            }
+        }
+    }
+    auto value = build();
+    store_cache_entry(path, serialize(value), what);
+    return value;
+}
 
 }  // namespace rtsim
