@@ -10,6 +10,7 @@
 
 #include "sim/frame_profile.h"
 #include "sim/sampler.h"
+#include "support/file_bytes.h"
 #include "workloads/tile_queue.h"
 #include "workloads/tracer.h"
 
@@ -220,13 +221,8 @@ TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
     for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
     ASSERT_EQ(files.size(), 1u);
     const fs::path entry = files[0];
-    auto bytes = [](const fs::path& p) {
-        std::ifstream in(p, std::ios::binary);
-        return std::string(std::istreambuf_iterator<char>(in), {});
-    };
-    auto put = [](const fs::path& p, const std::string& s) {
-        std::ofstream(p, std::ios::binary | std::ios::trunc) << s;
-    };
+    auto bytes = [](const fs::path& f) { return test::read_file_bytes(f); };
+    auto put = [](const fs::path& f, const std::string& s) { test::write_file_bytes(f, s); };
     const std::string good = bytes(entry);
     std::string flipped = good;
     flipped[flipped.size() / 2] ^= 0x10;

@@ -10,6 +10,7 @@
 #include "../models/fixed_memory.h"
 #include "models/cache.h"
 #include "sim/functional_l2.h"
+#include "support/file_bytes.h"
 
 using namespace rtsim;
 namespace fs = std::filesystem;
@@ -143,13 +144,8 @@ TEST(FunctionalL2, CacheServesValidEntriesAndRefusesDamagedOnes) {
     for (const auto& e : fs::directory_iterator(dir)) files.push_back(e.path());
     ASSERT_EQ(files.size(), 1u);
     const fs::path entry = files[0];
-    auto bytes = [](const fs::path& f) {
-        std::ifstream in(f, std::ios::binary);
-        return std::string(std::istreambuf_iterator<char>(in), {});
-    };
-    auto put = [](const fs::path& f, const std::string& s) {
-        std::ofstream(f, std::ios::binary | std::ios::trunc) << s;
-    };
+    auto bytes = [](const fs::path& f) { return test::read_file_bytes(f); };
+    auto put = [](const fs::path& f, const std::string& s) { test::write_file_bytes(f, s); };
     const std::string good = bytes(entry);
     std::string flipped = good;
     flipped[flipped.size() / 2] ^= 0x10;

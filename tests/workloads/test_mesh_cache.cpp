@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "support/file_bytes.h"
 #include "support/scratch_dir.h"
 #include "workloads/mesh_cache.h"
 
@@ -31,15 +32,8 @@ void write_obj(const fs::path& path, float x) {
         << "f 1 2 3\nf 1 3 4\nf 5 2 3\n";
 }
 
-std::string read_all(const fs::path& p) {
-    std::ifstream in(p, std::ios::binary);
-    return std::string(std::istreambuf_iterator<char>(in), {});
-}
-
-void write_all(const fs::path& p, const std::string& bytes) {
-    std::ofstream(p, std::ios::binary | std::ios::trunc)
-        .write(bytes.data(), std::streamsize(bytes.size()));
-}
+using test::read_file_bytes;
+using test::write_file_bytes;
 
 fs::path only_entry(const fs::path& dir) {
     fs::path found;
@@ -115,14 +109,14 @@ TEST(MeshCache, DamagedOrInconsistentEntriesAreReadAgain) {
     MeshCacheStatus st;
     load_scene_cached(obj.string(), cache.string(), &st);
     const fs::path entry = only_entry(cache);
-    const std::string good = read_all(entry);
+    const std::string good = read_file_bytes(entry);
 
     auto reload = [&](const std::string& bytes) {
-        write_all(entry, bytes);
+        write_file_bytes(entry, bytes);
         const Scene s = load_scene_cached(obj.string(), cache.string(), &st);
         expect_same_scene(s, parsed);
         // Stored over: the next load hits.
-        EXPECT_EQ(read_all(entry), good);
+        EXPECT_EQ(read_file_bytes(entry), good);
         return st.outcome;
     };
     std::string flipped = good;
