@@ -373,7 +373,8 @@ json estimate_json(const Estimate& e, double scale, double offset) {
             {"half_width_pct", v != 0 ? 100.0 * hw / std::abs(v) : 0.0}};
 }
 
-json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
+json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
+                                const Auxiliary& capacity, uint64_t units,
                                 JointEstimates& joint) const {
     // Counters that move by a known amount per first fill of a BVH line in the L2 (its
     // compulsory misses, the most of a frame's DRAM traffic). The frame's first fills are its
@@ -401,13 +402,7 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills, 
     // measured units' functional capacity misses taken off their change with their first fills.
     // The regression on work alone left Cornell diffuse frames' DRAM bytes 5.7% off at 1 in 20
     // (sampled_estimators.md, section 13).
-    std::vector<double> capacity(first_fills.size(), 0.0);
-    double frame_capacity = 0;
-    if (!functional_l2_.unit_capacity_misses.empty()) {
-        for (size_t u = 0; u < capacity.size(); ++u)
-            capacity[u] = double(functional_l2_.unit_capacity_misses[unit_index_[u]]);
-        frame_capacity = double(functional_l2_.capacity_misses);
-    }
+    const double frame_capacity = capacity.x.empty() ? 0.0 : capacity.total;
     json counters = json::object();
     const auto& e = counters_.entries();
     for (size_t c = 0; c < e.size(); ++c) {
@@ -433,7 +428,7 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills, 
         const bool with_capacity = known->capacity && frame_capacity > 0;
         std::vector<double> rest(deltas_[c].size());
         for (size_t u = 0; u < rest.size(); ++u)
-            rest[u] = deltas_[c][u] - k * (first_fills[u] + (with_capacity ? capacity[u] : 0.0));
+            rest[u] = deltas_[c][u] - k * (first_fills[u] + (with_capacity ? capacity.x[u] : 0.0));
         Estimate est = total(rest, column, k);
         // Rare events (a capacity miss in a frame that nearly fits the L2) leave a sample that
         // saw none with no spread to show: the half-width is at least the rule of three's
@@ -519,6 +514,9 @@ json Sampler::report(Cycle end_cycle) {
     }
     const double frame_new_lines = aux[kNewLines].total;
     out["new_lines"] = frame_new_lines;
+    // Skip design, LRU L2: the measured units' capacity misses as counted functionally and the
+    // frame's (no unit's otherwise).
+    Auxiliary capacity;
     if (skip) {
         // The regression takes the rays that fetched the units' new lines in place of the new
         // lines themselves: the residual over every unit of a 1080p frame fell from 41.5% to
@@ -538,15 +536,14 @@ json Sampler::report(Cycle end_cycle) {
         // of 1 (a 96x96 bunny frame with 23 capacity misses left the jackknife without
         // replicates).
         if (!functional_l2_.unit_capacity_misses.empty()) {
-            Auxiliary c;
-            c.x.resize(cycles_.size());
+            capacity.x.resize(cycles_.size());
             for (size_t i = 0; i < cycles_.size(); ++i)
-                c.x[i] = double(functional_l2_.unit_capacity_misses[unit_index_[i]]);
-            c.total = double(functional_l2_.capacity_misses);
+                capacity.x[i] = double(functional_l2_.unit_capacity_misses[unit_index_[i]]);
+            capacity.total = double(functional_l2_.capacity_misses);
             constexpr long kMinUnitsWithCapacityMisses = 4;
-            if (std::count_if(c.x.begin(), c.x.end(), [](double x) { return x > 0; }) >=
-                kMinUnitsWithCapacityMisses)
-                aux.push_back(std::move(c));
+            if (std::count_if(capacity.x.begin(), capacity.x.end(),
+                              [](double x) { return x > 0; }) >= kMinUnitsWithCapacityMisses)
+                aux.push_back(capacity);
             out["functional_l2"] = {{"misses", functional_l2_.misses},
                                     {"capacity_misses", functional_l2_.capacity_misses}};
         }
@@ -606,7 +603,7 @@ json Sampler::report(Cycle end_cycle) {
     for (double& r : cycles.replicates) r += drain;
     joint.add("cycles", std::move(cycles));
     out["counters"] = counter_estimates(
-        total, skip ? frame_new_lines : double(total_aux_[kNewLines]), units, joint);
+        total, skip ? frame_new_lines : double(total_aux_[kNewLines]), capacity, units, joint);
     std::array<double, kAuxiliaries> frame{};
     for (size_t k = 0; k < kAuxiliaries; ++k)
         frame[k] = skip ? aux[k].total : double(total_aux_[k]);

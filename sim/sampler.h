@@ -268,12 +268,14 @@ class Sampler {
     void close_unit(const Aux& aux, Cycle end);
     // Every counter that moved in a measured unit, its total estimated by `total`; those that
     // follow the L2's first fills, from the frame's first fills (its distinct lines) and the
-    // rest. `units`: in the frame.
+    // rest (less the measured units' `capacity` misses, and plus the frame's, where they were
+    // counted functionally: capacity.x empty otherwise). `units`: in the frame.
     // `total(y, column, per_fill)`: the total of y, the change of the counter summed into
     // sampled_units.csv's `column`, less per_fill times the unit's L2 first fills.
     using TotalFn = std::function<Estimate(const std::vector<double>&, const std::string&, double)>;
     // Each counter's estimate as stats.json holds it, also added to `joint`.
-    nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills, uint64_t units,
+    nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills,
+                                     const Auxiliary& capacity, uint64_t units,
                                      JointEstimates& joint) const;
     // Counters the functional tracer knows the frame's total of (box and triangle operations,
     // L1 accesses and bytes requested), calibrated to it in `joint` and `counters` (stats.json's)
