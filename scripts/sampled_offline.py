@@ -12,6 +12,11 @@ truth; against it:
       sim/sampling.cpp (re-implemented here, independently), seed after seed: the sample's own
       error, mean absolute and signed, and the intervals' coverage, with no simulation error.
       Also the residual of the regression fitted on every unit, over the mean unit's cycles.
+      --reference REF.csv pairs it with a reference design's per-unit truth of the same frame
+      (rtsim run --reference: the reference's cycles in each unit are fitted first, and the
+      functional capacity misses are not), and cuts the strata from the units in order of the
+      reference's cycles, as rtsim does (--frame-order: from the frame's neighbouring units);
+      --order-by RUN.csv cuts them in order of that table's cycles (rtsim run --sample-order).
 
   compare TRUTH.csv RUN_DIR [RUN_DIR ...]
       for each sampled run, its measured units' cycles and counters against the same units in
@@ -171,14 +176,13 @@ def stratified_pick(N, P, seed):
     return [s * P + rng.randrange(min(P, N - s * P)) for s in range((N + P - 1) // P)]
 
 
-def population_residual_pct(rows):
-    """Residual standard deviation of the four auxiliaries' fit over every unit, over the mean
-    unit's cycles: what no sample of these auxiliaries can explain."""
-    aux = aux_of(rows)
+def population_residual_pct(rows, aux):
+    """Residual standard deviation of the auxiliaries' fit over every unit, over the mean unit's
+    cycles: what no sample of these auxiliaries can explain."""
     n, K = len(rows), len(aux)
     X = [[r[a] for r in rows] for a in aux]
     y = [r["cycles"] for r in rows]
-    w = [1 / r["work"] if r["work"] > 0 else 1 for r in rows]
+    w = [1 / r[aux[0]] if r[aux[0]] > 0 else 1 for r in rows]
     m = [[sum(w[i] * X[a][i] * X[b][i] for i in range(n)) for b in range(K)] for a in range(K)]
     v = [sum(w[i] * X[a][i] * y[i] for i in range(n)) for a in range(K)]
     c = solve(m, v)
@@ -186,18 +190,39 @@ def population_residual_pct(rows):
     return statistics.stdev(e) / (sum(y) / n) * 100
 
 
+def cycles_by_unit(path, n):
+    """A per-unit table's cycles, indexed by unit (every unit of a frame of n units)."""
+    rows = load(path)
+    by_unit = {int(r["unit"]): r["cycles"] for r in rows}
+    if sorted(by_unit) != list(range(n)):
+        sys.exit(f"sampled_offline: {path}: not the {n} units of the truth's frame")
+    return [by_unit[u] for u in range(n)]
+
+
 def resample(args):
-    rows = load(args.truth)
+    rows = sorted(load(args.truth), key=lambda r: r["unit"])
     N = len(rows)
     truth = sum(r["cycles"] for r in rows)
     aux = aux_of(rows)
+    order = list(range(N))  # the units the strata are cut from, in turn
+    if args.reference:
+        # A paired run fits the reference's cycles first; its units carry their capacity misses.
+        ref = cycles_by_unit(args.reference, N)
+        for r, c in zip(rows, ref):
+            r["reference_cycles"] = c
+        aux = ["reference_cycles"] + [a for a in aux if a != "functional_capacity_misses"]
+        if not args.frame_order:
+            order = sorted(range(N), key=lambda u: (ref[u], u))
+    if args.order_by:
+        by = cycles_by_unit(args.order_by, N)
+        order = sorted(range(N), key=lambda u: (by[u], u))
     totals = [sum(r[a] for r in rows) for a in aux]
     print(f"{args.truth}: {N} units, {sum(r['rays'] > 0 for r in rows)} with rays; residual of "
-          f"the fit over every unit {population_residual_pct(rows):.1f}% of the mean unit")
+          f"the fit over every unit {population_residual_pct(rows, aux):.1f}% of the mean unit")
     for P in [int(p) for p in args.periods.split(",")]:
         errs, hws, covered = [], [], 0
         for seed in range(1, args.seeds + 1):
-            idx = stratified_pick(N, P, seed)
+            idx = [order[k] for k in stratified_pick(N, P, seed)]
             X, Xt = sample_design([rows[i] for i in idx], aux, totals)
             T, hw = regression_total([rows[i]["cycles"] for i in idx], X, Xt, N)
             errs.append((T - truth) / truth * 100)
@@ -248,13 +273,19 @@ def main(argv=None):
     r.add_argument("truth")
     r.add_argument("--periods", default="10,20,100")
     r.add_argument("--seeds", type=int, default=200)
+    r.add_argument("--reference", help="a reference design's sampled_units.csv of every unit")
+    r.add_argument("--frame-order", action="store_true",
+                   help="with --reference: strata of neighbouring units, not by its cycles")
+    r.add_argument("--order-by", help="strata cut from the units in order of this table's cycles")
     c = sub.add_parser("compare")
     c.add_argument("truth")
     c.add_argument("runs", nargs="+")
     c.add_argument("--columns", default="cycles,l1.misses,l2.misses")
     args = ap.parse_args(argv)
-    need = [args.truth] + [p for d in getattr(args, "runs", []) for p in
-                           (os.path.join(d, "sampled_units.csv"), os.path.join(d, "stats.json"))]
+    need = [args.truth] + [p for p in (getattr(args, "reference", None),
+                                       getattr(args, "order_by", None)) if p]
+    need += [p for d in getattr(args, "runs", []) for p in
+             (os.path.join(d, "sampled_units.csv"), os.path.join(d, "stats.json"))]
     if args.cmd == "compare":
         need.append(os.path.join(os.path.dirname(args.truth), "stats.json"))
     for p in need:

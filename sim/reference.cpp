@@ -6,12 +6,15 @@
 #include <unistd.h>
 #include <xxhash.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include "sim/bound.h"
 #include "workloads/error.h"
@@ -67,6 +70,108 @@ UnitTable parse_units_csv(const std::string& text, const std::string& path) {
     return t;
 }
 
+namespace {
+
+const char* const kReferenceRunHow =
+    "the output folder of a run of the frame with --set sim.fidelity=sampled --set "
+    "sim.sample_fast_forward=skip --set sim.sample_period_units=1, which measures every unit";
+
+// stats.json of `dir`, which must be a skip run that measured every unit.
+json every_unit_run(const fs::path& dir, const std::string& where) {
+    json ref =
+        json::parse(read_file_text((dir / "stats.json").string()).value_or(""), nullptr, false);
+    if (ref.is_discarded() || !ref.is_object())
+        throw InputError(fmt::format("{}: no readable stats.json ({})", where, kReferenceRunHow));
+    const json& sm = ref.value("sampling", json::object());
+    if (sm.value("fast_forward", "") != "skip" || sm.value("period_units", 0) != 1)
+        throw InputError(fmt::format("{}: not a run that measured every unit of the frame ({})",
+                                     where, kReferenceRunHow));
+    return ref;
+}
+
+void same_unit_size(const json& stats, uint64_t unit_tiles, const std::string& where) {
+    const uint64_t theirs = stats["sampling"].value("unit_tiles", uint64_t(0));
+    if (theirs != unit_tiles)
+        throw InputError(fmt::format(
+            "{}: its units are {} tiles, this run's {} (sim.sample_unit_tiles must match)", where,
+            theirs, unit_tiles));
+}
+
+// The units of the every-unit run in `dir` (its stats.json `stats`) by their cycles.
+std::vector<uint32_t> units_by_cycles(const json& stats, const std::string& dir) {
+    const uint64_t units = stats["sampling"].value("units", uint64_t(0));
+    const std::string path = (fs::path(dir) / "sampled_units.csv").string();
+    const std::optional<std::string> text = read_file_text(path);
+    if (!text)
+        throw InputError(
+            fmt::format("{}: cannot be read (a run that measured every unit writes it)", path));
+    const std::string& t = *text;
+    // Two columns of a table of every unit's counters (1.5 MB for a 1080p frame): a line is
+    // scanned to its cycles field, not parsed whole.
+    const size_t header_end = std::min(t.find('\n'), t.size());
+    size_t cycles_col = 0, col = 0;
+    bool found = false;
+    for (size_t a = 0; a <= header_end && !found; ++col) {
+        const size_t b = std::min(t.find(',', a), header_end);
+        found = t.compare(a, b - a, "cycles") == 0;
+        cycles_col = col;
+        a = b + 1;
+    }
+    if (t.compare(0, 5, "unit,") != 0 || !found)
+        throw InputError(fmt::format("{}: not a sampled_units.csv with a cycles column", path));
+    std::vector<std::pair<double, uint32_t>> by_cycles;
+    by_cycles.reserve(units);
+    std::vector<uint8_t> seen(units, 0);
+    size_t row = 1;
+    for (size_t pos = header_end + 1; pos < t.size(); ++row) {
+        const size_t end = std::min(t.find('\n', pos), t.size());
+        if (end == pos) {
+            pos = end + 1;
+            continue;
+        }
+        double unit = -1, cycles = -1;
+        size_t a = pos;
+        for (size_t c = 0; c <= cycles_col && a <= end; ++c) {
+            const size_t b = std::min(t.find(',', a), end);
+            if (c == 0 || c == cycles_col) {
+                double v = 0;
+                const auto r = std::from_chars(t.data() + a, t.data() + b, v);
+                if (a == b || r.ec != std::errc() || r.ptr != t.data() + b || !std::isfinite(v))
+                    throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, row + 1,
+                                                 t.substr(a, b - a)));
+                (c == 0 ? unit : cycles) = v;
+            }
+            a = b + 1;
+        }
+        if (cycles < 0)
+            throw InputError(fmt::format("{}: line {}: no cycles field", path, row + 1));
+        if (!(unit >= 0 && unit < double(units)) || unit != std::floor(unit) || seen[size_t(unit)])
+            throw InputError(fmt::format(
+                "{}: line {}: unit {} is not one of the frame's {} units, or comes twice", path,
+                row + 1, unit, units));
+        seen[size_t(unit)] = 1;
+        by_cycles.emplace_back(cycles, uint32_t(unit));
+        pos = end + 1;
+    }
+    if (by_cycles.size() != units)
+        throw InputError(fmt::format("{}: {} units listed, its stats.json counts {}", path,
+                                     by_cycles.size(), units));
+    std::sort(by_cycles.begin(), by_cycles.end());
+    std::vector<uint32_t> order(units);
+    for (size_t k = 0; k < units; ++k) order[k] = by_cycles[k].second;
+    return order;
+}
+
+}  // namespace
+
+std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
+                                      uint64_t unit_tiles) {
+    const std::string where = what + " " + dir;
+    const json stats = every_unit_run(dir, where);
+    same_unit_size(stats, unit_tiles, where);
+    return units_by_cycles(stats, dir);
+}
+
 std::string summed_counter_name(std::string name) {
     const size_t open = name.find('['), close = name.find(']');
     if (open != std::string::npos && close != std::string::npos && close > open)
@@ -117,25 +222,12 @@ class PlanLock {
 }  // namespace
 
 Reference load_reference(const RunOptions& opt, const Config& cfg, const json& meta,
-                         const FrameProfile& profile, const SamplingParams& sp) {
+                         const FrameProfile& profile, SamplingParams& sp) {
     const fs::path dir = opt.reference_dir;
     const std::string where = "--reference " + opt.reference_dir;
-    const std::string how =
-        "a reference is the output folder of a run of the reference design on the same frame "
-        "with --set sim.fidelity=sampled --set sim.sample_fast_forward=skip --set "
-        "sim.sample_period_units=1";
-    const json ref =
-        json::parse(read_file_text((dir / "stats.json").string()).value_or(""), nullptr, false);
-    if (ref.is_discarded() || !ref.is_object())
-        throw InputError(fmt::format("{}: no readable stats.json ({})", where, how));
-    const json& sm = ref.value("sampling", json::object());
-    if (sm.value("fast_forward", "") != "skip" || sm.value("period_units", 0) != 1)
-        throw InputError(
-            fmt::format("{}: not a run that measured every unit of the frame ({})", where, how));
-    if (sm.value("unit_tiles", uint64_t(0)) != sp.unit_tiles)
-        throw InputError(fmt::format(
-            "{}: its units are {} tiles, this run's {} (sim.sample_unit_tiles must match)", where,
-            sm.value("unit_tiles", uint64_t(0)), sp.unit_tiles));
+    const json ref = every_unit_run(dir, where);
+    const json& sm = ref["sampling"];
+    same_unit_size(ref, sp.unit_tiles, where);
     for (const char* section : {"workload", "scene"}) {
         const json mine = section == std::string("scene") ? meta["scene"]["hash"] : meta[section];
         const json theirs = section == std::string("scene")
@@ -163,6 +255,12 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
             "{})",
             where, sm.value("units", uint64_t(0)), sm.value("total_rays", 0.0),
             sm.value("new_lines", 0.0), profile.units.size(), rays, new_lines));
+    // This frame's units: their order by the reference's cycles cuts the strata, unless the run
+    // was given another.
+    if (sp.unit_order.empty()) {
+        sp.unit_order = units_by_cycles(ref, opt.reference_dir);
+        sp.unit_order_of = opt.reference_dir;
+    }
     Reference r;
     r.dir = opt.reference_dir;
     // Every unit measured: the frame's counters are the units' sums, like blocks summed as in
@@ -182,8 +280,14 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         if (k.rfind("sample_", 0) == 0 || k == "fidelity") ref_cfg["sim"][k] = v;
     ref_cfg["sim"]["sample_period_units"] = sp.period_units;
     ref_cfg["sim"]["sample_seed"] = sp.seed;
-    const std::string plan = fmt::format("{} {} {} {}", RTSIM_VERSION, ref.value("config_hash", ""),
-                                         ref_cfg["sim"].dump(), meta["workload"].dump());
+    // The order the strata were cut from is the plan's too.
+    const uint64_t order_hash =
+        sp.unit_order.empty()
+            ? 0
+            : uint64_t(XXH3_64bits(sp.unit_order.data(), sp.unit_order.size() * sizeof(uint32_t)));
+    const std::string plan =
+        fmt::format("{} {} {} {} order={:016x}", RTSIM_VERSION, ref.value("config_hash", ""),
+                    ref_cfg["sim"].dump(), meta["workload"].dump(), order_hash);
     const std::string stem =
         fmt::format("matched-{:016x}", uint64_t(XXH3_64bits(plan.data(), plan.size())));
     const fs::path cached = dir / (stem + ".csv"), cached_drain = dir / (stem + ".json");
@@ -199,8 +303,9 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
                               ? read_file_text(cached.string()).value_or("")
                               : std::string();
     const bool hit = !matched.empty();
-    double child_s = 0;
+    double child_s = 0;  // the whole child: a sweep's later points with this plan do not pay it
     if (!hit) {
+        const auto child_start = std::chrono::steady_clock::now();
         char tmpl[] = "/tmp/rtsim-reference-XXXXXX.json";
         const int fd = mkstemps(tmpl, 5);
         if (fd < 0) throw std::runtime_error(where + ": cannot write a temporary config");
@@ -220,6 +325,9 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
             opt.argv, {"--bound", "--quiet", "-q"},
             {"--out", "-o", "--target-error", "--config", "--reference", "--mem-trace", "--set"});
         args.insert(args.begin() + (args.empty() ? 0 : 1), {"--config", tmpl});
+        // Its units ordered as this run's were: by this reference's cycles unless said otherwise.
+        if (opt.sample_order_dir.empty() && !sp.unit_order.empty())
+            args.insert(args.end(), {"--sample-order", r.dir});
         json child;
         try {
             const std::string what = fmt::format(
@@ -230,7 +338,6 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
             throw;
         }
         fs::remove(tmpl);
-        child_s = child["host"].value("run_time_s", 0.0);
         r.drain_matched_cycles = child["sampling"].value("drain_cycles", 0.0);
         // Kept for the next run with this plan (a sweep's other points); written whole or not
         // at all, and a folder that cannot take it (read-only) only costs the next run a child.
@@ -240,6 +347,11 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
             write_file_atomically(cached.string(), matched);
         } catch (const std::exception&) {
         }
+        // Process start, its run, its report and outputs, and keeping the table: the child's
+        // own run_time_s left out about a sixth of it (1080p bunny primary at 1 in 50: 97 ms of
+        // 114).
+        child_s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - child_start).count();
     } else {
         r.drain_matched_cycles = drain["drain_cycles"].get<double>();
     }

@@ -42,6 +42,14 @@ struct UnitTable {
 // Parses sampled_units.csv text; `path` names it in errors (InputError).
 UnitTable parse_units_csv(const std::string& text, const std::string& path);
 
+// The units of the run in folder `dir` (one that measured every unit: --set
+// sim.sample_period_units=1 in the skip design), in order of their cycles (ties by unit), for
+// SamplingParams::unit_order. `what` names the option in errors (InputError: not such a run, or a
+// damaged table).
+// `unit_tiles`: this run's unit size, which the run in `dir` must share.
+std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
+                                      uint64_t unit_tiles);
+
 // A counter's column in sampled_units.csv: like blocks summed ("core[3].rays" -> "core.rays").
 std::string summed_counter_name(std::string name);
 
@@ -66,8 +74,9 @@ struct Reference {
 // Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json
 // sections `meta`, its frame `profile`, its plan `sp`), running the reference design's matched
 // sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
-// for this frame and unit size.
+// for this frame and unit size. Without an order of its own (--sample-order), `sp`'s strata are
+// cut from the units in order of the reference's cycles (read_unit_order), before the plan is.
 Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
-                         const FrameProfile& profile, const SamplingParams& sp);
+                         const FrameProfile& profile, SamplingParams& sp);
 
 }  // namespace rtsim

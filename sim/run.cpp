@@ -76,6 +76,7 @@ struct Workload {
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
     std::unique_ptr<FrameProfile> profile;  // a sampled run's skip design
+    std::unique_ptr<Reference> reference;   // --reference
     std::string cache_dir;                  // meshes, BVHs, profiles (empty: none)
     const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
 };
@@ -151,6 +152,21 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
         sampling->tiles = uint64_t(w.gen->tile_count());
         sampling->tile_rays = w.profile->tile_rays;
+        // The order strata are cut from, before the design is made: another run's units by their
+        // cycles, or (a paired run) the reference's, once it is known to be this frame's.
+        if (!opt.sample_order_dir.empty()) {
+            sampling->unit_order =
+                read_unit_order(opt.sample_order_dir, "--sample-order", sampling->unit_tiles);
+            sampling->unit_order_of = opt.sample_order_dir;
+            if (sampling->unit_order.size() != w.profile->units.size())
+                throw InputError(fmt::format(
+                    "--sample-order {}: its run has {} units, this frame {} (a run of a frame of "
+                    "the same size)",
+                    opt.sample_order_dir, sampling->unit_order.size(), w.profile->units.size()));
+        }
+        if (!opt.reference_dir.empty())
+            w.reference = std::make_unique<Reference>(
+                load_reference(opt, cfg, w.meta, *w.profile, *sampling));
         want_tile = [design = SampleDesign(*sampling)](int tile) {
             return design.wants_tile(uint64_t(tile));
         };
@@ -265,6 +281,11 @@ int run_command(const RunOptions& opt) {
             "--reference {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (the "
             "reference's units are groups of tiles)",
             opt.reference_dir));
+    if (!opt.sample_order_dir.empty() && (!sampled || cfg.typed.sim.sample_fast_forward != "skip"))
+        throw InputError(fmt::format(
+            "--sample-order {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (it "
+            "orders units of tiles)",
+            opt.sample_order_dir));
     SamplingParams sp;
     json plan;  // --target-error: the pilot and the period it chose
     if (sampled) {
@@ -274,9 +295,7 @@ int run_command(const RunOptions& opt) {
     }
     const auto t_prepare = Clock::now();
     Workload w = prepare_workload(opt, cfg, progress, sampled ? &sp : nullptr);
-    std::unique_ptr<Reference> reference;
-    if (!opt.reference_dir.empty())
-        reference = std::make_unique<Reference>(load_reference(opt, cfg, w.meta, *w.profile, sp));
+    const std::unique_ptr<Reference>& reference = w.reference;
     // After the workload: a scene or trace refused (or a reader stopped by its watchdog) leaves
     // no output folder behind.
     const std::string out_dir = make_out_dir(opt);

@@ -23,6 +23,17 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
                       ? uint64_t(params_.first_unit) % params_.period_units
                       : std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
     if (!params_.skip || params_.tiles == 0) return;
+    if (!params_.unit_order.empty()) {
+        if (params_.unit_order.size() != units())
+            throw std::invalid_argument("SampleDesign: unit_order does not list the frame's units");
+        rank_.assign(units(), ~uint32_t(0));
+        for (size_t k = 0; k < params_.unit_order.size(); ++k) {
+            const uint32_t u = params_.unit_order[k];
+            if (u >= rank_.size() || rank_[u] != ~uint32_t(0))
+                throw std::invalid_argument("SampleDesign: unit_order is not a permutation");
+            rank_[u] = uint32_t(k);
+        }
+    }
     // Every tile's role, strongest first: a measured unit's tiles, the tile whose first ray
     // closes it, then going back from each measured unit its detailed warm-up (warmup_tiles,
     // and on until it holds warmup_tile_rays rays when tile_rays is known) and before that the
@@ -87,8 +98,14 @@ uint64_t SampleDesign::pick(uint64_t stratum) const {
 }
 
 bool SampleDesign::measured_unit(uint64_t unit) const {
-    return unit % params_.period_units ==
-           (params_.stratified ? pick(unit / params_.period_units) : first_unit_);
+    const uint64_t k = rank_.empty() || unit >= rank_.size() ? unit : rank_[unit];
+    return k % params_.period_units ==
+           (params_.stratified ? pick(k / params_.period_units) : first_unit_);
+}
+
+uint64_t SampleDesign::first_unit() const {
+    const uint64_t k = params_.stratified ? pick(0) : first_unit_;
+    return rank_.empty() || k >= params_.unit_order.size() ? k : params_.unit_order[k];
 }
 
 SampleDesign::TileRole SampleDesign::tile_role(uint64_t tile) const {
@@ -454,7 +471,7 @@ json Sampler::report(Cycle end_cycle) {
     if (skip) add_rayless_units(units);
     json out = {{"period_units", params_.period_units},
                 {"design", params_.stratified ? "stratified" : "systematic"},
-                {"first_unit", params_.stratified ? design_.pick(0) : design_.first_unit()},
+                {"first_unit", design_.first_unit()},
                 {"units", units},
                 {"units_measured", cycles_.size()},
                 {"rays_detailed", detailed_},
@@ -468,6 +485,9 @@ json Sampler::report(Cycle end_cycle) {
                     {"tiles", params_.tiles},
                     {"tiles_traced", tiles_traced_},
                     {"rays_traced", index_}});
+        out["order"] = params_.unit_order.empty()
+                           ? json("frame")
+                           : json({{"by", "cycles"}, {"of", params_.unit_order_of}});
     } else {
         out.update({{"unit_rays", params_.unit_rays},
                     {"warmup_rays", params_.warmup_rays},

@@ -70,6 +70,12 @@ struct SamplingParams {
     // until it holds warmup_tile_rays rays: the slots hold the last rays before the unit whatever
     // tiles they came from, and background tiles bring none.
     std::vector<uint32_t> tile_rays;
+    // Skip design: the frame's units in the order the strata are cut from (empty: the frame's
+    // own order, so a stratum is period_units neighbouring units). Units sorted by what they
+    // cost in a run that measured every unit (--sample-order; a paired run's reference) put
+    // like units in a stratum: bench/results/sampled_estimators.md, section 14.
+    std::vector<uint32_t> unit_order;
+    std::string unit_order_of;  // the run whose units' cycles gave unit_order (reported)
 };
 
 // An estimate as stats.json holds it ({value, lo, hi, half_width_pct}), scaled by `scale` and
@@ -82,7 +88,8 @@ class SampleDesign {
   public:
     explicit SampleDesign(const SamplingParams& params);
     bool measured_unit(uint64_t unit) const;
-    uint64_t first_unit() const { return first_unit_; }
+    // The unit measured first in the order strata are cut from.
+    uint64_t first_unit() const;
     // Stratified design: the unit measured in stratum k (a hash of the seed and k).
     uint64_t pick(uint64_t stratum) const;
     // Skip design: what becomes of tile t.
@@ -104,6 +111,7 @@ class SampleDesign {
   private:
     SamplingParams params_;
     uint64_t first_unit_ = 0;
+    std::vector<uint32_t> rank_;   // per unit, its place in params_.unit_order (empty: itself)
     std::vector<TileRole> roles_;  // skip design: every tile's, worked out once
 };
 

@@ -893,35 +893,132 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
 
 // Another design paired with the reference: the run's units and the reference's are the same,
 // and the interval on the frame's cycles is narrower than the same sample's without the pair
-// and still holds the full run's (unit latencies doubled; checked on this seed).
+// (the same units, by --sample-order) and still holds the full run's (unit latencies doubled;
+// checked on these three seeds).
 TEST(Sampled, ReferenceNarrowsTheIntervalOfANearDesign) {
     const fs::path ref = make_reference("near_ref");
     const std::string design =
         "--set box_unit.latency_cycles=16 --set triangle_unit.latency_cycles=36 ";
     const fs::path full = make_reference("near_full", design);
-    const fs::path alone = work_dir() / "near_alone", paired = work_dir() / "near_paired";
-    const std::string sampled = kPairFrame + design + "--set sim.sample_period_units=4 ";
-    ASSERT_EQ(run_rtsim(sampled + "-o '" + alone.string() + "'").status, 0);
-    const Result r =
-        run_rtsim(sampled + "--reference '" + ref.string() + "' -o '" + paired.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    const json sa = stats_of(alone)["sampling"], sp = stats_of(paired)["sampling"];
     const double truth = stats_of(full)["total_cycles"].get<double>();
-    const json& c = sp["total_cycles"];
-    EXPECT_LT(c["half_width_pct"].get<double>(),
-              0.5 * sa["total_cycles"]["half_width_pct"].get<double>());
-    EXPECT_LE(c["lo"].get<double>(), truth);
-    EXPECT_GE(c["hi"].get<double>(), truth);
-    const UnitsCsv mine = read_units_csv(paired / "sampled_units.csv");
-    bool found = false;
-    for (const auto& f : fs::directory_iterator(ref)) {
-        if (f.path().filename().string().rfind("matched-", 0) != 0 ||
-            f.path().extension() != ".csv")
-            continue;
-        found = true;
-        EXPECT_EQ(read_units_csv(f.path()).cols["unit"], mine.cols.at("unit"));
+    double ratios = 0;
+    for (int seed = 1; seed <= 3; ++seed) {
+        const fs::path alone = work_dir() / ("near_alone" + std::to_string(seed)),
+                       paired = work_dir() / ("near_paired" + std::to_string(seed));
+        const std::string sampled =
+            kPairFrame + design +
+            "--set sim.sample_period_units=4 --set sim.sample_seed=" + std::to_string(seed) + " ";
+        ASSERT_EQ(
+            run_rtsim(sampled + "--sample-order '" + ref.string() + "' -o '" + alone.string() + "'")
+                .status,
+            0);
+        const Result r =
+            run_rtsim(sampled + "--reference '" + ref.string() + "' -o '" + paired.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        const json sa = stats_of(alone)["sampling"], sp = stats_of(paired)["sampling"];
+        const json& c = sp["total_cycles"];
+        EXPECT_LT(c["half_width_pct"].get<double>(),
+                  sa["total_cycles"]["half_width_pct"].get<double>())
+            << seed;
+        ratios +=
+            c["half_width_pct"].get<double>() / sa["total_cycles"]["half_width_pct"].get<double>();
+        EXPECT_LE(c["lo"].get<double>(), truth) << seed;
+        EXPECT_GE(c["hi"].get<double>(), truth) << seed;
+        const UnitsCsv mine = read_units_csv(paired / "sampled_units.csv");
+        EXPECT_EQ(read_units_csv(alone / "sampled_units.csv").cols.at("unit"),
+                  mine.cols.at("unit"));
+        bool found = false;
+        for (const auto& f : fs::directory_iterator(ref)) {
+            if (f.path().filename().string().rfind("matched-", 0) != 0 ||
+                f.path().extension() != ".csv")
+                continue;
+            const auto units = read_units_csv(f.path()).cols.at("unit");
+            found |= units == mine.cols.at("unit");
+        }
+        EXPECT_TRUE(found) << seed;
     }
-    EXPECT_TRUE(found);
+    EXPECT_LT(ratios / 3, 0.5);
+}
+
+// A paired run cuts its strata from the units in order of the reference's cycles: ordered here
+// from the reference's sampled_units.csv (ties by unit), each run of 4 units of that order holds
+// one measured unit. An unpaired run given the same order (--sample-order) measures the same
+// units for the same seed; without one, the strata are the frame's neighbouring units.
+TEST(Sampled, StrataFollowTheReferenceCycles) {
+    const fs::path ref = make_reference("order_ref");
+    const UnitsCsv truth = read_units_csv(ref / "sampled_units.csv");
+    const auto& unit = truth.cols.at("unit");
+    const auto& cycles = truth.cols.at("cycles");
+    std::vector<size_t> rows(unit.size());
+    std::iota(rows.begin(), rows.end(), size_t(0));
+    std::sort(rows.begin(), rows.end(), [&](size_t a, size_t b) {
+        return std::make_pair(cycles[a], unit[a]) < std::make_pair(cycles[b], unit[b]);
+    });
+    std::map<uint64_t, size_t> stratum;  // unit -> its stratum in that order
+    for (size_t k = 0; k < rows.size(); ++k) stratum[uint64_t(unit[rows[k]])] = k / 4;
+    ASSERT_EQ(stratum.size(), 72u);
+    // The order is not the frame's: some stratum spans units far apart.
+    bool apart = false;
+    for (size_t k = 4; k < rows.size(); k += 4) apart |= unit[rows[k]] - unit[rows[k - 1]] > 8;
+    EXPECT_TRUE(apart);
+
+    const std::string design =
+        kPairFrame + "--set box_unit.latency_cycles=16 --set sim.sample_period_units=4 ";
+    const fs::path paired = work_dir() / "order_paired", ordered = work_dir() / "order_alone",
+                   frame = work_dir() / "order_frame";
+    Result r =
+        run_rtsim(design + "--reference '" + ref.string() + "' -o '" + paired.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = run_rtsim(design + "--sample-order '" + ref.string() + "' -o '" + ordered.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    r = run_rtsim(design + "-o '" + frame.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+
+    const auto measured = [](const fs::path& dir) {
+        return read_units_csv(dir / "sampled_units.csv").cols.at("unit");
+    };
+    std::vector<int> per_stratum(18, 0);
+    for (double u : measured(paired)) ++per_stratum.at(stratum.at(uint64_t(u)));
+    EXPECT_EQ(per_stratum, std::vector<int>(18, 1));
+    EXPECT_EQ(measured(ordered), measured(paired));
+    EXPECT_NE(measured(frame), measured(paired));
+    std::vector<int> per_block(18, 0);  // the frame's own order: units 4h..4h+3
+    for (double u : measured(frame)) ++per_block.at(size_t(u) / 4);
+    EXPECT_EQ(per_block, std::vector<int>(18, 1));
+
+    const json order = {{"by", "cycles"}, {"of", ref.string()}};
+    EXPECT_EQ(stats_of(paired)["sampling"]["order"], order);
+    EXPECT_EQ(stats_of(ordered)["sampling"]["order"], order);
+    EXPECT_EQ(stats_of(frame)["sampling"]["order"], "frame");
+}
+
+TEST(Sampled, SampleOrderMustBeAnEveryUnitRunOfTheSameUnits) {
+    const fs::path ref = make_reference("order_bad_ref");
+    const fs::path out = work_dir() / "order_bad_out";
+    const std::string order = "--sample-order '" + ref.string() + "' -o '" + out.string() + "'";
+    // Not a skip run.
+    expect_one_line_error(
+        run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 --set sim.fidelity=sampled " +
+                  order),
+        "needs sim.fidelity=sampled and sim.sample_fast_forward=skip");
+    // Units of another size, or a frame of other units.
+    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=4 " + order),
+                          "its units are 2 tiles, this run's 4");
+    expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ
+                                    " --rays primary --res 64x64 --set sim.fidelity=sampled "
+                                    "--set sim.sample_fast_forward=skip "
+                                    "--set sim.sample_unit_tiles=2 " +
+                                    order),
+                          "its run has 72 units, this frame 32");
+    // A sampled run, not one that measured every unit.
+    const fs::path part = work_dir() / "order_bad_part";
+    ASSERT_EQ(
+        run_rtsim(kPairFrame + "--set sim.sample_period_units=4 -o '" + part.string() + "'").status,
+        0);
+    expect_one_line_error(
+        run_rtsim(kPairFrame + "--sample-order '" + part.string() + "' -o '" + out.string() + "'"),
+        "not a run that measured every unit");
+    EXPECT_FALSE(fs::exists(out));
 }
 
 // --target-error with a reference: the pilot is paired too (its own matched sample), so the

@@ -107,6 +107,49 @@ TEST(SkipDesign, EveryStratumHasOneMeasuredUnit) {
     }
 }
 
+// Strata cut from a given order of the units: each run of period_units units of the order holds
+// exactly one measured unit, whatever the seed; the order listed in the frame's own order
+// measures what no order does; and the tiles of the units measured are the ones run in detail.
+TEST(SkipDesign, StrataFollowTheUnitOrder) {
+    SamplingParams p = skip_params();
+    p.stratified = true;
+    p.first_unit = -1;
+    p.period_units = 4;
+    p.tiles = 2 * 10;  // 10 units: strata of 4, 4 and 2 in the order
+    const std::vector<uint32_t> order = {7, 2, 9, 0, 5, 1, 8, 3, 6, 4};
+    const std::set<uint32_t> strata[3] = {{7, 2, 9, 0}, {5, 1, 8, 3}, {6, 4}};
+    for (uint64_t seed = 1; seed <= 200; ++seed) {
+        p.seed = seed;
+        p.unit_order = order;
+        const SampleDesign d(p);
+        for (int h = 0; h < 3; ++h) {
+            int measured = 0;
+            for (uint32_t u : strata[h]) measured += d.measured_unit(u);
+            EXPECT_EQ(measured, 1) << "seed " << seed << " stratum " << h;
+        }
+        for (uint32_t u = 0; u < 10; ++u) {
+            const auto role = d.tile_role(2 * u);
+            EXPECT_EQ(role == SampleDesign::TileRole::Measured, d.measured_unit(u)) << u;
+        }
+        // The first measured unit of the order is the one reported.
+        EXPECT_TRUE(d.measured_unit(d.first_unit()));
+        EXPECT_EQ(strata[0].count(uint32_t(d.first_unit())), 1u);
+        p.unit_order = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
+        const SampleDesign in_order(p);
+        p.unit_order.clear();
+        const SampleDesign frame(p);
+        for (uint64_t u = 0; u < 10; ++u)
+            EXPECT_EQ(in_order.measured_unit(u), frame.measured_unit(u)) << seed << " " << u;
+    }
+    // Not a permutation of the frame's units.
+    p.unit_order = {0, 1, 2};
+    EXPECT_THROW(SampleDesign{p}, std::invalid_argument);
+    p.unit_order = {0, 1, 2, 3, 4, 5, 6, 7, 8, 8};
+    EXPECT_THROW(SampleDesign{p}, std::invalid_argument);
+    p.unit_order = {0, 1, 2, 3, 4, 5, 6, 7, 8, 10};
+    EXPECT_THROW(SampleDesign{p}, std::invalid_argument);
+}
+
 namespace {
 
 struct Frame {

@@ -1,5 +1,9 @@
 // sim/reference.h: reading sampled_units.csv, and the columns counters are summed into.
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
 
 #include "sim/reference.h"
 #include "workloads/error.h"
@@ -40,6 +44,76 @@ TEST(Reference, LikeBlocksShareAColumn) {
     EXPECT_EQ(summed_counter_name("core[3].stall_l1_cycles"), "core.stall_l1_cycles");
     EXPECT_EQ(summed_counter_name("l2.misses"), "l2.misses");
     EXPECT_EQ(summed_counter_name("triangle_unit[12].ops"), "triangle_unit.ops");
+}
+
+// A run that measured every unit, as read_unit_order reads it: stats.json's sampling section
+// and sampled_units.csv.
+struct EveryUnitRun {
+    std::filesystem::path dir =
+        std::filesystem::temp_directory_path() / ("rtsim_unit_order_" + std::to_string(getpid()));
+    EveryUnitRun(const std::string& sampling, const std::string& table) {
+        std::filesystem::create_directories(dir);
+        std::ofstream(dir / "stats.json") << "{\"sampling\": " << sampling << "}\n";
+        std::ofstream(dir / "sampled_units.csv") << table;
+    }
+    ~EveryUnitRun() { std::filesystem::remove_all(dir); }
+    std::string error(uint64_t unit_tiles = 2) const {
+        try {
+            read_unit_order(dir.string(), "--sample-order", unit_tiles);
+        } catch (const InputError& e) {
+            return e.what();
+        }
+        return "accepted";
+    }
+};
+
+const char* const kEveryUnit =
+    R"({"fast_forward": "skip", "period_units": 1, "unit_tiles": 2, "units": 4})";
+
+// Units by their cycles, ties in unit order (by hand: 3 has none, 1 has 10, 0 and 2 have 30).
+TEST(Reference, UnitOrderIsByCycles) {
+    const EveryUnitRun run(kEveryUnit,
+                           "unit,work,cycles,l2.misses\n0,5,30,1\n1,5,10,9\n"
+                           "2,1,30,0\n3,0,0,0\n");
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2),
+              (std::vector<uint32_t>{3, 1, 0, 2}));
+    // The rows may come in any order.
+    const EveryUnitRun shuffled(kEveryUnit, "unit,cycles\n2,30\n3,0\n0,30\n1,10\n");
+    EXPECT_EQ(read_unit_order(shuffled.dir.string(), "--sample-order", 2),
+              (std::vector<uint32_t>{3, 1, 0, 2}));
+}
+
+TEST(Reference, UnitOrderRefusesWhatIsNotAnEveryUnitRun) {
+    const std::string ok = "unit,cycles\n0,1\n1,2\n2,3\n3,4\n";
+    {
+        const EveryUnitRun run(R"({"fast_forward": "skip", "period_units": 4, "unit_tiles": 2})",
+                               ok);
+        EXPECT_NE(run.error().find("not a run that measured every unit"), std::string::npos)
+            << run.error();
+    }
+    const std::string where = "--sample-order ";
+    {
+        const EveryUnitRun run(kEveryUnit, ok);
+        EXPECT_EQ(run.error(4), where + run.dir.string() +
+                                    ": its units are 2 tiles, this run's 4 (sim.sample_unit_tiles "
+                                    "must match)");
+        EXPECT_EQ(run.error(2), "accepted");
+    }
+    auto table_error = [&](const std::string& table) {
+        const EveryUnitRun run(kEveryUnit, table);
+        const std::string e = run.error(), path = (run.dir / "sampled_units.csv").string();
+        return e.rfind(path + ": ", 0) == 0 ? e.substr(path.size() + 2) : e;
+    };
+    EXPECT_EQ(table_error("unit,work\n0,1\n"), "not a sampled_units.csv with a cycles column");
+    EXPECT_EQ(table_error("cycles,unit\n0,1\n"), "not a sampled_units.csv with a cycles column");
+    EXPECT_EQ(table_error("unit,cycles\n0,1\n1,2\n2,3\n"),
+              "3 units listed, its stats.json counts 4");
+    EXPECT_EQ(table_error("unit,cycles\n0,1\n1,2\n1,3\n3,4\n"),
+              "line 4: unit 1 is not one of the frame's 4 units, or comes twice");
+    EXPECT_EQ(table_error("unit,cycles\n0,1\n1,2\n4,3\n3,4\n"),
+              "line 4: unit 4 is not one of the frame's 4 units, or comes twice");
+    EXPECT_EQ(table_error("unit,cycles\n0,1\n1,x\n"), "line 3: 'x' is not a number");
+    EXPECT_EQ(table_error("unit,work,cycles\n0,1\n"), "line 2: no cycles field");
 }
 
 }  // namespace
