@@ -178,7 +178,9 @@ def stratified_pick(N, P, seed):
 
 def population_residual_pct(rows, aux):
     """Residual standard deviation of the auxiliaries' fit over every unit, over the mean unit's
-    cycles: what no sample of these auxiliaries can explain."""
+    cycles: what no sample of these auxiliaries can explain (one zero in every unit, as a primary
+    frame's capacity misses, is left out, as the estimator leaves it out)."""
+    aux = [a for a in aux if any(r[a] for r in rows)]
     n, K = len(rows), len(aux)
     X = [[r[a] for r in rows] for a in aux]
     y = [r["cycles"] for r in rows]

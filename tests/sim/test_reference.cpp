@@ -81,6 +81,10 @@ TEST(Reference, UnitOrderIsByCycles) {
     const EveryUnitRun shuffled(kEveryUnit, "unit,cycles\n2,30\n3,0\n0,30\n1,10\n");
     EXPECT_EQ(read_unit_order(shuffled.dir.string(), "--sample-order", 2),
               (std::vector<uint32_t>{3, 1, 0, 2}));
+    // Cycles that are not whole numbers sort among the others (by hand: 0, 10, 10.5, 11).
+    const EveryUnitRun fractions(kEveryUnit, "unit,cycles\n0,11\n1,10.5\n2,10\n3,0\n");
+    EXPECT_EQ(read_unit_order(fractions.dir.string(), "--sample-order", 2),
+              (std::vector<uint32_t>{3, 2, 1, 0}));
 }
 
 TEST(Reference, UnitOrderRefusesWhatIsNotAnEveryUnitRun) {
