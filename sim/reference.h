@@ -43,10 +43,9 @@ struct UnitTable {
 UnitTable parse_units_csv(const std::string& text, const std::string& path);
 
 // The units of the run in folder `dir` (one that measured every unit: --set
-// sim.sample_period_units=1 in the skip design), in order of their cycles (ties by unit), for
-// SamplingParams::unit_order. `what` names the option in errors (InputError: not such a run, or a
-// damaged table).
-// `unit_tiles`: this run's unit size, which the run in `dir` must share.
+// sim.sample_period_units=1 in the skip design, with units of `unit_tiles` tiles as this run's),
+// in order of their cycles (ties by unit), for SamplingParams::unit_order. `what` names the
+// option in errors (InputError: not such a run, other units, or a damaged table).
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
                                       uint64_t unit_tiles);
 
