@@ -25,6 +25,29 @@ namespace rtsim {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
+namespace {
+
+// Field [a, b) of `text`, line `line` of `path`, as a number; InputError if it is none (empty,
+// trailing characters, not finite). Digits alone are read as an integer (exactly, and several
+// times faster than as a double: rtsim writes counters and cycles so); `whole` says which.
+double csv_number(const std::string& text, size_t a, size_t b, const std::string& path, size_t line,
+                  bool* whole = nullptr) {
+    const char *first = text.data() + a, *last = text.data() + b;
+    uint64_t n = 0;
+    auto r = std::from_chars(first, last, n);
+    const bool integer = a != b && r.ec == std::errc() && r.ptr == last;
+    if (whole) *whole = integer;
+    if (integer) return double(n);
+    double v = 0;
+    r = std::from_chars(first, last, v);
+    if (a == b || r.ec != std::errc() || r.ptr != last || !std::isfinite(v))
+        throw InputError(
+            fmt::format("{}: line {}: '{}' is not a number", path, line, text.substr(a, b - a)));
+    return v;
+}
+
+}  // namespace
+
 UnitTable parse_units_csv(const std::string& text, const std::string& path) {
     UnitTable t;
     const size_t header_end = std::min(text.find('\n'), text.size());
@@ -51,14 +74,7 @@ UnitTable parse_units_csv(const std::string& text, const std::string& path) {
         size_t c = 0;
         for (size_t a = pos; a <= end; ++c) {
             const size_t b = std::min(text.find(',', a), end);
-            if (c < t.names.size()) {
-                double v = 0;
-                const auto r = std::from_chars(text.data() + a, text.data() + b, v);
-                if (a == b || r.ec != std::errc() || r.ptr != text.data() + b || !std::isfinite(v))
-                    throw InputError(fmt::format("{}: line {}: '{}' is not a number", path, row,
-                                                 text.substr(a, b - a)));
-                cols[c]->push_back(v);
-            }
+            if (c < t.names.size()) cols[c]->push_back(csv_number(text, a, b, path, row));
             a = b + 1;
         }
         if (c != t.names.size())
@@ -138,20 +154,8 @@ std::vector<uint32_t> units_by_cycles(const json& stats, const std::string& dir)
         size_t a = pos;
         for (size_t c = 0; c <= cycles_col && a <= end; ++c) {
             const size_t b = std::min(t.find(',', a), end);
-            if (c == 0 || c == cycles_col) {
-                const char *first = t.data() + a, *last = t.data() + b;
-                uint64_t n = 0;
-                auto r = std::from_chars(first, last, n);
-                double v = double(n);
-                whole = a != b && r.ec == std::errc() && r.ptr == last;
-                if (!whole) {
-                    r = std::from_chars(first, last, v);
-                    if (a == b || r.ec != std::errc() || r.ptr != last || !std::isfinite(v))
-                        throw InputError(fmt::format("{}: line {}: '{}' is not a number", path,
-                                                     row + 1, t.substr(a, b - a)));
-                }
-                (c == 0 ? unit : cycles) = v;
-            }
+            if (c == 0) unit = csv_number(t, a, b, path, row + 1);
+            if (c == cycles_col) cycles = csv_number(t, a, b, path, row + 1, &whole);
             a = b + 1;
         }
         if (cycles < 0)
