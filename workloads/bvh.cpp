@@ -188,7 +188,7 @@ class Collapser {
 };
 
 template <int W>
-BvhQuality measure(const std::vector<WideNode<W>>& nodes, const AABB& root,
+BvhQuality measure(const MappableArray<WideNode<W>>& nodes, const AABB& root,
                    const BvhBuildOptions& o) {
     BvhQuality q;
     const double root_area = std::max(root.surface_area(), 1e-30f);
@@ -312,23 +312,47 @@ void cut_treelets(std::vector<WideNode<W>>& nodes, std::vector<uint32_t>& prim_o
 
 // Packs each leaf's triangles into Tri4 blocks (unused lanes stay zero; tests mask them off).
 template <int W>
-void build_tri_blocks(const std::vector<WideNode<W>>& nodes, Bvh& bvh) {
-    bvh.leaf_block.assign(bvh.prim_order.size(), 0);
-    bvh.tri4.clear();
+void build_tri_blocks(const std::vector<WideNode<W>>& nodes,
+                      const std::vector<std::array<Vec3, 3>>& tri_verts,
+                      std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4) {
+    leaf_block.assign(tri_verts.size(), 0);
+    tri4.clear();
     for (const WideNode<W>& n : nodes)
         for (int l = 0; l < n.num; ++l) {
             if (!n.count[l]) continue;
-            bvh.leaf_block[n.child[l]] = static_cast<uint32_t>(bvh.tri4.size());
+            leaf_block[n.child[l]] = static_cast<uint32_t>(tri4.size());
             for (uint32_t base = 0; base < n.count[l]; base += 4) {
                 Tri4 block{};
                 for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
-                    const auto& t = bvh.tri_verts[n.child[l] + base + lane];
+                    const auto& t = tri_verts[n.child[l] + base + lane];
                     for (int vert = 0; vert < 3; ++vert)
                         for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
                 }
-                bvh.tri4.push_back(block);
+                tri4.push_back(block);
             }
         }
+}
+
+// The collapsed tree of width W, its treelets cut (when asked) and its triangles laid out in
+// leaf order: built in vectors of their own, then handed to the Bvh.
+template <int W>
+void lay_out(BinaryBvh& bin, bool quantize, const Scene& scene, MappableArray<WideNode<W>>& out,
+             Bvh& bvh) {
+    std::vector<WideNode<W>> nodes;
+    Collapser<W>(bin, nodes, quantize).run();
+    std::vector<uint32_t> prim_order = std::move(bin.prim_order);
+    if (bvh.options.treelet_bytes > 0) cut_treelets(nodes, prim_order, bvh.layout);
+    std::vector<std::array<Vec3, 3>> tri_verts(prim_order.size());
+    for (size_t s = 0; s < prim_order.size(); ++s)
+        for (int c = 0; c < 3; ++c) tri_verts[s][c] = scene.v(prim_order[s], c);
+    std::vector<uint32_t> leaf_block;
+    std::vector<Tri4> tri4;
+    build_tri_blocks(nodes, tri_verts, leaf_block, tri4);
+    out = std::move(nodes);
+    bvh.prim_order = std::move(prim_order);
+    bvh.tri_verts = std::move(tri_verts);
+    bvh.leaf_block = std::move(leaf_block);
+    bvh.tri4 = std::move(tri4);
 }
 
 BvhQuality measure_bvh(const Bvh& bvh) {
@@ -374,51 +398,23 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
     bvh.options = options;
     bvh.bounds_box = bin.nodes[0].box;
     const bool quantize = options.node_format == NodeFormat::Compressed;
-    switch (options.width) {
-        case 2:
-            Collapser<2>(bin, bvh.nodes2, quantize).run();
-            break;
-        case 4:
-            Collapser<4>(bin, bvh.nodes4, quantize).run();
-            break;
-        default:
-            Collapser<8>(bin, bvh.nodes8, quantize).run();
-            break;
-    }
     BvhLayout& L = bvh.layout;
     L = layout_sizes;
     if (L.node_size_bytes == 0)
         L.node_size_bytes = quantize ? compressed_node_size_bytes(options.width)
                                      : default_node_size_bytes(options.width);
-    bvh.prim_order = std::move(bin.prim_order);
     L.treelet_bytes = options.treelet_bytes;
     L.treelet_node_start.clear();
     L.treelet_tri_start.clear();
-    if (options.treelet_bytes > 0) {
-        switch (options.width) {
-            case 2:
-                cut_treelets(bvh.nodes2, bvh.prim_order, L);
-                break;
-            case 4:
-                cut_treelets(bvh.nodes4, bvh.prim_order, L);
-                break;
-            default:
-                cut_treelets(bvh.nodes8, bvh.prim_order, L);
-                break;
-        }
-    }
-    bvh.tri_verts.resize(bvh.prim_order.size());
-    for (size_t s = 0; s < bvh.prim_order.size(); ++s)
-        for (int c = 0; c < 3; ++c) bvh.tri_verts[s][c] = scene.v(bvh.prim_order[s], c);
     switch (options.width) {
         case 2:
-            build_tri_blocks(bvh.nodes2, bvh);
+            lay_out<2>(bin, quantize, scene, bvh.nodes2, bvh);
             break;
         case 4:
-            build_tri_blocks(bvh.nodes4, bvh);
+            lay_out<4>(bin, quantize, scene, bvh.nodes4, bvh);
             break;
         default:
-            build_tri_blocks(bvh.nodes8, bvh);
+            lay_out<8>(bin, quantize, scene, bvh.nodes8, bvh);
             break;
     }
 

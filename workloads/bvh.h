@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "workloads/geometry.h"
+#include "workloads/mappable_array.h"
 #include "workloads/scene.h"
 #include "workloads/step.h"
 
@@ -197,31 +198,32 @@ struct Bvh {
     AABB bounds_box;
     // Exactly one of these holds the tree, per options.width; node index = layout record index
     // (depth-first order, root first).
-    std::vector<WideNode<2>> nodes2;
-    std::vector<WideNode<4>> nodes4;
-    std::vector<WideNode<8>> nodes8;
-    std::vector<uint32_t> prim_order;            // triangle slot -> scene primitive id
-    std::vector<std::array<Vec3, 3>> tri_verts;  // triangle slot -> vertices, for fast tests
-    std::vector<Tri4> tri4;                      // every leaf's triangles, 4 to a block
-    std::vector<uint32_t> leaf_block;            // a leaf's first slot -> its first Tri4 block
+    // (Arrays of their own after a build, views of the mapped entry after a cache hit.)
+    MappableArray<WideNode<2>> nodes2;
+    MappableArray<WideNode<4>> nodes4;
+    MappableArray<WideNode<8>> nodes8;
+    MappableArray<uint32_t> prim_order;            // triangle slot -> scene primitive id
+    MappableArray<std::array<Vec3, 3>> tri_verts;  // triangle slot -> vertices, for fast tests
+    MappableArray<Tri4> tri4;                      // every leaf's triangles, 4 to a block
+    MappableArray<uint32_t> leaf_block;            // a leaf's first slot -> its first Tri4 block
 
     int width() const { return options.width; }
     const AABB& bounds() const { return bounds_box; }
     template <int W>
-    const std::vector<WideNode<W>>& nodes() const;
+    const MappableArray<WideNode<W>>& nodes() const;
     size_t inner_node_count() const { return layout.inner_node_count; }
 };
 
 template <>
-inline const std::vector<WideNode<2>>& Bvh::nodes<2>() const {
+inline const MappableArray<WideNode<2>>& Bvh::nodes<2>() const {
     return nodes2;
 }
 template <>
-inline const std::vector<WideNode<4>>& Bvh::nodes<4>() const {
+inline const MappableArray<WideNode<4>>& Bvh::nodes<4>() const {
     return nodes4;
 }
 template <>
-inline const std::vector<WideNode<8>>& Bvh::nodes<8>() const {
+inline const MappableArray<WideNode<8>>& Bvh::nodes<8>() const {
     return nodes8;
 }
 

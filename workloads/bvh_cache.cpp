@@ -25,7 +25,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // Bump when the entry layout or anything in Bvh it stores changes: older entries then miss.
-constexpr uint32_t kFormatVersion = 2;  // 2: XXH3-64 checksum
+constexpr uint32_t kFormatVersion = 3;  // 2: XXH3-64 checksum; 3: arrays on 64-byte boundaries
 constexpr char kMagic[8] = {'R', 'T', 'S', 'I', 'M', 'B', 'V', 'H'};
 
 using Unusable = CacheEntryUnusable;
@@ -67,7 +67,7 @@ void with_nodes(B& b, int width, F&& f) {
 // Every index a traversal follows stays inside its array: an entry that passed its checksum but
 // was written by a faulty build would otherwise crash a run rather than be rebuilt.
 template <int W>
-void check_nodes(const std::vector<WideNode<W>>& nodes, const Bvh& b) {
+void check_nodes(const MappableArray<WideNode<W>>& nodes, const Bvh& b) {
     const size_t tris = b.prim_order.size();
     for (const WideNode<W>& n : nodes) {
         if (n.num > W) throw Unusable{"a node with too many children"};
@@ -100,15 +100,17 @@ std::string serialize(const Bvh& b, uint64_t key) {
     w.vec(L.treelet_tri_start);
     w.pod(b.quality);
     w.pod(b.bounds_box);
-    with_nodes(b, b.width(), [&](const auto& nodes) { w.vec(nodes); });
-    w.vec(b.prim_order);
-    w.vec(b.tri_verts);
-    w.vec(b.tri4);
-    w.vec(b.leaf_block);
+    with_nodes(b, b.width(), [&](const auto& nodes) { w.aligned_vec(nodes); });
+    w.aligned_vec(b.prim_order);
+    w.aligned_vec(b.tri_verts);
+    w.aligned_vec(b.tri4);
+    w.aligned_vec(b.leaf_block);
     return w.finish();
 }
 
-Bvh deserialize(std::string_view bytes, uint64_t key, const BvhBuildOptions& want) {
+// The tree's arrays are views of `bytes` while `keep` (their mapping) lives; copies without it.
+Bvh deserialize(std::string_view bytes, uint64_t key, const BvhBuildOptions& want,
+                const std::shared_ptr<const void>& keep) {
     Reader r = open_cache_entry(bytes, kMagic, "not a BVH cache entry",
                                 "checksum mismatch (a damaged or truncated file)");
     if (r.pod<uint32_t>() != kFormatVersion) throw Unusable{"an older entry format"};
@@ -132,11 +134,11 @@ Bvh deserialize(std::string_view bytes, uint64_t key, const BvhBuildOptions& wan
     r.vec(L.treelet_tri_start);
     b.quality = r.pod<BvhQuality>();
     b.bounds_box = r.pod<AABB>();
-    with_nodes(b, want.width, [&](auto& nodes) { r.vec(nodes); });
-    r.vec(b.prim_order);
-    r.vec(b.tri_verts);
-    r.vec(b.tri4);
-    r.vec(b.leaf_block);
+    with_nodes(b, want.width, [&](auto& nodes) { r.view(nodes, keep); });
+    r.view(b.prim_order, keep);
+    r.view(b.tri_verts, keep);
+    r.view(b.tri4, keep);
+    r.view(b.leaf_block, keep);
     if (!r.done()) throw Unusable{"trailing bytes"};
     size_t nodes = 0;
     with_nodes(b, want.width, [&](const auto& v) { nodes = v.size(); });
@@ -211,10 +213,10 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     const uint64_t key = st.key = bvh_cache_key(st.scene_hash, scene, options, layout_sizes);
     st.path = (fs::path(dir) / fmt::format("{:016x}.bvh", key)).string();
     st.outcome = BvhCacheOutcome::Built;
-    CacheEntryBytes bytes;
-    if (bytes.map(st.path)) {
+    auto bytes = std::make_shared<CacheEntryBytes>();
+    if (bytes->map(st.path)) {
         try {
-            Bvh b = deserialize(bytes.view(), key, options);
+            Bvh b = deserialize(bytes->view(), key, options, bytes);
             st.outcome = BvhCacheOutcome::Hit;
             st.seconds = seconds();
             b.quality.build_seconds = st.seconds;  // what this run spent to have the tree
@@ -245,7 +247,8 @@ CacheEntryReader open_cache_entry(std::string_view bytes, const char (&magic)[8]
     std::memcpy(&sum, bytes.data() + bytes.size() - sizeof sum, sizeof sum);
     if (XXH3_64bits(bytes.data(), bytes.size() - sizeof sum) != sum)
         throw CacheEntryUnusable{bad_checksum};
-    return CacheEntryReader(bytes.data() + sizeof magic, bytes.size() - sizeof magic - sizeof sum);
+    return CacheEntryReader(bytes.data(), bytes.data() + sizeof magic,
+                            bytes.size() - sizeof magic - sizeof sum);
 }
 
 void store_cache_entry(const std::string& path, const std::string& bytes, const char* what) {

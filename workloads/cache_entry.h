@@ -7,10 +7,13 @@
 
 #include <cstdint>
 #include <cstring>
+#include <memory>
 #include <string>
 #include <string_view>
 #include <type_traits>
 #include <vector>
+
+#include "workloads/mappable_array.h"
 
 namespace rtsim {
 
@@ -18,6 +21,11 @@ namespace rtsim {
 struct CacheEntryUnusable {
     std::string why;
 };
+
+// Bytes of padding from `offset` (from an entry's start) to its next record boundary.
+inline size_t pad_to_record_alignment(size_t offset) {
+    return (64 - offset % 64) % 64;
+}
 
 class CacheEntryWriter {
   public:
@@ -33,6 +41,16 @@ class CacheEntryWriter {
         pod(uint64_t(v.size()));
         if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
     }
+    // An array a reader may map rather than copy (CacheEntryReader::view): its records start on a
+    // 64-byte boundary of the entry (a mapping starts on a page, so they are aligned in memory).
+    template <class A>
+    void aligned_vec(const A& v) {
+        using T = typename A::value_type;
+        static_assert(std::is_trivially_copyable_v<T>);
+        pod(uint64_t(v.size()));
+        out_.append(pad_to_record_alignment(out_.size()), '\0');
+        if (!v.empty()) out_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+    }
     // A text key, stored first: CacheEntryReader::expect_key reads it back.
     void key(const std::string& k) { vec(std::vector<char>(k.begin(), k.end())); }
     // The entry: the fields written, then their checksum.
@@ -44,7 +62,9 @@ class CacheEntryWriter {
 
 class CacheEntryReader {
   public:
-    CacheEntryReader(const char* data, size_t size) : p_(data), end_(data + size) {}
+    // The fields at [data, data + size) of an entry that starts at `entry`.
+    CacheEntryReader(const char* entry, const char* data, size_t size)
+        : entry_(entry), p_(data), end_(data + size) {}
     template <class T>
     T pod() {
         T v;
@@ -57,6 +77,24 @@ class CacheEntryReader {
         if (n > uint64_t(end_ - p_) / sizeof(T)) throw CacheEntryUnusable{"truncated"};
         v.resize(size_t(n));
         take(v.data(), size_t(n) * sizeof(T));
+    }
+    // An array CacheEntryWriter::aligned_vec stored: a view of the entry's bytes while `keep`
+    // (their mapping) lives, or a copy when it is empty or the bytes are not aligned in memory.
+    template <class T>
+    void view(MappableArray<T>& out, const std::shared_ptr<const void>& keep) {
+        const uint64_t n = pod<uint64_t>();
+        const size_t pad = pad_to_record_alignment(size_t(p_ - entry_));
+        if (pad > size_t(end_ - p_)) throw CacheEntryUnusable{"truncated"};
+        p_ += pad;
+        if (n > uint64_t(end_ - p_) / sizeof(T)) throw CacheEntryUnusable{"truncated"};
+        if (keep && reinterpret_cast<uintptr_t>(p_) % alignof(T) == 0) {
+            out.view(reinterpret_cast<const T*>(p_), size_t(n), keep);
+            p_ += size_t(n) * sizeof(T);
+        } else {
+            std::vector<T> v(static_cast<size_t>(n));
+            take(v.data(), size_t(n) * sizeof(T));
+            out = std::move(v);
+        }
     }
     // The text key CacheEntryWriter::key stored; throws "key mismatch" if it is not `k` (another
     // key's entry under this one's name).
@@ -74,6 +112,7 @@ class CacheEntryReader {
         if (n) std::memcpy(dst, p_, n);
         p_ += n;
     }
+    const char* entry_;
     const char* p_;
     const char* end_;
 };

@@ -229,7 +229,7 @@ struct NoCounters {
 template <int W, bool Reduced, class Sink, class Counters>
 Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery query, Entry start,
              Hit hit, Sink& sink, Counters& c) {
-    const std::vector<WideNode<W>>& nodes = bvh.nodes<W>();
+    const auto& nodes = bvh.nodes<W>();
     const BoxRay<W> box_ray(rp);
     const ReducedBoxRay reduced_ray(rp, Reduced ? bvh.options.box_mantissa_bits : kFullMantissaBits,
                                     bvh.options.box_translate_origin);

@@ -16,20 +16,21 @@ namespace fs = std::filesystem;
 
 namespace {
 
-template <class T>
-bool same_bytes(const std::vector<T>& a, const std::vector<T>& b) {
+template <class A>
+bool same_bytes(const A& a, const A& b) {
     return a.size() == b.size() &&
-           (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+           (a.empty() ||
+            std::memcmp(a.data(), b.data(), a.size() * sizeof(typename A::value_type)) == 0);
 }
 
 void expect_same_tree(const Bvh& a, const Bvh& b) {
     EXPECT_TRUE(same_bytes(a.nodes2, b.nodes2));
     EXPECT_TRUE(same_bytes(a.nodes4, b.nodes4));
     EXPECT_TRUE(same_bytes(a.nodes8, b.nodes8));
-    EXPECT_EQ(a.prim_order, b.prim_order);
+    EXPECT_TRUE(same_bytes(a.prim_order, b.prim_order));
     EXPECT_TRUE(same_bytes(a.tri_verts, b.tri_verts));
     EXPECT_TRUE(same_bytes(a.tri4, b.tri4));
-    EXPECT_EQ(a.leaf_block, b.leaf_block);
+    EXPECT_TRUE(same_bytes(a.leaf_block, b.leaf_block));
     EXPECT_EQ(a.layout.node_base_addr, b.layout.node_base_addr);
     EXPECT_EQ(a.layout.node_size_bytes, b.layout.node_size_bytes);
     EXPECT_EQ(a.layout.tri_base_addr, b.layout.tri_base_addr);
@@ -77,6 +78,11 @@ TEST(BvhCache, AHitIsTheTreeABuildGives) {
             EXPECT_EQ(first.path, second.path);
             expect_same_tree(built, a);
             expect_same_tree(built, b);
+            // A hit maps the entry's arrays rather than copying them, aligned for their records.
+            EXPECT_FALSE(a.tri4.is_view());
+            EXPECT_TRUE(b.tri4.is_view());
+            EXPECT_TRUE(b.prim_order.is_view());
+            EXPECT_EQ(reinterpret_cast<uintptr_t>(b.tri4.data()) % alignof(Tri4), 0u);
         }
     // The box datapath is not part of the tree: the same entry serves it, with its own options.
     BvhBuildOptions o;
