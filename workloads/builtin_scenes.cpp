@@ -38,7 +38,7 @@ void add_box(Scene& s, Vec3 center, Vec3 half, float angle_rad, int n) {
     const float cs = std::cos(angle_rad), sn = std::sin(angle_rad);
     for (size_t i = first; i < s.vertices.size(); ++i) {
         Vec3 p = s.vertices[i] - c;
-        s.vertices[i] = c + Vec3(cs * p.x + sn * p.z, p.y, -sn * p.x + cs * p.z);
+        s.vertices.mutable_at(i) = c + Vec3(cs * p.x + sn * p.z, p.y, -sn * p.x + cs * p.z);
     }
 }
 

@@ -8,6 +8,7 @@
 // code that builds or edits a tree never sees the difference.
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <memory>
 #include <stdexcept>
@@ -89,6 +90,11 @@ class MappableArray {
     const T& back() const { return data_[size_ - 1]; }
     const T* begin() const { return data_; }
     const T* end() const { return data_ + size_; }
+
+    friend bool operator==(const MappableArray& a, const MappableArray& b) {
+        return std::equal(a.begin(), a.end(), b.begin(), b.end());
+    }
+    friend bool operator!=(const MappableArray& a, const MappableArray& b) { return !(a == b); }
 
     // Changing: on a vector of its own (a view is copied into one first).
     // The records as a vector of their own, moved out (this array is left empty).

@@ -7,15 +7,17 @@
 #include <vector>
 
 #include "workloads/geometry.h"
+#include "workloads/mappable_array.h"
 
 namespace rtsim {
 
 struct Scene {
     std::string name;    // e.g. "bunny.obj" or "builtin:cornell"
     std::string source;  // path, or "builtin"
-    std::vector<Vec3> vertices;
+    // (Arrays of their own when read or made, views of the mapped entry on a mesh cache hit.)
+    MappableArray<Vec3> vertices;
     // Triangles in the file's own order (polygons split into fans in file order).
-    std::vector<std::array<uint32_t, 3>> triangles;
+    MappableArray<std::array<uint32_t, 3>> triangles;
 
     size_t triangle_count() const { return triangles.size(); }
     AABB bounds() const;

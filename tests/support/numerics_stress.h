@@ -96,8 +96,10 @@ inline std::string variant_name(const BvhBuildOptions& o) {
 // A copy with every vertex v -> v * scale + offset (each coordinate), rounded once to float.
 inline Scene transformed(const Scene& s, double scale, double offset) {
     Scene out = s;
-    for (Vec3& v : out.vertices)
+    std::vector<Vec3> vertices = out.vertices.take();
+    for (Vec3& v : vertices)
         for (int a = 0; a < 3; ++a) v[a] = float(double(v[a]) * scale + offset);
+    out.vertices = std::move(vertices);
     return out;
 }
 

@@ -171,7 +171,8 @@ TEST(Bvh, PathologicalSpacingStaysWithinDepthBound) {
     for (int i = 0; i < 2000; ++i) {
         const float x = std::ldexp(1.0f, i % 120 - 60) * (1 + i / 120);
         const auto b = static_cast<uint32_t>(s.vertices.size());
-        s.vertices.insert(s.vertices.end(), {{x, 0, 0}, {x * 1.01f, 0, 0}, {x, x * 0.01f, 0}});
+        for (const Vec3& v : {Vec3(x, 0, 0), Vec3(x * 1.01f, 0, 0), Vec3(x, x * 0.01f, 0)})
+            s.vertices.push_back(v);
         s.triangles.push_back({b, b + 1, b + 2});
     }
     for (Variant v : kVariants) {

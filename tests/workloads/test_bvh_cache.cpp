@@ -102,7 +102,7 @@ TEST(BvhCache, AHitIsTheTreeABuildGives) {
 TEST(BvhCache, KeysSeparateScenesSettingsAndLayouts) {
     const Scene s = make_builtin_scene("cornell");
     Scene moved = s;
-    moved.vertices[0].x += 1e-3f;
+    moved.vertices.mutable_at(0).x += 1e-3f;
     BvhBuildOptions o;
     const uint64_t k = bvh_cache_key(s, o, BvhLayout());
     EXPECT_EQ(k, bvh_cache_key(s, o, BvhLayout()));

@@ -74,6 +74,9 @@ TEST(MeshCache, HitGivesTheParsedSceneAndAnEditedFileMisses) {
     const Scene hit = load_scene_cached(obj.string(), cache.string(), &st);
     EXPECT_EQ(st.outcome, "hit");
     expect_same_scene(hit, parsed);
+    // A hit maps the entry's arrays rather than copying them.
+    EXPECT_TRUE(hit.vertices.is_view());
+    EXPECT_TRUE(hit.triangles.is_view());
     // The entry's stored content hash is the parsed scene's, hashed here.
     ASSERT_TRUE(st.scene_hash.has_value());
     EXPECT_EQ(*st.scene_hash, parsed.content_hash());

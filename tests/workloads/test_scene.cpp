@@ -45,7 +45,7 @@ TEST(Scene, BuiltinCornellHasExpectedTriangleCount) {
 TEST(Scene, ContentHashIdentifiesGeometry) {
     Scene a = load_scene("builtin:sphere"), b = load_scene("builtin:sphere");
     EXPECT_EQ(a.content_hash(), b.content_hash());
-    b.vertices[0].x += 1e-3f;
+    b.vertices.mutable_at(0).x += 1e-3f;
     EXPECT_NE(a.content_hash(), b.content_hash());
 }
 
