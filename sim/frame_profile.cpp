@@ -29,8 +29,9 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     const uint64_t tiles = uint64_t(gen.tile_count());
     p.units.assign((tiles + unit_tiles - 1) / unit_tiles, AuxFigures{});
     p.unit_new_line_rays.assign(p.units.size(), 0);
-    p.tile_line_start.assign(tiles + 1, 0);
-    p.tile_rays.assign(tiles, 0);
+    // The per-tile arrays, built here and handed to the profile at the end.
+    std::vector<uint32_t> tile_line_start(tiles + 1, 0), tile_rays(tiles, 0), tile_lines;
+    std::vector<uint8_t> tile_line_info;
     // Per line of the range: the last tile that fetched it, plus one (0: none yet); the last of
     // that tile's rays that did, plus one; and its entry in tile_lines.
     std::vector<uint32_t> fetched_by(lines.lines(), 0), last_ray(lines.lines(), 0);
@@ -44,7 +45,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     while (queue.next(rays)) {
         new_entries.clear();
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
-        p.tile_rays[tile] = uint32_t(rays.size());
+        tile_rays[tile] = uint32_t(rays.size());
         const uint32_t stamp = uint32_t(tile + 1);
         uint32_t ray = 0;
         for (GeneratedRay& g : rays) {
@@ -52,16 +53,16 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
             for (const Step& s : g.steps)
                 lines.for_each_line(s, [&](uint64_t k) {
                     if (fetched_by[k] != stamp) {
-                        if (fetched_by[k] == 0) new_entries.push_back(p.tile_lines.size());
+                        if (fetched_by[k] == 0) new_entries.push_back(tile_lines.size());
                         fetched_by[k] = stamp;
                         last_ray[k] = ray;
-                        entry[k] = p.tile_lines.size();
-                        p.tile_lines.push_back(uint32_t(k));
-                        p.tile_line_info.push_back(
+                        entry[k] = tile_lines.size();
+                        tile_lines.push_back(uint32_t(k));
+                        tile_line_info.push_back(
                             uint8_t(1 | (s.kind == StepKind::Triangle ? kTileLineTriangle : 0)));
                     } else if (last_ray[k] != ray) {
                         last_ray[k] = ray;
-                        uint8_t& info = p.tile_line_info[entry[k]];
+                        uint8_t& info = tile_line_info[entry[k]];
                         if ((info & kTileLineRays) != kTileLineRays) ++info;
                     }
                 });
@@ -74,12 +75,16 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
             const AuxFigures a = ray_auxiliaries(work, lines);
             for (size_t k = 0; k < kAuxiliaries; ++k) p.units[u][k] += a[k];
         }
-        for (size_t e : new_entries) p.unit_new_line_rays[u] += p.tile_line_info[e] & kTileLineRays;
+        for (size_t e : new_entries) p.unit_new_line_rays[u] += tile_line_info[e] & kTileLineRays;
         rays.clear();
-        if (p.tile_lines.size() > UINT32_MAX)
+        if (tile_lines.size() > UINT32_MAX)
             throw std::runtime_error("frame profile: more than 2^32 tile lines (a smaller frame)");
-        p.tile_line_start[tile + 1] = uint32_t(p.tile_lines.size());
+        tile_line_start[tile + 1] = uint32_t(tile_lines.size());
     }
+    p.tile_line_start = std::move(tile_line_start);
+    p.tile_rays = std::move(tile_rays);
+    p.tile_lines = std::move(tile_lines);
+    p.tile_line_info = std::move(tile_line_info);
     p.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     p.cache = "off";
     return p;
@@ -89,7 +94,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '7'};
+// 8: per-tile arrays on 64-byte boundaries, mapped on a hit.
+constexpr char kMagic[8] = {'R', 'T', 'S', 'P', 'R', 'O', 'F', '8'};
 
 using Unusable = CacheEntryUnusable;
 
@@ -101,16 +107,17 @@ std::string serialize(const FrameProfile& p, const std::string& key) {
     w.pod(p.line_base);
     w.vec(p.units);
     w.vec(p.unit_new_line_rays);
-    w.vec(p.tile_line_start);
-    w.vec(p.tile_lines);
-    w.vec(p.tile_line_info);
-    w.vec(p.tile_rays);
+    w.aligned_vec(p.tile_line_start);
+    w.aligned_vec(p.tile_lines);
+    w.aligned_vec(p.tile_line_info);
+    w.aligned_vec(p.tile_rays);
     w.pod(p.fetch_lines);
     w.pod(p.fetch_bytes);
     return w.finish();
 }
 
-FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_t tiles) {
+FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_t tiles,
+                         const std::shared_ptr<const void>& keep) {
     CacheEntryReader r =
         open_cache_entry(bytes, kMagic, "not a frame profile", "checksum mismatch");
     r.expect_key(key);
@@ -120,10 +127,10 @@ FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_
     p.line_base = r.pod<uint64_t>();
     r.vec(p.units);
     r.vec(p.unit_new_line_rays);
-    r.vec(p.tile_line_start);
-    r.vec(p.tile_lines);
-    r.vec(p.tile_line_info);
-    r.vec(p.tile_rays);
+    r.view(p.tile_line_start, keep);
+    r.view(p.tile_lines, keep);
+    r.view(p.tile_line_info, keep);
+    r.view(p.tile_rays, keep);
     p.fetch_lines = r.pod<uint64_t>();
     p.fetch_bytes = r.pod<uint64_t>();
     if (!r.done()) throw Unusable{"trailing bytes"};
@@ -156,8 +163,8 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
     std::string outcome;
     FrameProfile p = through_cache_entry(
         path,
-        [&](std::string_view bytes) {
-            return deserialize(bytes, full_key, uint64_t(gen.tile_count()));
+        [&](std::string_view bytes, const std::shared_ptr<const void>& keep) {
+            return deserialize(bytes, full_key, uint64_t(gen.tile_count()), keep);
         },
         [&] { return profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads); },
         [&](const FrameProfile& built) { return serialize(built, full_key); }, "frame profile",

@@ -93,13 +93,14 @@ struct FrameProfile {
     // new lines does not say (one miss can stall a whole tile's rays). The sampler's regression
     // takes it in place of the new lines.
     std::vector<uint64_t> unit_new_line_rays;
-    std::vector<uint32_t> tile_line_start;  // per tile and one more, where its lines start
+    // (The per-tile arrays are views of the mapped entry on a cache hit.)
+    MappableArray<uint32_t> tile_line_start;  // per tile and one more, where its lines start
     // Per tile, the line indices its rays fetch, each once, in the order they were first fetched,
     // and beside each, how many of the tile's rays fetched it (kTileLineRays, at most 127) and
     // whether it holds triangles (kTileLineTriangle).
-    std::vector<uint32_t> tile_lines;
-    std::vector<uint8_t> tile_line_info;
-    std::vector<uint32_t> tile_rays;  // per tile, its rays (those that fetch nothing too)
+    MappableArray<uint32_t> tile_lines;
+    MappableArray<uint8_t> tile_line_info;
+    MappableArray<uint32_t> tile_rays;  // per tile, its rays (those that fetch nothing too)
     // The frame's fetches: lines (at line_bytes) and bytes over every step of every ray, which
     // a core's L1 counts as its accesses and bytes requested.
     uint64_t fetch_lines = 0, fetch_bytes = 0;

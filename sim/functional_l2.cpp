@@ -152,7 +152,10 @@ FunctionalL2 functional_l2_misses_cached(const FrameProfile& p, uint64_t sets, u
             .string();
     std::string outcome;
     FunctionalL2 f = through_cache_entry(
-        path, [&](std::string_view bytes) { return deserialize(bytes, key, p.units.size()); },
+        path,
+        [&](std::string_view bytes, const std::shared_ptr<const void>&) {
+            return deserialize(bytes, key, p.units.size());
+        },
         [&] { return functional_l2_misses(p, sets, ways); },
         [&](const FunctionalL2& built) { return serialize(built, key); }, "L2 miss count", outcome);
     f.cache = outcome;

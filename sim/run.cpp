@@ -151,7 +151,7 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             uint32_t(cfg.typed.l2.line_bytes),
             int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
         sampling->tiles = uint64_t(w.gen->tile_count());
-        sampling->tile_rays = w.profile->tile_rays;
+        sampling->tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
         // The order strata are cut from, before the design is made: another run's units by their
         // cycles, or (a paired run) the reference's, once it is known to be this frame's.
         if (!opt.sample_order_dir.empty()) {

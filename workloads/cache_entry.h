@@ -159,8 +159,9 @@ class CacheEntryBytes {
     bool mapped_ = false;
 };
 
-// A value through an on-disk cache entry at `path`: `load(bytes)` turns a stored entry into the
-// value (throwing CacheEntryUnusable for one that cannot be used), `build()` makes it afresh and
+// A value through an on-disk cache entry at `path`: `load(bytes, keep)` turns a stored entry into
+// the value (throwing CacheEntryUnusable for one that cannot be used; arrays it maps keep `keep`,
+// the mapping, alive), `build()` makes it afresh and
 // `serialize(value)` makes its entry, stored over the old one (`what` names it in a warning when
 // the folder cannot be written). `outcome` gets "hit", "built" or "rebuilt: why".
 template <class Load, class Build, class Serialize>
@@ -168,10 +169,10 @@ auto through_cache_entry(const std::string& path, Load&& load, Build&& build, Se
                          const char* what, std::string& outcome) -> decltype(build()) {
     outcome = "built";
     {
-        CacheEntryBytes bytes;
-        if (bytes.map(path)) {
+        auto bytes = std::make_shared<CacheEntryBytes>();
+        if (bytes->map(path)) {
             try {
-                auto value = load(bytes.view());
+                auto value = load(bytes->view(), std::shared_ptr<const void>(bytes));
                 outcome = "hit";
                 return value;
             } catch (const CacheEntryUnusable& u) {
