@@ -87,6 +87,37 @@ TEST(Reference, UnitOrderIsByCycles) {
               (std::vector<uint32_t>{3, 2, 1, 0}));
 }
 
+// The order and the fields a paired run reads are kept in a digest beside the run's files: read
+// from it while they are unchanged, made again when they change (a rerun into the folder) or
+// when it is damaged, never trusted otherwise.
+TEST(Reference, TheDigestFollowsTheRunsFiles) {
+    namespace fs = std::filesystem;
+    const EveryUnitRun run(kEveryUnit, "unit,cycles\n0,30\n1,10\n2,20\n3,0\n");
+    const fs::path digest = run.dir / "every_unit_digest.bin";
+    const std::vector<uint32_t> first = {3, 1, 2, 0}, second = {0, 3, 2, 1};
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2), first);
+    ASSERT_TRUE(fs::exists(digest));
+    const auto made = fs::last_write_time(digest);
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2), first);
+    EXPECT_EQ(fs::last_write_time(digest), made);  // read, not made again
+    // The table rewritten (by hand: 0 has 1 cycle, 3 has 2, 2 has 20, 1 has 40).
+    std::ofstream(run.dir / "sampled_units.csv") << "unit,cycles\n0,1\n1,40\n2,20\n3,2\n";
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2), second);
+    // A damaged digest is made again.
+    const auto size = fs::file_size(digest);
+    std::ofstream(digest, std::ios::binary) << std::string(size_t(size), 'x');
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2), second);
+    EXPECT_EQ(fs::file_size(digest), size);
+    char magic = 'x';
+    std::ifstream(digest, std::ios::binary).read(&magic, 1);
+    EXPECT_EQ(magic, 'R');
+    // The digest does not stand for a stats.json that changed: it is checked again.
+    std::ofstream(run.dir / "stats.json")
+        << R"({"sampling": {"fast_forward": "skip", "period_units": 1, "unit_tiles": 4, "units": 4}})";
+    EXPECT_NE(run.error(2).find("its units are 4 tiles, this run's 2"), std::string::npos)
+        << run.error(2);
+}
+
 TEST(Reference, UnitOrderRefusesWhatIsNotAnEveryUnitRun) {
     const std::string ok = "unit,cycles\n0,1\n1,2\n2,3\n3,4\n";
     {
