@@ -1,10 +1,9 @@
 #include "workloads/scene.h"
 
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-
+#include <dlfcn.h>
 #include <fmt/format.h>
-#include <assimp/Importer.hpp>
+#include <unistd.h>
+
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -15,7 +14,9 @@
 #include <filesystem>
 #include <mutex>
 #include <thread>
+#include <vector>
 
+#include "workloads/assimp_reader.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -46,30 +47,6 @@ uint64_t Scene::content_hash() const {
     mix(triangles.data(), triangles.size() * sizeof(triangles[0]));
     return h;
 }
-
-namespace {
-
-void append_node(const aiScene* ai, const aiNode* node, const aiMatrix4x4& parent, Scene& out) {
-    const aiMatrix4x4 xf = parent * node->mTransformation;
-    for (unsigned m = 0; m < node->mNumMeshes; ++m) {
-        const aiMesh* mesh = ai->mMeshes[node->mMeshes[m]];
-        if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-        const auto base = static_cast<uint32_t>(out.vertices.size());
-        for (unsigned i = 0; i < mesh->mNumVertices; ++i) {
-            aiVector3D p = xf * mesh->mVertices[i];
-            out.vertices.emplace_back(p.x, p.y, p.z);
-        }
-        for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
-            const aiFace& face = mesh->mFaces[f];
-            if (face.mNumIndices != 3) continue;  // points and lines carry no surface
-            out.triangles.push_back(
-                {base + face.mIndices[0], base + face.mIndices[1], base + face.mIndices[2]});
-        }
-    }
-    for (unsigned c = 0; c < node->mNumChildren; ++c) append_node(ai, node->mChildren[c], xf, out);
-}
-
-}  // namespace
 
 Scene load_scene(const std::string& spec) {
     constexpr const char* kBuiltin = "builtin:";
@@ -160,20 +137,49 @@ class ImportWatchdog {
 
 }  // namespace
 
+namespace {
+
+// The assimp reader module, loaded at the first file that needs it: beside the executable (rtsim
+// and its module are built into one folder), else in the build folder it was built in (the test
+// and fuzz programs, one level down). A missing or broken module is a one-line error.
+RtsimAssimpRead assimp_reader(const std::string& spec) {
+    static std::mutex mutex;
+    static RtsimAssimpRead read = nullptr;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (read) return read;
+    std::vector<std::string> dirs;
+    char exe[4096];
+    const ssize_t n = ::readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n > 0) dirs.push_back(std::filesystem::path(std::string(exe, size_t(n))).parent_path());
+    dirs.push_back(RTSIM_MODULE_DIR);
+    std::string why;
+    for (const std::string& dir : dirs) {
+        const std::string path = (std::filesystem::path(dir) / kRtsimAssimpModule).string();
+        if (void* module = ::dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {
+            read = reinterpret_cast<RtsimAssimpRead>(::dlsym(module, "rtsim_assimp_read"));
+            if (read) return read;
+            why = fmt::format("{} has no rtsim_assimp_read", path);
+        } else if (why.empty() || std::filesystem::exists(path)) {
+            why = ::dlerror();
+        }
+    }
+    throw InputError(
+        fmt::format("{}: cannot read mesh: the assimp reader module ({}) did not load: {}", spec,
+                    kRtsimAssimpModule, why));
+}
+
+}  // namespace
+
 void read_with_assimp(const std::string& spec, Scene& scene) {
-    Assimp::Importer importer;
+    const RtsimAssimpRead read = assimp_reader(spec);
     const ImportWatchdog watchdog(spec);
-    // Triangulate splits polygons in file order; no vertex joining or sorting, so primitive ids
-    // follow the file's own face order.
-    const aiScene* ai = importer.ReadFile(spec, aiProcess_Triangulate);
-    if (!ai || !ai->mRootNode || (ai->mFlags & AI_SCENE_FLAGS_INCOMPLETE)) {
-        std::string why = importer.GetErrorString();
+    std::string why;
+    if (!read(spec.c_str(), &scene, &why)) {
         for (char& c : why)
             if (c == '\n' || c == '\r') c = ' ';
         throw InputError(
             fmt::format("{}: cannot read mesh: {}", spec, why.empty() ? "unknown format" : why));
     }
-    append_node(ai, ai->mRootNode, aiMatrix4x4(), scene);
 }
 
 }  // namespace rtsim
