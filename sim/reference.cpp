@@ -93,8 +93,8 @@ const char* const kReferenceRunHow =
     "the output folder of a run of the frame with --set sim.fidelity=sampled --set "
     "sim.sample_fast_forward=skip --set sim.sample_period_units=1, which measures every unit";
 
-// stats.json of `dir`, which must be a skip run that measured every unit.
-// The checks on an every-unit run's stats.json (`ref`, or its digest's fields).
+// The checks on an every-unit run's stats.json (`ref`, or its digest's fields): a skip run that
+// measured every unit.
 void check_every_unit_run(const json& ref, const std::string& where) {
     if (ref.is_discarded() || !ref.is_object())
         throw InputError(fmt::format("{}: no readable stats.json ({})", where, kReferenceRunHow));

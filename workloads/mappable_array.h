@@ -97,6 +97,7 @@ class MappableArray {
     friend bool operator!=(const MappableArray& a, const MappableArray& b) { return !(a == b); }
 
     // Changing: on a vector of its own (a view is copied into one first).
+
     // The records as a vector of their own, moved out (this array is left empty).
     std::vector<T> take() {
         std::vector<T> v = std::move(sync());
