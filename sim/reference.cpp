@@ -31,7 +31,7 @@ namespace {
 // Field [a, b) of `text`, line `line` of `path`, as a number; InputError if it is none (empty,
 // trailing characters, not finite). Digits alone are read as an integer (exactly, and several
 // times faster than as a double: rtsim writes counters and cycles so); `whole` says which.
-double csv_number(const std::string& text, size_t a, size_t b, const std::string& path, size_t line,
+double csv_number(std::string_view text, size_t a, size_t b, const std::string& path, size_t line,
                   bool* whole = nullptr) {
     const char *first = text.data() + a, *last = text.data() + b;
     uint64_t n = 0;
@@ -112,15 +112,15 @@ void same_unit_size(const json& stats, uint64_t unit_tiles, const std::string& w
             theirs, unit_tiles));
 }
 
-// The units of the every-unit run in `dir` (its stats.json `stats`) by their cycles.
-std::vector<uint32_t> units_by_cycles(const json& stats, const std::string& dir) {
+// The units of an every-unit run (its stats.json `stats`) by their cycles, from its
+// sampled_units.csv at `path` (`text`: its bytes, none if it could not be read).
+std::vector<uint32_t> units_by_cycles(const json& stats, std::optional<std::string_view> text,
+                                      const std::string& path) {
     const uint64_t units = stats["sampling"].value("units", uint64_t(0));
-    const std::string path = (fs::path(dir) / "sampled_units.csv").string();
-    const std::optional<std::string> text = read_file_text(path);
     if (!text)
         throw InputError(
             fmt::format("{}: cannot be read (a run that measured every unit writes it)", path));
-    const std::string& t = *text;
+    const std::string_view t = *text;
     // Two columns of a table of every unit's counters (1.5 MB for a 1080p frame): a line is
     // scanned to its cycles field, not parsed whole.
     const size_t header_end = std::min(t.find('\n'), t.size());
@@ -203,9 +203,10 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
                                  uint64_t unit_tiles) {
     const std::string stats_path = (dir / "stats.json").string();
     const std::string csv_path = (dir / "sampled_units.csv").string();
+    // Mapped once: hashed for the digest's key, and parsed only when there is no digest.
     CacheEntryBytes stats_bytes, csv_bytes;
     stats_bytes.map(stats_path);
-    csv_bytes.map(csv_path);
+    const bool csv_readable = csv_bytes.map(csv_path);
     auto hash = [](const CacheEntryBytes& b) {
         return uint64_t(XXH3_64bits(b.view().data(), b.view().size()));
     };
@@ -238,7 +239,8 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
     const json ref = json::parse(text.begin(), text.end(), nullptr, false);
     check_every_unit_run(ref, where);
     same_unit_size(ref, unit_tiles, where);
-    run.order = units_by_cycles(ref, dir.string());
+    run.order = units_by_cycles(ref, csv_readable ? std::optional(csv_bytes.view()) : std::nullopt,
+                                csv_path);
     // The fields load_reference and read_unit_order read.
     const json& sm = ref["sampling"];
     json& kept = run.stats;

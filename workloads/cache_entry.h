@@ -138,10 +138,12 @@ constexpr uint64_t kFnvOffset = 1469598103934665603ull;
 // the store: a one-line warning naming `what`, and the run goes on.
 void store_cache_entry(const std::string& path, const std::string& bytes, const char* what);
 
-// A cache entry's bytes, mapped read-only rather than read: an entry is read once and then
-// copied field by field, so a buffer of its own (zeroed, then filled by read) cost a sampled run
-// of a 1080p bunny frame two passes over its 11 MB BVH for nothing. Entries are replaced
-// through a rename, never rewritten in place, so the mapped file cannot change under it.
+// A cache entry's bytes, mapped read-only rather than read: a buffer of its own (zeroed, then
+// filled by read) cost a sampled run of a 1080p bunny frame two passes over its 11 MB BVH for
+// nothing, and a hit's arrays may stay views of the mapping (MappableArray). Entries are replaced
+// through a rename, never rewritten in place, so the mapped file cannot change under it. Other
+// files read once are mapped through it too: a mesh file hashed for its cache key, and an
+// every-unit run's stats.json and table (sim/reference.cpp).
 class CacheEntryBytes {
   public:
     CacheEntryBytes() = default;

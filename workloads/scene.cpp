@@ -135,10 +135,6 @@ class ImportWatchdog {
     std::thread thread_;
 };
 
-}  // namespace
-
-namespace {
-
 // The assimp reader module, loaded at the first file that needs it: beside the executable (rtsim
 // and its module are built into one folder), else in the build folder it was built in (the test
 // and fuzz programs, one level down). A missing or broken module is a one-line error.
