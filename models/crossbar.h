@@ -32,6 +32,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     Cycle carry(Cycle returned, uint32_t size_bytes);
     MemoryPort* next_level() const { return next_; }
     void warm(uint64_t addr, uint32_t size_bytes) override { next_->warm(addr, size_bytes); }
+    MemoryPort* warms_only_through() const override { return next_; }
     // Writes cross the other way, on a link of their own (a crossbar's request and response
     // networks are separate), then reach the L2; returns the cycle the L2 accepted the write.
     Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {

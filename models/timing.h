@@ -100,6 +100,9 @@ class MemoryPort {
     // (tags and replacement order of every level it reaches), taking no time, reserving nothing
     // and counting nothing. A level with no such state ignores it.
     virtual void warm(uint64_t /*addr*/, uint32_t /*size_bytes*/) {}
+    // The port this one's warm() hands every request to unchanged (a link that holds no
+    // state), or null: a warming caller may then skip it.
+    virtual MemoryPort* warms_only_through() const { return nullptr; }
     // A posted write (a stack spill, a hit record, a dirty line written back): returns the cycle
     // this level has accepted it; the writer does not wait for anything below. A level with no
     // write path (a read-only L1) must never be given one.

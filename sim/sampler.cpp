@@ -139,6 +139,27 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
                           const std::string& cache_dir) {
     profile_ = profile;
     l2_ = l2;
+    // The direct route: each line is one tag check per level, not a chain of virtual warm()
+    // calls (the replay is a quarter of a 1-in-50 primary frame's main thread).
+    auto* l2_cache = dynamic_cast<Cache*>(l2);
+    const uint32_t line_bytes = profile->line_bytes;
+    bool direct = l2_cache && l2_cache->params().line_bytes == line_bytes && line_bytes > 0 &&
+                  profile->line_base % line_bytes == 0 && !ports_.empty();
+    std::vector<std::array<Cache*, kStepKinds>> l1s(ports_.size());
+    for (size_t c = 0; direct && c < ports_.size(); ++c)
+        for (size_t k = 0; direct && k < kStepKinds; ++k) {
+            auto* l1 = dynamic_cast<Cache*>(ports_[c][k]);
+            MemoryPort* below = l1 ? l1->next_level() : nullptr;
+            while (below && below != l2 && below->warms_only_through())
+                below = below->warms_only_through();
+            direct = l1 && below == l2 && l1->params().line_bytes == line_bytes;
+            l1s[c][k] = l1;
+        }
+    if (direct) {
+        direct_l1_ = std::move(l1s);
+        direct_l2_ = l2_cache;
+        direct_first_line_ = profile->line_base / line_bytes;
+    }
     const auto& lines = profile->tile_lines;
     const size_t distinct = lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1;
     line_pass_.resize(distinct);
@@ -179,18 +200,6 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         // full run's +0.51% and -0.50%, against +0.42% and -0.42% with this one; 8 times: +0.50%
         // and -0.52%; 24 frames at 1 in 20, 100 seeds: cycles' mean error 1.80% and 1.79%,
         // coverage 92.3% and 92.6%, DRAM bytes' 0.93% both) and made a 1-in-20 run 1.12x slower.
-        uint64_t through_l1 = last;
-        line_pass_.next();
-        for (uint64_t budget = 0;
-             through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < l1_lines_ * cores);) {
-            --through_l1;
-            for (uint32_t i = p.tile_line_start[through_l1]; i < p.tile_line_start[through_l1 + 1];
-                 ++i)
-                if (line_pass_.first(p.tile_lines[i]))
-                    budget += std::min<size_t>(p.tile_line_info[i] & kTileLineRays, cores);
-        }
-        const uint32_t l1_from = cores == 0 ? end : p.tile_line_start[through_l1];
-        warm_l2_lines(p.tile_line_start[replayed_tiles_], l1_from);
         // The cores share a tile's rays: a line that n of them fetched is in n cores' L1s (all
         // of them for the top of the tree), a line one ray fetched in one, in turn.
         auto rays_of = [&](uint32_t i) {
@@ -199,10 +208,27 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         auto warm = [&](uint32_t i, size_t core) {
             const auto kind = size_t((p.tile_line_info[i] & kTileLineTriangle) ? StepKind::Triangle
                                                                                : StepKind::Node);
+            if (direct_l2_) {
+                if (!direct_l1_[core][kind]->warm_line(direct_first_line_ + p.tile_lines[i]))
+                    warm_l2_line(i);
+                return;
+            }
             ports_[core][kind]->warm(p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes,
                                      p.line_bytes);
         };
-        if (core_line_pass_.size() == 0) {
+        const uint64_t budget_limit = l1_lines_ * cores;  // l1_lines_ 0: no limit
+        uint64_t through_l1 = last;
+        if (core_line_pass_.size() == 0 || cores == 0) {
+            line_pass_.next();
+            for (uint64_t budget = 0;
+                 through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < budget_limit);) {
+                --through_l1;
+                for (uint32_t i = p.tile_line_start[through_l1];
+                     i < p.tile_line_start[through_l1 + 1]; ++i)
+                    if (line_pass_.first(p.tile_lines[i])) budget += rays_of(i);
+            }
+            const uint32_t l1_from = cores == 0 ? end : p.tile_line_start[through_l1];
+            warm_l2_lines(p.tile_line_start[replayed_tiles_], l1_from);
             for (uint32_t i = l1_from; i < end; ++i) {
                 const size_t n = rays_of(i);
                 for (size_t j = 0; j < n; ++j) warm(i, (replay_core_ + j) % cores);
@@ -215,36 +241,61 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
             // going back from the window's end (the cores taken in the same turn). The top of the
             // tree comes back tile after tile: 1080p bunny primary at 1 in 50 made 925k L1 warms,
             // 368k of them last touches. The L2 sees the L1s' misses at their last touches.
-            size_t after = replay_core_;  // the core after the window's last warm
-            for (uint32_t i = l1_from; i < end; ++i) after = (after + rays_of(i)) % cores;
-            const size_t next_core = after;
+            // One pass back finds the window and its last touches together: cores are counted
+            // from the window's end (0 the core after its last warm, unknown until the window is
+            // found; turning every core by the same amount changes no set of cores met).
             core_line_pass_.next();
             l1_last_touches_.clear();
-            for (uint32_t i = end; i-- > l1_from;) {
-                const size_t n = rays_of(i);
-                const size_t from = (after + cores - n % cores) % cores;
-                after = from;
-                uint64_t turn = 0;  // the cores of this entry, a bit each
-                for (size_t j = 0; j < n; ++j) turn |= uint64_t(1) << ((from + j) % cores);
-                const uint64_t fresh = core_line_pass_.first(p.tile_lines[i], turn);
-                if (fresh == 0) continue;
-                for (size_t j = n; j-- > 0;)
-                    if (fresh >> ((from + j) % cores) & 1)
-                        l1_last_touches_.emplace_back(i, uint32_t((from + j) % cores));
+            auto ones = [](size_t k) { return k >= 64 ? ~uint64_t(0) : (uint64_t(1) << k) - 1; };
+            size_t from = 0;  // the first core of the entry in turn, counted from the end
+            for (uint64_t budget = 0;
+                 through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < budget_limit);) {
+                --through_l1;
+                for (uint32_t i = p.tile_line_start[through_l1 + 1];
+                     i-- > p.tile_line_start[through_l1];) {
+                    const size_t n = rays_of(i);
+                    from = (from + cores - n % cores) % cores;
+                    // The cores from, from + 1, ... n of them, wrapping past the last.
+                    const size_t below_end = std::min(n, cores - from), wrapped = n - below_end;
+                    const uint64_t turn = ones(below_end) << from | ones(wrapped);
+                    bool new_line = false;
+                    const uint64_t fresh = core_line_pass_.first(p.tile_lines[i], turn, new_line);
+                    if (new_line) budget += n;
+                    // Later cores of the turn first (they come after in the warm order): the
+                    // wrapped ones, then the others.
+                    for (const uint64_t part : {fresh & ones(wrapped), fresh & ~ones(wrapped)})
+                        for (uint64_t bits = part; bits != 0;) {
+                            const int core = 63 - __builtin_clzll(bits);
+                            bits &= ~(uint64_t(1) << core);
+                            l1_last_touches_.emplace_back(i, uint32_t(core));
+                        }
+                }
             }
+            const uint32_t l1_from = p.tile_line_start[through_l1];
+            warm_l2_lines(p.tile_line_start[replayed_tiles_], l1_from);
+            // The core after the window's last warm: replay_core_ plus the window's rays.
+            const size_t next_core = (replay_core_ + (cores - from) % cores) % cores;
             for (auto w = l1_last_touches_.rbegin(); w != l1_last_touches_.rend(); ++w)
-                warm(w->first, w->second);
+                warm(w->first, (w->second + next_core) % cores);
             replay_core_ = next_core;
         }
     }
     replayed_tiles_ = tile + 1;
 }
 
-void Sampler::warm_l2_lines(uint32_t from, uint32_t to) {
+// Tile line entry i into the L2, as l2_->warm() would put it there.
+void Sampler::warm_l2_line(uint32_t i) {
     const FrameProfile& p = *profile_;
-    auto warm = [&](uint32_t i) {
-        l2_->warm(p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes, p.line_bytes);
-    };
+    const uint64_t addr = p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes;
+    if (!direct_l2_) {
+        l2_->warm(addr, p.line_bytes);
+    } else if (!direct_l2_->warm_line(direct_first_line_ + p.tile_lines[i])) {
+        if (MemoryPort* below = direct_l2_->next_level()) below->warm(addr, p.line_bytes);
+    }
+}
+
+void Sampler::warm_l2_lines(uint32_t from, uint32_t to) {
+    auto warm = [&](uint32_t i) { warm_l2_line(i); };
     if (!l2_lru_) {
         for (uint32_t i = from; i < to; ++i) warm(i);
         return;
@@ -256,7 +307,7 @@ void Sampler::warm_l2_lines(uint32_t from, uint32_t to) {
     line_pass_.next();
     last_touches_.clear();
     for (uint32_t i = to; i-- > from;)
-        if (line_pass_.first(p.tile_lines[i])) last_touches_.push_back(i);
+        if (line_pass_.first(profile_->tile_lines[i])) last_touches_.push_back(i);
     for (auto i = last_touches_.rbegin(); i != last_touches_.rend(); ++i) warm(*i);
 }
 

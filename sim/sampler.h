@@ -40,6 +40,7 @@
 #include <string>
 #include <vector>
 
+#include "models/cache.h"
 #include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
@@ -155,9 +156,11 @@ class CoreLinePass {
     size_t size() const { return cores_.size(); }
     // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
     // pass.
-    uint64_t first(uint32_t line, uint64_t cores) {
+    // `new_line`: whether the pass meets `line` for the first time.
+    uint64_t first(uint32_t line, uint64_t cores, bool& new_line) {
         uint64_t& met = cores_[line];
-        if (pass_.first(line)) met = 0;
+        new_line = pass_.first(line);
+        if (new_line) met = 0;
         const uint64_t fresh = cores & ~met;
         met |= cores;
         return fresh;
@@ -336,6 +339,13 @@ class Sampler {
     const Reference* reference_ = nullptr;
     JointEstimates joint_;
     MemoryPort* l2_ = nullptr;
+    // The replay's direct route (set_profile), when every port is an L1 whose misses reach the
+    // L2 through nothing but links, with the profile's line size at both levels: per core and
+    // step kind its L1 (warm_line), and the L2; otherwise empty, and lines go through warm().
+    std::vector<std::array<Cache*, kStepKinds>> direct_l1_;
+    Cache* direct_l2_ = nullptr;
+    uint64_t direct_first_line_ = 0;  // profile line 0 in lines of the caches
+    void warm_l2_line(uint32_t entry);
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first
     // replay_skipped_tiles' L1 window and warm_l2_lines' last touches each meet a line once.
