@@ -379,6 +379,9 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         if (k.rfind("sample_", 0) == 0 || k == "fidelity") ref_cfg["sim"][k] = v;
     ref_cfg["sim"]["sample_period_units"] = sp.period_units;
     ref_cfg["sim"]["sample_seed"] = sp.seed;
+    // The child is not paired: it is given this run's (paired) warm-up as its own.
+    ref_cfg["sim"]["sample_warmup_tiles"] = sp.warmup_tiles;
+    ref_cfg["sim"]["sample_warmup_tile_rays"] = sp.warmup_tile_rays;
     // The order the strata were cut from is the plan's too.
     const uint64_t order_hash =
         sp.unit_order.empty()

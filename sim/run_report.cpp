@@ -181,11 +181,18 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                 sm["profile"].value("seconds", 0.0));
         if (sm.contains("reference")) {
             const json& r = sm["reference"];
-            fmt::print("  paired   with reference design '{}' ({}), its sample {}\n",
-                       r.value("config_name", std::string()), r.value("dir", std::string()),
-                       r.value("matched_sample", std::string()) == "cached"
-                           ? "kept from an earlier run"
-                           : fmt::format("run now ({:.2f} s)", r.value("matched_host_s", 0.0)));
+            // The warm-up is named: a paired run takes its own (sim.sample_paired_warmup_*).
+            const uint64_t warmup = sm.value("warmup_tiles", uint64_t(0)),
+                           warmup_rays = sm.value("warmup_tile_rays", uint64_t(0));
+            fmt::print(
+                "  paired   with reference design '{}' ({}), its sample {}; warm-up {} tile{}{} "
+                "(sim.sample_paired_warmup_*)\n",
+                r.value("config_name", std::string()), r.value("dir", std::string()),
+                r.value("matched_sample", std::string()) == "cached"
+                    ? "kept from an earlier run"
+                    : fmt::format("run now ({:.2f} s)", r.value("matched_host_s", 0.0)),
+                warmup, warmup == 1 ? "" : "s",
+                warmup_rays ? fmt::format(" or more, to hold {} rays", warmup_rays) : "");
         }
         if (sm.value("units_measured", 0) < 30)
             fmt::print(

@@ -535,6 +535,7 @@ json Sampler::report(Cycle end_cycle) {
                     {"unit_tiles", params_.unit_tiles},
                     {"warm_tiles", params_.warm_tiles},
                     {"warmup_tiles", params_.warmup_tiles},
+                    {"warmup_tile_rays", params_.warmup_tile_rays},
                     {"tiles", params_.tiles},
                     {"tiles_traced", tiles_traced_},
                     {"rays_traced", index_}});

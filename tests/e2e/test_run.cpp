@@ -855,6 +855,15 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     // (its reference, unpaired, did).
     EXPECT_FALSE(sa["sampling"].contains("functional_l2"));
     EXPECT_TRUE(stats_of(ref)["sampling"].contains("functional_l2"));
+    // A paired run warms up over sim.sample_paired_warmup_tiles (1 tile, whatever its rays), its
+    // reference unpaired over sim.sample_warmup_tiles (2, holding at least 128 rays); the
+    // matched sample runs with the paired run's warm-up, else the units below would differ.
+    EXPECT_EQ(sa["sampling"]["warmup_tiles"], 1);
+    EXPECT_EQ(sa["sampling"]["warmup_tile_rays"], 0);
+    EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tiles"], 2);
+    EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tile_rays"], 128);
+    EXPECT_NE(ra.out.find("warm-up 1 tile (sim.sample_paired_warmup_*)"), std::string::npos)
+        << ra.out;
     for (json* s : {&sa, &sb}) {
         (*s)["sampling"].erase("reference");
         (*s)["sampling"].erase("profile");
