@@ -241,6 +241,8 @@ class Sampler {
     // the cycles to it (called by report).
     void finish();
 
+    // Whether the replay takes the direct route (set_profile; tests).
+    bool replays_directly() const { return direct_l2_ != nullptr; }
     uint64_t rays_seen() const { return index_; }
     uint64_t rays_detailed() const { return detailed_; }
 

@@ -1,13 +1,18 @@
 // The interval machinery of sampled simulation (sim/sampling.h): Student's t against printed
 // tables, and the intervals' coverage on synthetic populations whose true figures are known.
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <numeric>
 #include <random>
+#include <set>
 
+#include "models/cache.h"
+#include "models/crossbar.h"
 #include "sim/sampler.h"
 #include "sim/sampling.h"
 
@@ -248,6 +253,169 @@ TEST(Sampling, SamplerKeepsUnitsAndTimesThemByHandOut) {
     // next unit's warm-up ray or its first), within 40 rays.
     EXPECT_GE(kept, 20);
     EXPECT_LE(kept, 30);
+}
+
+namespace {
+
+// Hands every request on unchanged, but is not a link the sampler can see through
+// (MemoryPort::warms_only_through): a replay into it takes the chain of warm() calls.
+class OpaquePort : public MemoryPort {
+  public:
+    explicit OpaquePort(MemoryPort* next) : next_(next) {}
+    Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) override {
+        return next_->access(addr, size_bytes, now, bd);
+    }
+    void warm(uint64_t addr, uint32_t size_bytes) override { next_->warm(addr, size_bytes); }
+
+  private:
+    MemoryPort* next_;
+};
+
+// Per core an L1 (a node and a triangle L1 when split), a crossbar, an L2; LRU throughout.
+struct Hierarchy {
+    std::unique_ptr<Cache> l2;
+    std::unique_ptr<Crossbar> crossbar;
+    std::vector<std::unique_ptr<Cache>> l1;  // core c's: l1[c], or l1[2c] and l1[2c + 1]
+    std::vector<std::unique_ptr<OpaquePort>> opaque;
+    std::vector<std::array<MemoryPort*, kStepKinds>> ports;
+    Hierarchy(const std::string& name, int cores, bool split, bool opaque_ports) {
+        CacheParams l2p;
+        l2p.size_bytes = 8 * 1024;
+        l2p.ways = 8;
+        l2 = std::make_unique<Cache>((name + "_l2").c_str(), l2p, nullptr, kLevelL2);
+        crossbar = std::make_unique<Crossbar>((name + "_xbar").c_str(), 64.0, l2.get());
+        CacheParams l1p;
+        l1p.size_bytes = 1024;  // 4 sets of 4 ways
+        for (int c = 0; c < cores; ++c) {
+            std::array<MemoryPort*, kStepKinds> mine{};
+            for (int k = 0; k < (split ? 2 : 1); ++k) {
+                l1.push_back(std::make_unique<Cache>(fmt::format("{}_l1_{}_{}", name, c, k).c_str(),
+                                                     l1p, crossbar.get()));
+                MemoryPort* port = l1.back().get();
+                if (opaque_ports) {
+                    opaque.push_back(std::make_unique<OpaquePort>(port));
+                    port = opaque.back().get();
+                }
+                if (k == 0)
+                    mine.fill(port);
+                else
+                    mine[size_t(StepKind::Triangle)] = port;
+            }
+            ports.push_back(mine);
+        }
+    }
+};
+
+}  // namespace
+
+// The replay of skipped tiles into the caches takes a direct route where it can (an L1's tag
+// check, the L2's on a miss) and the chain of warm() calls through the crossbar otherwise; both
+// must leave every cache holding the same lines. A synthetic frame profile (a top of the tree
+// most rays fetch, lines fetched by a few rays, triangle lines), replayed gap after gap into a
+// 4-core and a 3-core hierarchy, split L1s or not: after each gap, every line's presence in every
+// cache compared (the order of LRU stamps shows in later gaps' evictions). The L1s are also
+// checked against a plain model of what the replay stands for: going back from the gap's end,
+// the tiles whose distinct lines, each counted for its rays (at most one per core), first reach
+// what the L1s hold together; then every touch of those tiles in order, a line fetched by n rays
+// warmed in the L1s of the next n cores in turn (an LRU cache ends the same whether it sees every
+// touch or, as the replay warms, only each line's last).
+TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
+    constexpr uint32_t kPool = 300, kTiles = 60;
+    constexpr uint64_t kBase = uint64_t(1) << 20;
+    FrameProfile profile;
+    profile.unit_tiles = 1;
+    profile.line_bytes = 64;
+    profile.line_base = kBase;
+    std::mt19937 rng(7);
+    std::vector<uint32_t> starts{0}, lines;
+    std::vector<uint8_t> info;
+    for (uint32_t t = 0; t < kTiles; ++t) {
+        std::vector<uint32_t> tile(kPool);
+        std::iota(tile.begin(), tile.end(), 0u);
+        std::shuffle(tile.begin() + 8, tile.end(), rng);  // lines 0-7: the top of the tree
+        const uint32_t n = 8 + rng() % 40;
+        for (uint32_t i = 0; i < n; ++i) {
+            lines.push_back(tile[i]);
+            const uint8_t rays = tile[i] < 8 ? uint8_t(40 + rng() % 24) : uint8_t(1 + rng() % 3);
+            info.push_back(uint8_t(rays | (tile[i] >= 200 ? kTileLineTriangle : 0)));
+        }
+        starts.push_back(uint32_t(lines.size()));
+    }
+    profile.tile_line_start = MappableArray<uint32_t>(starts);
+    profile.tile_lines = MappableArray<uint32_t>(lines);
+    profile.tile_line_info = MappableArray<uint8_t>(info);
+    profile.tile_rays = MappableArray<uint32_t>(std::vector<uint32_t>(kTiles, 64));
+
+    StatsRegistry reg;
+    SamplingParams sp;
+    sp.skip = true;
+    sp.unit_tiles = 1;
+    sp.tiles = kTiles;
+    sp.period_units = kTiles;
+    sp.warmup_tiles = 0;
+    sp.warmup_tile_rays = 0;
+    int variant = 0;
+    for (const int cores : {4, 3})
+        for (const bool split : {false, true}) {
+            const std::string name = fmt::format("replay{}", variant++);
+            Hierarchy direct(name + "d", cores, split, false),
+                chain(name + "c", cores, split, true), model(name + "m", cores, split, false);
+            size_t model_core = 0;
+            uint64_t model_replayed = 0;
+            auto model_replay = [&](uint64_t tile) {
+                std::set<uint32_t> seen;
+                uint64_t from = tile, budget = 0;
+                const auto rays = [&](uint32_t i) {
+                    return std::min<size_t>(info[i] & kTileLineRays, size_t(cores));
+                };
+                while (from > model_replayed && budget < 16u * uint64_t(cores)) {
+                    --from;
+                    for (uint32_t i = starts[from]; i < starts[from + 1]; ++i)
+                        if (seen.insert(lines[i]).second) budget += rays(i);
+                }
+                for (uint32_t i = starts[from]; i < starts[tile]; ++i) {
+                    const size_t kind =
+                        size_t((info[i] & kTileLineTriangle) ? StepKind::Triangle : StepKind::Node);
+                    for (size_t j = 0; j < rays(i); ++j)
+                        model.ports[(model_core + j) % size_t(cores)][kind]->warm(
+                            kBase + uint64_t(lines[i]) * 64, 64);
+                    model_core = (model_core + rays(i)) % size_t(cores);
+                }
+                model_replayed = tile + 1;
+            };
+            Sampler a(sp, direct.ports, reg), b(sp, chain.ports, reg);
+            for (Sampler* s : {&a, &b}) {
+                // 16 lines per L1; the L2's sets 0: no functional count of its misses.
+                s->set_cache_sizes(64, 64, 16, true, true, 64, 0, 8);
+            }
+            a.set_profile(&profile, direct.l2.get());
+            b.set_profile(&profile, chain.l2.get());
+            ASSERT_TRUE(a.replays_directly());
+            ASSERT_FALSE(b.replays_directly());
+            RayWork work;
+            work.rays = 1;
+            size_t held_in_l1s = 0;
+            for (const int64_t tile : {3, 4, 9, 17, 30, 31, 45, 59}) {
+                a.fast_forward(work, tile);
+                b.fast_forward(work, tile);
+                model_replay(uint64_t(tile));
+                for (uint32_t line = 0; line < kPool; ++line) {
+                    const uint64_t addr = kBase + uint64_t(line) * 64;
+                    ASSERT_EQ(direct.l2->contains(addr), chain.l2->contains(addr))
+                        << name << " tile " << tile << " line " << line;
+                    for (size_t c = 0; c < direct.l1.size(); ++c) {
+                        ASSERT_EQ(direct.l1[c]->contains(addr), chain.l1[c]->contains(addr))
+                            << name << " tile " << tile << " L1 " << c << " line " << line;
+                        ASSERT_EQ(direct.l1[c]->contains(addr), model.l1[c]->contains(addr))
+                            << name << " tile " << tile << " L1 " << c << " line " << line
+                            << " against the model";
+                        held_in_l1s += direct.l1[c]->contains(addr);
+                    }
+                }
+            }
+            // The replays reached the L1s (every gap fills them: 16 lines each).
+            EXPECT_GT(held_in_l1s, 8 * direct.l1.size() * 8) << name;
+        }
 }
 
 // The regression estimator of a total on two auxiliaries with known totals (work and first
