@@ -144,31 +144,43 @@ class LinePass {
 };
 
 // LinePass per (core, line), for up to 64 cores: a mask of the cores met per line, reset when
-// the pass meets the line first.
+// the pass meets the line first. A line's stamp and mask share a host cache line (the lines come
+// in no order: apart, they were two cache misses per line).
 class CoreLinePass {
   public:
     static constexpr size_t kMaxCores = 64;
     void resize(size_t lines) {
-        pass_.resize(lines);
-        cores_.assign(lines, 0);
+        lines_.assign(lines, Line{});
+        now_ = 0;
     }
-    void next() { pass_.next(); }
-    size_t size() const { return cores_.size(); }
+    void next() {
+        if (++now_ == 0) {  // the stamp wrapped: forget every earlier pass
+            std::fill(lines_.begin(), lines_.end(), Line{});
+            now_ = 1;
+        }
+    }
+    size_t size() const { return lines_.size(); }
     // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
-    // pass.
-    // `new_line`: whether the pass meets `line` for the first time.
+    // pass. `new_line`: whether the pass meets `line` for the first time.
     uint64_t first(uint32_t line, uint64_t cores, bool& new_line) {
-        uint64_t& met = cores_[line];
-        new_line = pass_.first(line);
-        if (new_line) met = 0;
-        const uint64_t fresh = cores & ~met;
-        met |= cores;
+        Line& l = lines_[line];
+        new_line = l.pass != now_;
+        if (new_line) {
+            l.pass = now_;
+            l.met = 0;
+        }
+        const uint64_t fresh = cores & ~l.met;
+        l.met |= cores;
         return fresh;
     }
 
   private:
-    LinePass pass_;
-    std::vector<uint64_t> cores_;
+    struct Line {
+        uint64_t met = 0;   // the cores met in pass `pass`
+        uint32_t pass = 0;  // the pass that last met the line
+    };
+    std::vector<Line> lines_;
+    uint32_t now_ = 0;
 };
 
 class Sampler {
