@@ -163,7 +163,9 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
     const auto& lines = profile->tile_lines;
     const size_t distinct = lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1;
     line_pass_.resize(distinct);
-    if (l1_lru_ && ports_.size() <= CoreLinePass::kMaxCores) core_line_pass_.resize(distinct);
+    // An L1 window meets at most what the L1s hold together, and a tile's lines more.
+    if (l1_lru_ && ports_.size() <= CoreLinePass::kMaxCores)
+        core_line_pass_.reserve(l1_lines_ > 0 ? l1_lines_ * ports_.size() + 256 : 4096);
     // A reference design's matched sample already carries its capacity misses (section 10 of
     // bench/results/sampled_estimators.md); other replacement policies would need their own
     // functional model.
@@ -218,7 +220,7 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         };
         const uint64_t budget_limit = l1_lines_ * cores;  // l1_lines_ 0: no limit
         uint64_t through_l1 = last;
-        if (core_line_pass_.size() == 0 || cores == 0) {
+        if (!core_line_pass_.enabled() || cores == 0) {
             line_pass_.next();
             for (uint64_t budget = 0;
                  through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < budget_limit);) {

@@ -143,44 +143,69 @@ class LinePass {
     uint32_t now_ = 0;
 };
 
-// LinePass per (core, line), for up to 64 cores: a mask of the cores met per line, reset when
-// the pass meets the line first. A line's stamp and mask share a host cache line (the lines come
-// in no order: apart, they were two cache misses per line).
+// LinePass per (core, line), for up to 64 cores, over the lines of one L1 window (a few thousand
+// of a frame's hundreds of thousands): a mask of the cores met per line, in an open-addressing
+// table that grows past half full. Its slots carry the pass that filled them, so a new pass
+// clears nothing. (A slot per line of the frame was 2.75 MB for 1080p bunny, every page of it a
+// fresh-page fault, and a host cache miss per line met.)
 class CoreLinePass {
   public:
     static constexpr size_t kMaxCores = 64;
-    void resize(size_t lines) {
-        lines_.assign(lines, Line{});
-        now_ = 0;
+    // Ready for passes meeting about `lines` distinct lines.
+    void reserve(size_t lines) {
+        size_t slots = 64;
+        while (slots < 2 * lines) slots *= 2;
+        rehash(slots);
+        now_ = 1;
+        enabled_ = true;
     }
+    bool enabled() const { return enabled_; }
     void next() {
+        count_ = 0;
         if (++now_ == 0) {  // the stamp wrapped: forget every earlier pass
-            std::fill(lines_.begin(), lines_.end(), Line{});
+            std::fill(slots_.begin(), slots_.end(), Slot{});
             now_ = 1;
         }
     }
-    size_t size() const { return lines_.size(); }
     // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
     // pass. `new_line`: whether the pass meets `line` for the first time.
     uint64_t first(uint32_t line, uint64_t cores, bool& new_line) {
-        Line& l = lines_[line];
-        new_line = l.pass != now_;
+        if (2 * (count_ + 1) > slots_.size()) rehash(2 * slots_.size());
+        Slot& s = find(line);
+        new_line = s.pass != now_;
         if (new_line) {
-            l.pass = now_;
-            l.met = 0;
+            s = Slot{0, line, now_};
+            ++count_;
         }
-        const uint64_t fresh = cores & ~l.met;
-        l.met |= cores;
+        const uint64_t fresh = cores & ~s.met;
+        s.met |= cores;
         return fresh;
     }
 
   private:
-    struct Line {
-        uint64_t met = 0;   // the cores met in pass `pass`
-        uint32_t pass = 0;  // the pass that last met the line
+    struct Slot {
+        uint64_t met = 0;  // the cores met in pass `pass`
+        uint32_t line = 0;
+        uint32_t pass = 0;  // the pass that filled the slot (0: none)
     };
-    std::vector<Line> lines_;
-    uint32_t now_ = 0;
+    // Line's slot in this pass, or the free slot where it goes.
+    Slot& find(uint32_t line) {
+        size_t i = size_t((uint64_t(line) * 0x9E3779B97F4A7C15ull) >> shift_);
+        while (slots_[i].pass == now_ && slots_[i].line != line) i = (i + 1) & (slots_.size() - 1);
+        return slots_[i];
+    }
+    void rehash(size_t slots) {
+        std::vector<Slot> old = std::move(slots_);
+        slots_.assign(slots, Slot{});
+        shift_ = 64;
+        for (size_t n = slots; n > 1; n /= 2) --shift_;
+        for (const Slot& s : old)
+            if (s.pass == now_ && now_ != 0) find(s.line) = s;
+    }
+    std::vector<Slot> slots_;
+    uint32_t now_ = 0, shift_ = 64;
+    size_t count_ = 0;  // lines met in this pass
+    bool enabled_ = false;
 };
 
 class Sampler {

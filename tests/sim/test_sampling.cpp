@@ -418,6 +418,31 @@ TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
         }
 }
 
+// CoreLinePass against a map of (line, cores met) per pass: random lines over a range far
+// larger than the table it starts with (it grows), cores as random masks, passes of different
+// lengths.
+TEST(Sampling, CoreLinePassTellsWhichCoresMeetALineFirst) {
+    CoreLinePass pass;
+    pass.reserve(4);
+    std::mt19937_64 rng(3);
+    for (int p = 0; p < 50; ++p) {
+        pass.next();
+        std::map<uint32_t, uint64_t> met;
+        const int n = int(rng() % 3000);
+        for (int k = 0; k < n; ++k) {
+            const uint32_t line = uint32_t(rng() % 100000);
+            const uint64_t cores = rng() & rng();
+            bool new_line = false;
+            const uint64_t fresh = pass.first(line, cores, new_line);
+            const auto it = met.find(line);
+            ASSERT_EQ(new_line, it == met.end()) << p << " " << k;
+            const uint64_t before = it == met.end() ? 0 : it->second;
+            ASSERT_EQ(fresh, cores & ~before) << p << " " << k;
+            met[line] = before | cores;
+        }
+    }
+}
+
 // The regression estimator of a total on two auxiliaries with known totals (work and first
 // touches, in a sampled run): it covers, and where y follows the second auxiliary (DRAM bytes
 // follow first touches, not work) its interval is far narrower than the ratio estimator's.
