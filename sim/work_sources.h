@@ -287,7 +287,10 @@ class GeneratedWorkSource : public PrefetchingSource {
     void fill(Batch& b) override {
         b.records.clear();  // steps are moved in from the tracer: nothing to reuse
         constexpr size_t kBatchRays = 4096;
-        std::vector<GeneratedRay> rays;
+        // Kept from batch to batch: a fresh vector grown to a batch's rays was hundreds of
+        // fresh pages each time (page faults cost about 5 us each on these VMs).
+        std::vector<GeneratedRay>& rays = rays_;
+        rays.clear();
         b.tiles.clear();
         bool more = true;
         while (rays.size() < kBatchRays && (more = tiles_.next(rays)))
@@ -309,6 +312,7 @@ class GeneratedWorkSource : public PrefetchingSource {
     }
 
   private:
+    std::vector<GeneratedRay> rays_;  // fill's, on the helper thread
     void fill_packets(const std::vector<GeneratedRay>& rays, Batch& b) {
         Ray packet[kMaxPacketSize];
         Hit hits[kMaxPacketSize];
