@@ -120,10 +120,9 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
                 next_->warm(line << line_shift_, params_.line_bytes);
     }
     // Warms one line (an address in lines of this cache) here only, as warm() does, and says
-    // whether it was held: the sampler's replay calls it directly, for the next level itself on a
-    // miss, without warm()'s virtual calls (about 100 host instructions of 250 per warmed line).
+    // whether it was held: the sampler's replay calls it directly and warms the next level itself
+    // on a miss, without warm()'s virtual calls and loop over a request's lines.
     bool warm_line(uint64_t line) { return warm_fn_(*this, line, 0); }
-    uint32_t line_shift() const { return line_shift_; }
     // A posted write: each line's lookup takes its bank; write-back marks the line dirty (a
     // missing line is allocated without a fetch, its victim written back if dirty);
     // write-through passes the write on. Returns the cycle the last line was looked up.
