@@ -10,6 +10,7 @@
 #include <optional>
 #include <random>
 
+#include "models/cache.h"
 #include "sim/reference.h"
 #include "sim/sampling.h"
 #include "sim/stats_report.h"

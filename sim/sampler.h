@@ -40,7 +40,6 @@
 #include <string>
 #include <vector>
 
-#include "models/cache.h"
 #include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
@@ -50,6 +49,8 @@
 #include "workloads/step.h"
 
 namespace rtsim {
+
+class Cache;
 
 struct Reference;  // sim/reference.h
 
