@@ -1,5 +1,7 @@
 // The interval machinery of sampled simulation (sim/sampling.h): Student's t against printed
 // tables, and the intervals' coverage on synthetic populations whose true figures are known.
+// The sampler's replay of skipped tiles into the caches (sim/sampler.h) against the warm() chain
+// and a plain model of its L1 window.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
