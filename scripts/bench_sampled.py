@@ -279,14 +279,23 @@ def main(argv=None):
         jobs = []
         for scene in scenes:
             for wl in workloads:
-                jobs += [(scene, wl, "full", k) for k in range(args.full_repeats)]
+                sampled = []
                 for p in periods:
                     ks = (starts_for(p, args.max_starts) if args.design == "systematic"
                           else range(args.max_starts))
-                    jobs += [(scene, wl, f"1/{p}", k) for k in ks]
+                    sampled += [(scene, wl, f"1/{p}", k) for k in ks]
                 for t in targets:
-                    jobs += [(scene, wl, f"target {t:g}%", k)
-                             for k in range(args.adaptive_starts)]
+                    sampled += [(scene, wl, f"target {t:g}%", k)
+                                for k in range(args.adaptive_starts)]
+                # The full runs spread evenly among the cell's sampled runs: x divides seconds
+                # measured side by side, not minutes apart (a frame's full runs moved up to 1.9x
+                # between benches on this shared machine).
+                fulls = [(scene, wl, "full", k) for k in range(args.full_repeats)]
+                at = [round((k + 0.5) * len(sampled) / len(fulls)) for k in range(len(fulls))]
+                for i in range(len(sampled) + 1):
+                    jobs += [f for f, a in zip(fulls, at) if a == i]
+                    if i < len(sampled):
+                        jobs.append(sampled[i])
         with concurrent.futures.ThreadPoolExecutor(args.j) as pool:
             results = dict(zip(jobs, pool.map(run, jobs)))
 
@@ -371,8 +380,9 @@ def main(argv=None):
               if args.skip else f"{args.res}, units of {args.unit_rays} rays")
              + f", {args.design} design; workloads: "
              "primary; ao (2 AO rays per primary hit, primaries not simulated); diffuse (1 "
-             "bounce); path2 (2-bounce diffuse path). Each cell's frame runs once in full (the "
-             "fast model), then sampled at 1 unit in P "
+             "bounce); path2 (2-bounce diffuse path). Each cell's frame runs in full (the "
+             f"fast model) {args.full_repeats} times, spread evenly among its sampled runs, "
+             "and sampled at 1 unit in P "
              + (f"from every start unit (at most {args.max_starts}, evenly spread: the "
                 "systematic design's outcomes, so coverage is exact over them)"
                 if args.design == "systematic" else
