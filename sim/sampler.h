@@ -310,8 +310,8 @@ class Sampler {
     // the L1s stayed cold where the warm-up tiles before a unit had few rays: camel and homer
     // primary 1080p frames' cycles were 4-6% high.)
     void replay_skipped_tiles(uint64_t tile);
-    // Loads the profile's tile lines [from, to) into the L2.
-    void warm_l2_lines(uint32_t from, uint32_t to);
+    // Loads the profile's tile lines [from, to), then the entries `then`, into the L2.
+    void warm_l2_lines(uint32_t from, uint32_t to, const std::vector<uint32_t>& then = {});
     // Skip design: the measured units that handed out no ray, entered as zeros.
     void add_rayless_units(uint64_t units);
     // Records the open unit as measured: its auxiliaries, and the cycles and counter changes
@@ -391,6 +391,7 @@ class Sampler {
     // replay_skipped_tiles' L1 window and warm_l2_lines' last touches each meet a line once.
     LinePass line_pass_;
     std::vector<uint32_t> last_touches_;  // warm_l2_lines: the replay's last touches
+    std::vector<uint32_t> l1_misses_;     // the L1 window's misses, in order, for the L2
     // The L1 window's last touches, (line entry, core), from the last.
     CoreLinePass core_line_pass_;
     std::vector<std::pair<uint32_t, uint32_t>> l1_last_touches_;
