@@ -267,27 +267,33 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
             for (uint64_t budget = 0;
                  through_l1 > replayed_tiles_ && (l1_lines_ == 0 || budget < budget_limit);) {
                 --through_l1;
-                for (uint32_t i = p.tile_line_start[through_l1 + 1];
-                     i-- > p.tile_line_start[through_l1];) {
+                const uint32_t tile_start = p.tile_line_start[through_l1];
+                for (uint32_t i = p.tile_line_start[through_l1 + 1]; i-- > tile_start;) {
                     const size_t n = rays_of(i);  // at most `cores`
                     // from - n, modulo cores, without a division (two per line took a fifth of
                     // this loop's time).
                     from += (n == cores ? 0 : cores - n);
                     if (from >= cores) from -= cores;
                     // The cores from, from + 1, ... n of them, wrapping past the last.
-                    const size_t below_end = std::min(n, cores - from), wrapped = n - below_end;
-                    const uint64_t turn = ones(below_end) << from | ones(wrapped);
+                    const size_t below_end = std::min(n, cores - from);
+                    const uint64_t wrapped = ones(n - below_end);
+                    const uint64_t turn = ones(below_end) << from | wrapped;
                     bool new_line = false;
                     const uint64_t fresh = core_line_pass_.first(p.tile_lines[i], turn, new_line);
                     if (new_line) budget += n;
+                    // Most entries (the top of the tree, tile after tile) meet no core anew.
+                    if (fresh == 0) continue;
                     // Later cores of the turn first (they come after in the warm order): the
                     // wrapped ones, then the others.
-                    for (const uint64_t part : {fresh & ones(wrapped), fresh & ~ones(wrapped)})
-                        for (uint64_t bits = part; bits != 0;) {
+                    auto last_touches = [&](uint64_t bits) {
+                        while (bits != 0) {
                             const int core = 63 - __builtin_clzll(bits);
                             bits &= ~(uint64_t(1) << core);
                             l1_last_touches_.emplace_back(i, uint32_t(core));
                         }
+                    };
+                    last_touches(fresh & wrapped);
+                    last_touches(fresh & ~wrapped);
                 }
             }
             const uint32_t l1_from = p.tile_line_start[through_l1];

@@ -171,7 +171,7 @@ class CoreLinePass {
     // Of the cores in `cores` (a bit each), those that meet `line` for the first time in this
     // pass. `new_line`: whether the pass meets `line` for the first time.
     uint64_t first(uint32_t line, uint64_t cores, bool& new_line) {
-        if (2 * (count_ + 1) > slots_.size()) rehash(2 * slots_.size());
+        if (count_ >= grow_at_) rehash(2 * slots_.size());
         Slot& s = find(line);
         new_line = s.pass != now_;
         if (new_line) {
@@ -192,12 +192,14 @@ class CoreLinePass {
     // Line's slot in this pass, or the free slot where it goes.
     Slot& find(uint32_t line) {
         size_t i = size_t((uint64_t(line) * 0x9E3779B97F4A7C15ull) >> shift_);
-        while (slots_[i].pass == now_ && slots_[i].line != line) i = (i + 1) & (slots_.size() - 1);
+        while (slots_[i].pass == now_ && slots_[i].line != line) i = (i + 1) & mask_;
         return slots_[i];
     }
     void rehash(size_t slots) {
         std::vector<Slot> old = std::move(slots_);
         slots_.assign(slots, Slot{});
+        mask_ = slots - 1;
+        grow_at_ = slots / 2;  // grown when a line would fill more than half
         shift_ = 64;
         for (size_t n = slots; n > 1; n /= 2) --shift_;
         for (const Slot& s : old)
@@ -205,6 +207,7 @@ class CoreLinePass {
     }
     std::vector<Slot> slots_;
     uint32_t now_ = 0, shift_ = 64;
+    size_t mask_ = 0, grow_at_ = 0;
     size_t count_ = 0;  // lines met in this pass
     bool enabled_ = false;
 };
