@@ -58,12 +58,13 @@ class TileQueue {
 
   private:
     // The next threads_ x kTilesPerThread tiles (fewer at the end), a tile at a time to
-    // whichever thread is free.
+    // whichever thread is free; on one thread, one tile (nothing to join: the first rays are
+    // handed on as soon as their tile is traced).
     bool generate() {
         constexpr int kTilesPerThread = 8;  // a few ms of work between joins
+        const int group = threads_ == 1 ? 1 : threads_ * kTilesPerThread;
         indices_.clear();
-        for (; next_tile_ < gen_.tile_count() && int(indices_.size()) < threads_ * kTilesPerThread;
-             ++next_tile_)
+        for (; next_tile_ < gen_.tile_count() && int(indices_.size()) < group; ++next_tile_)
             if (!want_ || want_(next_tile_)) indices_.push_back(next_tile_);
         const size_t count = indices_.size();
         if (count == 0) return false;
