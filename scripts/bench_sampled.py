@@ -74,6 +74,7 @@ def summarise(rows):
                      "mean_error_pct": statistics.mean(errs),
                      "mean_half_width_pct": statistics.mean(r[name]["half_width_pct"]
                                                             for r in rows),
+                     "covered": sum(r[name]["covered"] for r in rows),
                      "coverage": sum(r[name]["covered"] for r in rows) / len(rows)}
     out["detailed_share"] = statistics.mean(r["detailed_share"] for r in rows)
     out["units_measured"] = statistics.mean(r["units_measured"] for r in rows)
@@ -486,7 +487,7 @@ def main(argv=None):
         for fig, label in (("cycles", "cycles"), ("dram_bytes", "DRAM bytes")):
             below, short, hits, n = [], [], 0, 0
             for c, m in ms:
-                k = round(m[fig]["coverage"] * m["runs"])
+                k = m[fig]["covered"]
                 hits += k
                 n += m["runs"]
                 lo, hi = wilson(k, m["runs"])
