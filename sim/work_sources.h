@@ -183,7 +183,7 @@ class PrefetchingSource : public CountingSource {
                 return false;
             }
             report_progress(batch_.progress, unit_);
-            prefetch(std::move(used));  // its memory, back to the helper
+            if (!batch_.last) prefetch(std::move(used));  // its memory, back to the helper
         }
         // The next rays' steps were written on the helper thread: start moving them into this
         // core's caches before a ray slot needs them.
