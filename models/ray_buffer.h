@@ -39,7 +39,6 @@ struct RayBufferParams {
     bool in_memory = false;
 };
 
-
 // Where a treelet's data lives: one run of node records and one of triangles.
 struct TreeletSpan {
     uint64_t node_addr = 0, node_bytes = 0;
