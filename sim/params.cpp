@@ -193,6 +193,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_warm_tiles", M(sim.sample_warm_tiles)),
         field("sim.sample_warmup_tiles", M(sim.sample_warmup_tiles)),
         field("sim.sample_warmup_tile_rays", M(sim.sample_warmup_tile_rays)),
+        field("sim.sample_paired_unit_tiles", M(sim.sample_paired_unit_tiles)),
         field("sim.sample_paired_warmup_tiles", M(sim.sample_paired_warmup_tiles)),
         field("sim.sample_paired_warmup_tile_rays", M(sim.sample_paired_warmup_tile_rays)),
         field("energy.sram_8kib_pj", M(energy.sram_8kib_pj), 1, kNotMirrored),

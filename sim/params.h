@@ -43,8 +43,9 @@ struct SimParams {
     std::string sample_fast_forward = "warm";
     uint64_t sample_unit_tiles = 4, sample_warm_tiles = 0, sample_warmup_tiles = 2,
              sample_warmup_tile_rays = 128;
-    // A paired run's (--reference) warm-up, in place of the two above.
-    uint64_t sample_paired_warmup_tiles = 1, sample_paired_warmup_tile_rays = 0;
+    // A paired run's (--reference) unit size and warm-up, in place of the three above.
+    uint64_t sample_paired_unit_tiles = 8, sample_paired_warmup_tiles = 1,
+             sample_paired_warmup_tile_rays = 0;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -30,15 +30,12 @@ namespace {
 
 // Field [a, b) of `text`, line `line` of `path`, as a number; InputError if it is none (empty,
 // trailing characters, not finite). Digits alone are read as an integer (exactly, and several
-// times faster than as a double: rtsim writes counters and cycles so); `whole` says which.
-double csv_number(std::string_view text, size_t a, size_t b, const std::string& path, size_t line,
-                  bool* whole = nullptr) {
+// times faster than as a double: rtsim writes counters and cycles so).
+double csv_number(std::string_view text, size_t a, size_t b, const std::string& path, size_t line) {
     const char *first = text.data() + a, *last = text.data() + b;
     uint64_t n = 0;
     auto r = std::from_chars(first, last, n);
-    const bool integer = a != b && r.ec == std::errc() && r.ptr == last;
-    if (whole) *whole = integer;
-    if (integer) return double(n);
+    if (a != b && r.ec == std::errc() && r.ptr == last) return double(n);
     double v = 0;
     r = std::from_chars(first, last, v);
     if (a == b || r.ec != std::errc() || r.ptr != last || !std::isfinite(v))
@@ -104,18 +101,23 @@ void check_every_unit_run(const json& ref, const std::string& where) {
                                      where, kReferenceRunHow));
 }
 
-void same_unit_size(const json& stats, uint64_t unit_tiles, const std::string& where) {
+// How many of an every-unit run's units (its stats.json `stats`) make one of this run's units of
+// `unit_tiles` tiles: this run's units are whole runs of its units (a paired run's larger units
+// are its reference's merged, in frame order).
+uint64_t units_merged(const json& stats, uint64_t unit_tiles, const std::string& where) {
     const uint64_t theirs = stats["sampling"].value("unit_tiles", uint64_t(0));
-    if (theirs != unit_tiles)
-        throw InputError(fmt::format(
-            "{}: its units are {} tiles, this run's {} (sim.sample_unit_tiles must match)", where,
-            theirs, unit_tiles));
+    if (theirs == 0 || unit_tiles % theirs != 0)
+        throw InputError(
+            fmt::format("{}: its units are {} tiles, this run's {} (a multiple of them is needed: "
+                        "sim.sample_unit_tiles, or sim.sample_paired_unit_tiles in a paired run)",
+                        where, theirs, unit_tiles));
+    return unit_tiles / theirs;
 }
 
-// The units of an every-unit run (its stats.json `stats`) by their cycles, from its
-// sampled_units.csv at `path` (`text`: its bytes, none if it could not be read).
-std::vector<uint32_t> units_by_cycles(const json& stats, std::optional<std::string_view> text,
-                                      const std::string& path) {
+// Every unit's cycles in an every-unit run (its stats.json `stats`), from its sampled_units.csv
+// at `path` (`text`: its bytes, none if it could not be read).
+std::vector<double> cycles_by_unit(const json& stats, std::optional<std::string_view> text,
+                                   const std::string& path) {
     const uint64_t units = stats["sampling"].value("units", uint64_t(0));
     if (!text)
         throw InputError(
@@ -134,45 +136,58 @@ std::vector<uint32_t> units_by_cycles(const json& stats, std::optional<std::stri
     }
     if (t.compare(0, 5, "unit,") != 0 || !found)
         throw InputError(fmt::format("{}: not a sampled_units.csv with a cycles column", path));
-    // Sorted as one integer key per unit (cycles, then unit) while the cycles are whole numbers
-    // below 2^32, as rtsim writes them: 1080p tables' 8,100 units as (double, unit) pairs took
-    // half of the order's 10 million instructions to parse and sort.
-    std::vector<uint64_t> keys;
-    std::vector<std::pair<double, uint32_t>> by_cycles;  // any other cycles
-    keys.reserve(units);
+    std::vector<double> cycles(units, 0.0);
     std::vector<uint8_t> seen(units, 0);
-    size_t row = 1;
+    size_t listed = 0, row = 1;
     for (size_t pos = header_end + 1; pos < t.size(); ++row) {
         const size_t end = std::min(t.find('\n', pos), t.size());
         if (end == pos) {
             pos = end + 1;
             continue;
         }
-        double unit = -1, cycles = -1;
-        bool whole = false;
+        double unit = -1, c = -1;
         size_t a = pos;
-        for (size_t c = 0; c <= cycles_col && a <= end; ++c) {
+        for (size_t k = 0; k <= cycles_col && a <= end; ++k) {
             const size_t b = std::min(t.find(',', a), end);
-            if (c == 0) unit = csv_number(t, a, b, path, row + 1);
-            if (c == cycles_col) cycles = csv_number(t, a, b, path, row + 1, &whole);
+            if (k == 0) unit = csv_number(t, a, b, path, row + 1);
+            if (k == cycles_col) c = csv_number(t, a, b, path, row + 1);
             a = b + 1;
         }
-        if (cycles < 0)
-            throw InputError(fmt::format("{}: line {}: no cycles field", path, row + 1));
+        if (c < 0) throw InputError(fmt::format("{}: line {}: no cycles field", path, row + 1));
         if (!(unit >= 0 && unit < double(units)) || unit != std::floor(unit) || seen[size_t(unit)])
             throw InputError(fmt::format(
                 "{}: line {}: unit {} is not one of the frame's {} units, or comes twice", path,
                 row + 1, unit, units));
         seen[size_t(unit)] = 1;
-        if (whole && cycles < 4294967296.0)
-            keys.push_back(uint64_t(cycles) << 32 | uint64_t(unit));
-        else
-            by_cycles.emplace_back(cycles, uint32_t(unit));
+        cycles[size_t(unit)] = c;
+        ++listed;
         pos = end + 1;
     }
-    if (keys.size() + by_cycles.size() != units)
-        throw InputError(fmt::format("{}: {} units listed, its stats.json counts {}", path,
-                                     keys.size() + by_cycles.size(), units));
+    if (listed != units)
+        throw InputError(
+            fmt::format("{}: {} units listed, its stats.json counts {}", path, listed, units));
+    return cycles;
+}
+
+// The units of `merge` consecutive units each (the last may have fewer) by their summed
+// `cycles`, ties by unit.
+std::vector<uint32_t> order_by_cycles(const std::vector<double>& cycles, uint64_t merge) {
+    const size_t units = (cycles.size() + merge - 1) / merge;
+    // Sorted as one integer key per unit (cycles, then unit) while the cycles are whole numbers
+    // below 2^32, as rtsim writes them: 1080p tables' 8,100 units as (double, unit) pairs took
+    // half of the order's 10 million instructions to parse and sort.
+    std::vector<uint64_t> keys;
+    std::vector<std::pair<double, uint32_t>> by_cycles;  // any other cycles
+    keys.reserve(units);
+    for (size_t u = 0; u < units; ++u) {
+        double c = 0;
+        for (size_t k = u * merge; k < std::min<size_t>(cycles.size(), (u + 1) * merge); ++k)
+            c += cycles[k];
+        if (c == std::floor(c) && c < 4294967296.0)
+            keys.push_back(uint64_t(c) << 32 | uint64_t(u));
+        else
+            by_cycles.emplace_back(c, uint32_t(u));
+    }
     std::vector<uint32_t> order(units);
     if (by_cycles.empty()) {
         std::sort(keys.begin(), keys.end());
@@ -186,17 +201,22 @@ std::vector<uint32_t> units_by_cycles(const json& stats, std::optional<std::stri
 }
 
 // What a paired run (or --sample-order) reads of an every-unit run: its stats.json's fields
-// that load_reference uses, and its units in order of their cycles. Parsing the whole 55 KB
+// that load_reference uses, and its units' cycles. Parsing the whole 55 KB
 // stats.json and scanning the 1.5 MB sampled_units.csv of a 1080p frame took 16 million
 // instructions, a tenth of a 1-in-50 paired run of a small frame; the first run keeps both in a
 // digest beside them, keyed by the two files' XXH3 (a rerun into the folder changes them, and
 // its digest is then made again). A folder that cannot take it only costs the next run a parse.
 struct EveryUnitRun {
     json stats;
-    std::vector<uint32_t> order;
+    std::vector<double> cycles;  // per unit
+    uint64_t merge = 1;          // its units per unit of the run reading it
+    // Its units, merged to the reading run's, in order of their cycles (for
+    // SamplingParams::unit_order).
+    std::vector<uint32_t> order() const { return order_by_cycles(cycles, merge); }
 };
 
-constexpr char kDigestMagic[8] = {'R', 'T', 'S', 'I', 'M', 'R', 'E', '1'};
+// 2: every unit's cycles, not their order (a paired run's units may merge several).
+constexpr char kDigestMagic[8] = {'R', 'T', 'S', 'I', 'M', 'R', 'E', '2'};
 constexpr const char* kDigestName = "every_unit_digest.bin";
 
 EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
@@ -223,12 +243,12 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
                 r.expect_key(key);
                 std::vector<char> text;
                 r.vec(text);
-                r.vec(run.order);
+                r.vec(run.cycles);
                 if (!r.done()) throw CacheEntryUnusable{"trailing bytes"};
                 run.stats = json::parse(text.begin(), text.end(), nullptr, false);
                 if (run.stats.is_object()) {
                     check_every_unit_run(run.stats, where);
-                    same_unit_size(run.stats, unit_tiles, where);
+                    run.merge = units_merged(run.stats, unit_tiles, where);
                     return run;
                 }
             } catch (const CacheEntryUnusable&) {
@@ -238,8 +258,8 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
     const std::string_view text = stats_bytes.view();
     const json ref = json::parse(text.begin(), text.end(), nullptr, false);
     check_every_unit_run(ref, where);
-    same_unit_size(ref, unit_tiles, where);
-    run.order = units_by_cycles(ref, csv_readable ? std::optional(csv_bytes.view()) : std::nullopt,
+    run.merge = units_merged(ref, unit_tiles, where);
+    run.cycles = cycles_by_unit(ref, csv_readable ? std::optional(csv_bytes.view()) : std::nullopt,
                                 csv_path);
     // The fields load_reference and read_unit_order read.
     const json& sm = ref["sampling"];
@@ -255,7 +275,7 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
     w.key(key);
     const std::string dumped = kept.dump();
     w.vec(std::vector<char>(dumped.begin(), dumped.end()));
-    w.vec(run.order);
+    w.vec(run.cycles);
     try {
         write_file_atomically(digest_path, w.finish());
     } catch (const std::exception&) {
@@ -268,7 +288,7 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
                                       uint64_t unit_tiles) {
     const std::string where = fmt::format("{} {}", what, dir);
-    return read_every_unit_run(dir, where, unit_tiles).order;
+    return read_every_unit_run(dir, where, unit_tiles).order();
 }
 
 std::string summed_counter_name(std::string name) {
@@ -346,18 +366,19 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         rays += u[kAuxRays];
         new_lines += u[kAuxNewLines];
     }
-    if (sm.value("units", uint64_t(0)) != profile.units.size() ||
-        sm.value("total_rays", 0.0) != double(rays) ||
+    // Its units, merged to this run's (the last may have fewer).
+    const uint64_t merged_units = (sm.value("units", uint64_t(0)) + run.merge - 1) / run.merge;
+    if (merged_units != profile.units.size() || sm.value("total_rays", 0.0) != double(rays) ||
         sm.value("new_lines", 0.0) != double(new_lines))
         throw InputError(fmt::format(
             "{}: its units are not this frame's ({} units, {} rays, {} new lines against {}, {}, "
             "{})",
-            where, sm.value("units", uint64_t(0)), sm.value("total_rays", 0.0),
-            sm.value("new_lines", 0.0), profile.units.size(), rays, new_lines));
+            where, merged_units, sm.value("total_rays", 0.0), sm.value("new_lines", 0.0),
+            profile.units.size(), rays, new_lines));
     // This frame's units: their order by the reference's cycles cuts the strata, unless the run
     // was given another.
     if (sp.unit_order.empty()) {
-        sp.unit_order = std::move(run.order);
+        sp.unit_order = run.order();
         sp.unit_order_of = opt.reference_dir;
     }
     Reference r;
@@ -379,7 +400,8 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
         if (k.rfind("sample_", 0) == 0 || k == "fidelity") ref_cfg["sim"][k] = v;
     ref_cfg["sim"]["sample_period_units"] = sp.period_units;
     ref_cfg["sim"]["sample_seed"] = sp.seed;
-    // The child is not paired: it is given this run's (paired) warm-up as its own.
+    // The child is not paired: it is given this run's (paired) units and warm-up as its own.
+    ref_cfg["sim"]["sample_unit_tiles"] = sp.unit_tiles;
     ref_cfg["sim"]["sample_warmup_tiles"] = sp.warmup_tiles;
     ref_cfg["sim"]["sample_warmup_tile_rays"] = sp.warmup_tile_rays;
     // The order the strata were cut from is the plan's too.

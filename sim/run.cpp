@@ -92,11 +92,12 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     sp.first_unit = s.sample_first_unit;
     sp.stratified = s.sample_design == "stratified";
     sp.skip = s.sample_fast_forward == "skip";
-    sp.unit_tiles = s.sample_unit_tiles;
     sp.warm_tiles = s.sample_warm_tiles;
     // A paired run's regression on its reference's same units takes up most of what a short
-    // warm-up leaves (sim.sample_paired_warmup_tiles).
+    // warm-up leaves (sim.sample_paired_warmup_tiles), and its units can be larger
+    // (sim.sample_paired_unit_tiles): its reference's units are merged to them.
     const bool paired = !opt.reference_dir.empty();
+    sp.unit_tiles = paired ? s.sample_paired_unit_tiles : s.sample_unit_tiles;
     sp.warmup_tiles = paired ? s.sample_paired_warmup_tiles : s.sample_warmup_tiles;
     sp.warmup_tile_rays = paired ? s.sample_paired_warmup_tile_rays : s.sample_warmup_tile_rays;
     return sp;

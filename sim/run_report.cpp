@@ -199,7 +199,9 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                 "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "
                 "nominal 95% in bench/results/sampled.md): lower sim.sample_period_units or "
                 "sim.{}\n",
-                skip ? "sample_unit_tiles" : "sample_unit_rays");
+                !skip                      ? "sample_unit_rays"
+                : sm.contains("reference") ? "sample_paired_unit_tiles"
+                                           : "sample_unit_tiles");
         if (sm.contains("target")) {
             const json& t = sm["target"];
             fmt::print(

@@ -818,10 +818,11 @@ TEST(Sampled, SkipDesignNeedsGeneratedRays) {
 }
 
 // Matched-pair sampling (--reference, sim/reference.h) on a 96x96 bunny frame in units of 2
-// tiles (72 units).
+// tiles (72 units), paired runs' too.
 const std::string kPairFrame = "run --scene " RTSIM_BUNNY_OBJ
                                " --rays primary,ao --res 96x96 --set sim.fidelity=sampled "
-                               "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 ";
+                               "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
+                               "--set sim.sample_paired_unit_tiles=2 ";
 
 // The reference's every unit (a run measuring every unit), in a folder of its own.
 fs::path make_reference(const std::string& name, const std::string& design = "") {
@@ -898,6 +899,41 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     EXPECT_EQ(blocks, 8);
     const double t = column_sum(truth, "triangle_unit.ops");
     EXPECT_NEAR(ops, t, 1e-6 * t);
+}
+
+// A paired run's units may be several of its reference's (sim.sample_paired_unit_tiles): the
+// reference's units are merged to them. Every unit of a frame measured runs the same simulation
+// whatever the units, so a reference in units of 2 tiles and one in units of 4 give a paired run
+// in units of 4 the same order of units, the same totals and the same matched sample: the same
+// figures.
+TEST(Sampled, ReferenceUnitsMergeToAPairedRunsLargerUnits) {
+    const fs::path small = make_reference("merge_ref2");
+    const fs::path large = make_reference("merge_ref4", "--set sim.sample_unit_tiles=4 ");
+    json runs[2];
+    int k = 0;
+    for (const fs::path& ref : {small, large}) {
+        const fs::path out = work_dir() / ("merge_paired" + std::to_string(k));
+        const Result r =
+            run_rtsim(kPairFrame +
+                      "--set box_unit.latency_cycles=16 --set sim.sample_period_units=3 "
+                      "--set sim.sample_paired_unit_tiles=4 --reference '" +
+                      ref.string() + "' -o '" + out.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        runs[k] = stats_of(out);
+        EXPECT_EQ(runs[k]["sampling"]["unit_tiles"], 4);
+        EXPECT_EQ(runs[k]["sampling"]["units"], 36);
+        EXPECT_EQ(runs[k]["sampling"]["units_measured"], 12);
+        runs[k]["sampling"].erase("reference");  // names its folder and config
+        runs[k]["sampling"].erase("profile");    // made by the first run, read by the second
+        runs[k]["sampling"].erase("order");      // names the reference's folder
+        ++k;
+    }
+    EXPECT_EQ(without_host(runs[0]), without_host(runs[1]));
+    // Units of 3 tiles are not whole units of 2: refused, naming both.
+    const Result bad =
+        run_rtsim(kPairFrame + "--set sim.sample_paired_unit_tiles=3 --reference '" +
+                  small.string() + "' -o '" + (work_dir() / "merge_bad").string() + "'");
+    expect_one_line_error(bad, "its units are 2 tiles, this run's 3 (a multiple of them is needed");
 }
 
 // Another design paired with the reference: the run's units and the reference's are the same,
@@ -1010,9 +1046,10 @@ TEST(Sampled, SampleOrderMustBeAnEveryUnitRunOfTheSameUnits) {
         run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 --set sim.fidelity=sampled " +
                   order),
         "needs sim.fidelity=sampled and sim.sample_fast_forward=skip");
-    // Units of another size, or a frame of other units.
-    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=4 " + order),
-                          "its units are 2 tiles, this run's 4");
+    // Units that are not whole units of the run's (units of 4 would be two of them), or a frame
+    // of other units.
+    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=3 " + order),
+                          "its units are 2 tiles, this run's 3");
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ
                                     " --rays primary --res 64x64 --set sim.fidelity=sampled "
                                     "--set sim.sample_fast_forward=skip "
@@ -1077,9 +1114,9 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
                   ref.string() + "' -o '" + out.string() + "'"),
         "made on another frame (its workload differs");
     // Other units.
-    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=4 -o '" +
+    expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_paired_unit_tiles=3 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),
-                          "its units are 2 tiles, this run's 4");
+                          "its units are 2 tiles, this run's 3");
     // A damaged table of the reference's matched sample (kept in its folder by a first run).
     const fs::path damaged = work_dir() / "bad_ref_damaged";
     fs::remove_all(damaged);

@@ -87,6 +87,30 @@ TEST(Reference, UnitOrderIsByCycles) {
               (std::vector<uint32_t>{3, 2, 1, 0}));
 }
 
+// A run whose units are several of the every-unit run's (a paired run's larger units) orders
+// them by their summed cycles, the last one short if they do not divide the frame.
+TEST(Reference, UnitOrderMergesUnits) {
+    const EveryUnitRun run(kEveryUnit, "unit,cycles\n0,30\n1,10\n2,30\n3,0\n");
+    // By hand: units of 4 tiles hold 30 + 10 = 40 and 30 + 0 = 30.
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 4),
+              (std::vector<uint32_t>{1, 0}));
+    // Read again from the digest the first read left: the same.
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 4),
+              (std::vector<uint32_t>{1, 0}));
+    EXPECT_EQ(read_unit_order(run.dir.string(), "--sample-order", 2),
+              (std::vector<uint32_t>{3, 1, 0, 2}));
+    // Five units of 2 tiles, by hand: units of 4 tiles hold 10, 2 and 3 (the last one unit);
+    // units of 6 tiles 11 and 4; one unit of 10 tiles holds them all.
+    const EveryUnitRun odd(
+        R"({"fast_forward": "skip", "period_units": 1, "unit_tiles": 2, "units": 5})",
+        "unit,cycles\n0,5\n1,5\n2,1\n3,1\n4,3\n");
+    EXPECT_EQ(read_unit_order(odd.dir.string(), "--sample-order", 4),
+              (std::vector<uint32_t>{1, 2, 0}));
+    EXPECT_EQ(read_unit_order(odd.dir.string(), "--sample-order", 6),
+              (std::vector<uint32_t>{1, 0}));
+    EXPECT_EQ(read_unit_order(odd.dir.string(), "--sample-order", 10), (std::vector<uint32_t>{0}));
+}
+
 // The order and the fields a paired run reads are kept in a digest beside the run's files: read
 // from it while they are unchanged, made again when they change (a rerun into the folder) or
 // when it is damaged, never trusted otherwise.
@@ -129,10 +153,18 @@ TEST(Reference, UnitOrderRefusesWhatIsNotAnEveryUnitRun) {
     const std::string where = "--sample-order ";
     {
         const EveryUnitRun run(kEveryUnit, ok);
-        EXPECT_EQ(run.error(4), where + run.dir.string() +
-                                    ": its units are 2 tiles, this run's 4 (sim.sample_unit_tiles "
-                                    "must match)");
+        EXPECT_EQ(run.error(3),
+                  where + run.dir.string() +
+                      ": its units are 2 tiles, this run's 3 (a multiple of them is "
+                      "needed: sim.sample_unit_tiles, or sim.sample_paired_unit_tiles "
+                      "in a paired run)");
+        EXPECT_EQ(run.error(1),
+                  where + run.dir.string() +
+                      ": its units are 2 tiles, this run's 1 (a multiple of them is "
+                      "needed: sim.sample_unit_tiles, or sim.sample_paired_unit_tiles "
+                      "in a paired run)");
         EXPECT_EQ(run.error(2), "accepted");
+        EXPECT_EQ(run.error(4), "accepted");  // two of its units make one
     }
     auto table_error = [&](const std::string& table) {
         const EveryUnitRun run(kEveryUnit, table);
