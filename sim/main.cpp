@@ -56,14 +56,16 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
         "(sim.sample_period_units=1); the reference design is sampled on the same units and "
         "each figure is estimated from the pair, with a far narrower interval for designs near "
         "it; the strata are cut from the units in order of their cycles in DIR, as with "
-        "--sample-order DIR");
+        "--sample-order DIR. The run's units are sim.sample_paired_unit_tiles tiles, DIR's "
+        "merged to them (its units must divide them)");
     run_cmd->add_option(
         "--sample-order", run.sample_order_dir,
         "With sim.fidelity=sampled and sim.sample_fast_forward=skip: cut the strata (one "
         "measured unit in each sim.sample_period_units) from the frame's units in order of their "
-        "cycles in DIR, the output folder of a run that measured every unit of a frame of as "
-        "many units (sim.sample_period_units=1), instead of in the frame's order: like units "
-        "share a stratum. Any order leaves the estimates unbiased; this one narrows them");
+        "cycles in DIR, the output folder of a run that measured every unit of the frame "
+        "(sim.sample_period_units=1) in units that divide this run's (merged to them), instead "
+        "of in the frame's order: like units share a stratum. Any order leaves the estimates "
+        "unbiased; this one narrows them");
     run_cmd->add_flag(
         "--bound", run.bound,
         "Also simulate the same rays with ideal memory and unlimited units, and report "

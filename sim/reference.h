@@ -43,9 +43,10 @@ struct UnitTable {
 UnitTable parse_units_csv(const std::string& text, const std::string& path);
 
 // The units of the run in folder `dir` (one that measured every unit: --set
-// sim.sample_period_units=1 in the skip design, with units of `unit_tiles` tiles as this run's),
-// in order of their cycles (ties by unit), for SamplingParams::unit_order. `what` names the
-// option in errors (InputError: not such a run, other units, or a damaged table).
+// sim.sample_period_units=1 in the skip design, in units whose size divides `unit_tiles`), merged
+// to this run's units of `unit_tiles` tiles in frame order and put in order of their summed cycles
+// (ties by unit), for SamplingParams::unit_order. `what` names the option in errors (InputError:
+// not such a run, units that do not divide this run's, or a damaged table).
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
                                       uint64_t unit_tiles);
 
@@ -73,7 +74,7 @@ struct Reference {
 // Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json
 // sections `meta`, its frame `profile`, its plan `sp`), running the reference design's matched
 // sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
-// for this frame and unit size. Without an order of its own (--sample-order), `sp`'s strata are
+// for this frame in units that divide the run's (they are merged to the run's units). Without an order of its own (--sample-order), `sp`'s strata are
 // cut from the units in order of the reference's cycles (read_unit_order), before the plan is.
 Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
                          const FrameProfile& profile, SamplingParams& sp);
