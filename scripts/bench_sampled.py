@@ -290,9 +290,10 @@ def main(argv=None):
                         # A paired run's units (sim.sample_paired_unit_tiles) may merge the
                         # reference's: the profile of that unit size is made here, untimed, by
                         # a paired run with a seed the timed runs do not use.
+                        period = periods[0] if periods else 50
                         run_stats(args.rtsim, frame(scene, wl) + sets
                                   + ["--set", "sim.fidelity=sampled",
-                                     "--set", f"sim.sample_period_units={periods[0] if periods else 50}",
+                                     "--set", f"sim.sample_period_units={period}",
                                      "--set", "sim.sample_seed=1000000", "--reference", d],
                                   os.path.join(tmp, f"profile-paired-{scene}-{wl}"),
                                   "bench_sampled")

@@ -186,13 +186,14 @@ void print_run_summary(const json& out, const std::string& stats_path) {
                            warmup_rays = sm.value("warmup_tile_rays", uint64_t(0));
             fmt::print(
                 "  paired   with reference design '{}' ({}), its sample {}; warm-up {} tile{}{} "
-                "(sim.sample_paired_warmup_*)\n",
+                "(sim.sample_paired_warmup_*); units of {} tiles (sim.sample_paired_unit_tiles)\n",
                 r.value("config_name", std::string()), r.value("dir", std::string()),
                 r.value("matched_sample", std::string()) == "cached"
                     ? "kept from an earlier run"
                     : fmt::format("run now ({:.2f} s)", r.value("matched_host_s", 0.0)),
                 warmup, warmup == 1 ? "" : "s",
-                warmup_rays ? fmt::format(" or more, to hold {} rays", warmup_rays) : "");
+                warmup_rays ? fmt::format(" or more, to hold {} rays", warmup_rays) : "",
+                sm.value("unit_tiles", uint64_t(0)));
         }
         if (sm.value("units_measured", 0) < 30)
             fmt::print(

@@ -863,7 +863,9 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     EXPECT_EQ(sa["sampling"]["warmup_tile_rays"], 0);
     EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tiles"], 2);
     EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tile_rays"], 128);
-    EXPECT_NE(ra.out.find("warm-up 1 tile (sim.sample_paired_warmup_*)"), std::string::npos)
+    EXPECT_NE(ra.out.find("warm-up 1 tile (sim.sample_paired_warmup_*); units of 2 tiles "
+                          "(sim.sample_paired_unit_tiles)"),
+              std::string::npos)
         << ra.out;
     for (json* s : {&sa, &sb}) {
         (*s)["sampling"].erase("reference");
