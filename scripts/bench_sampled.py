@@ -210,6 +210,11 @@ def main(argv=None):
     workloads = args.workloads.split(",")
     periods = [int(p) for p in args.periods.split(",") if p]
     targets = [float(t) for t in args.target_errors.split(",") if t]
+    if args.full_repeats < 1:
+        sys.exit("bench_sampled: --full-repeats must be 1 or more (each cell's full run is the "
+                 "truth its errors are measured against)")
+    if args.max_starts < 1:
+        sys.exit("bench_sampled: --max-starts must be 1 or more")
     for s in scenes:
         if s not in SCENES:
             sys.exit(f"bench_sampled: unknown scene {s} (known: {', '.join(SCENES)})")
