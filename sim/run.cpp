@@ -75,9 +75,10 @@ struct Workload {
     std::unique_ptr<RayGenerator> gen;
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
-    std::unique_ptr<FrameProfile> profile;  // a sampled run's skip design
-    std::unique_ptr<Reference> reference;   // --reference
-    std::string cache_dir;                  // meshes, BVHs, profiles (empty: none)
+    std::unique_ptr<FrameProfile> profile;       // a sampled run's skip design
+    std::shared_ptr<const SampleDesign> design;  // a sampled run's skip design: its sample
+    std::unique_ptr<Reference> reference;        // --reference
+    std::string cache_dir;                       // meshes, BVHs, profiles (empty: none)
     const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
 };
 
@@ -171,9 +172,9 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         if (!opt.reference_dir.empty())
             w.reference = std::make_unique<Reference>(
                 load_reference(opt, cfg, w.meta, *w.profile, *sampling));
-        want_tile = [design = SampleDesign(*sampling)](int tile) {
-            return design.wants_tile(uint64_t(tile));
-        };
+        // Made once: the ray source's helper thread and the sampler read it.
+        w.design = std::make_shared<const SampleDesign>(*sampling);
+        want_tile = [design = w.design](int tile) { return design->wants_tile(uint64_t(tile)); };
     }
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,
                                                      packets ? cfg.typed.traversal.packet_size : 0,
@@ -318,7 +319,7 @@ int run_command(const RunOptions& opt) {
     Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
     if (sampled) {
-        sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats);
+        sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats, w.design);
         std::vector<const Core*> cores;
         for (const auto& core : chip.cores) cores.push_back(core.get());
         sampler->set_write_warming(std::move(cores));

@@ -117,8 +117,11 @@ SampleDesign::TileRole SampleDesign::tile_role(uint64_t tile) const {
 
 Sampler::Sampler(const SamplingParams& params,
                  std::vector<std::array<MemoryPort*, kStepKinds>> ports,
-                 const StatsRegistry& counters)
-    : params_(params), design_(params), ports_(std::move(ports)), counters_(counters) {
+                 const StatsRegistry& counters, std::shared_ptr<const SampleDesign> design)
+    : params_(params),
+      design_(design ? std::move(design) : std::make_shared<const SampleDesign>(params)),
+      ports_(std::move(ports)),
+      counters_(counters) {
     deltas_.resize(counters_.entries().size());
 }
 
@@ -358,7 +361,7 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         // The tiles skipped since the last traced one fetched their first lines before it.
         if (new_tile) replay_skipped_tiles(t);
         using Role = SampleDesign::TileRole;
-        const Role role = design_.tile_role(t);
+        const Role role = design_->tile_role(t);
         detailed =
             role == Role::Measured || role == Role::Warmup || (role == Role::After && new_tile);
     } else {
@@ -551,11 +554,11 @@ json Sampler::report(Cycle end_cycle) {
     wait_functional_l2();
     const bool skip = params_.skip;
     const uint64_t units =
-        skip ? design_.units() : (index_ + params_.unit_rays - 1) / params_.unit_rays;
+        skip ? design_->units() : (index_ + params_.unit_rays - 1) / params_.unit_rays;
     if (skip) add_rayless_units(units);
     json out = {{"period_units", params_.period_units},
                 {"design", params_.stratified ? "stratified" : "systematic"},
-                {"first_unit", design_.first_unit()},
+                {"first_unit", design_->first_unit()},
                 {"units", units},
                 {"units_measured", cycles_.size()},
                 {"rays_detailed", detailed_},
@@ -862,7 +865,7 @@ void Sampler::add_rayless_units(uint64_t units) {
     // (unit_index_ is ascending: units close in frame order).
     size_t at = 0;
     for (uint64_t u = 0; u < units; ++u) {
-        if (!design_.measured_unit(u)) continue;
+        if (!design_->measured_unit(u)) continue;
         if (at < unit_index_.size() && unit_index_[at] == u) {
             ++at;
             continue;

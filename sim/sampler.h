@@ -216,8 +216,10 @@ class Sampler {
   public:
     // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
     // turn, core by core, as the cores would have taken the rays). `counters`: what is measured.
+    // `design`: the sample design of `params`, if one was made already (the run's ray source asks
+    // it which tiles to generate); made here otherwise.
     Sampler(const SamplingParams& params, std::vector<std::array<MemoryPort*, kStepKinds>> ports,
-            const StatsRegistry& counters);
+            const StatsRegistry& counters, std::shared_ptr<const SampleDesign> design = nullptr);
 
     // The next ray of the stream (work.rays of them: a packet counts its rays): true if it is
     // fast-forwarded (its fetches have warmed the caches and no core is to run it).
@@ -338,13 +340,13 @@ class Sampler {
                                            const std::array<double, kAuxiliaries>& frame) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
-    bool measured_unit(uint64_t unit) const { return design_.measured_unit(unit); }
+    bool measured_unit(uint64_t unit) const { return design_->measured_unit(unit); }
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.
     bool detailed_ray(uint64_t i) const;
 
     SamplingParams params_;
-    SampleDesign design_;
+    std::shared_ptr<const SampleDesign> design_;  // shared with the ray source, read only
     std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
     uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
     uint64_t dram_bytes_per_fill_ = 0;
