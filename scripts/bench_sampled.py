@@ -69,13 +69,14 @@ def summarise(rows):
     out = {}
     for name in FIGURES:
         errs = [r[name]["error_pct"] for r in rows]
+        covered = sum(r[name]["covered"] for r in rows)
         out[name] = {"mean_abs_error_pct": statistics.mean(abs(e) for e in errs),
                      "max_abs_error_pct": max(abs(e) for e in errs),
                      "mean_error_pct": statistics.mean(errs),
                      "mean_half_width_pct": statistics.mean(r[name]["half_width_pct"]
                                                             for r in rows),
-                     "covered": sum(r[name]["covered"] for r in rows),
-                     "coverage": sum(r[name]["covered"] for r in rows) / len(rows)}
+                     "covered": covered,
+                     "coverage": covered / len(rows)}
     out["detailed_share"] = statistics.mean(r["detailed_share"] for r in rows)
     out["units_measured"] = statistics.mean(r["units_measured"] for r in rows)
     out["host_s"] = statistics.median(r["host_s"] for r in rows)
