@@ -63,7 +63,9 @@ struct Auxiliary {
 // residual variance proportional to the first auxiliary (the ratio estimator's model), total =
 // sum_k b_k X_k, its variance by the delete-one jackknife of that total with the finite-
 // population correction (1 - n/N) (the residuals' N^2 (1 - n/N) s_e^2 / n when leaving out a unit
-// leaves the fit singular), t with m - p degrees of freedom for p auxiliaries fitted on m
+// leaves the fit singular), or the fit's model's prediction variance of the total, s^2 (sum of x_0
+// over the units not measured + X_out' M^-1 X_out), where that is larger (Royall 1970: a noisy
+// jackknife on few units), t with m - p degrees of freedom for p auxiliaries fitted on m
 // informative units (those where some auxiliary is not zero: a tile without rays informs no fit).
 // The first auxiliary is always fitted; auxiliary k (k >= 1) only with at least 4 k informative
 // units (fewer leave too few degrees of freedom per coefficient), and not when it is zero in every
@@ -95,6 +97,7 @@ class RegressionDesign {
     std::vector<double> one_less_leverage_;  // per unit: 1 - h_i
     double fpc_ = 1;                         // 1 - n / N
     bool singular_ = false;                  // some unit's leverage is 1
+    double model_factor_ = 0;  // the model's prediction variance of the total over sigma^2
 };
 
 // A stratum of a stratified sample: its measured units' pairs and how many units it has.
