@@ -588,8 +588,8 @@ TEST(Sampling, FewUnitsTakeTheLargerOfTheJackknifeAndTheModelsVariance) {
     const std::vector<double> heavy = {10, 20, 30, 40, 80};
     const double v_heavy = expected(heavy, jackknife, model);
     EXPECT_GT(jackknife, model);
-    EXPECT_NEAR(regression_total(heavy, {{x, X}}, uint64_t(N)).half_width,
-                t4 * std::sqrt(v_heavy), 1e-6);
+    EXPECT_NEAR(regression_total(heavy, {{x, X}}, uint64_t(N)).half_width, t4 * std::sqrt(v_heavy),
+                1e-6);
     // With 20 degrees of freedom or more the jackknife stands alone: the same five units
     // repeated five times (a population of 100, X 3000).
     std::vector<double> x25, y25;
