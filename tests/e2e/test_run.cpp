@@ -2162,12 +2162,17 @@ TEST(Fidelity, UnknownLevelAndRemovedQuantumAreRefused) {
 }
 
 namespace {
-// Runs `command` in the background, sends `signal` after `seconds`, and returns its exit status.
-int interrupted_status(const std::string& command, const char* signal, double seconds) {
+// Runs `command` in the background, sends `signal` once `ready` exists (the command is then at
+// work: a fixed delay raced a loaded machine's start-up and a fast machine's finish) and
+// `after_seconds` more, and returns its exit status.
+int interrupted_status(const std::string& command, const char* signal, const fs::path& ready,
+                       double after_seconds) {
     const fs::path status = work_dir() / "interrupted_status.txt";
     const std::string script = fmt::format(
-        "sh -c '{} >/dev/null 2>\"{}\" & p=$!; sleep {}; kill -{} $p; wait $p; echo $? > \"{}\"'",
-        command, (work_dir() / "interrupted_err.txt").string(), seconds, signal, status.string());
+        "sh -c '{} >/dev/null 2>\"{}\" & p=$!; i=0; while [ ! -e \"{}\" ] && [ $i -lt 1200 ]; do "
+        "sleep 0.05; i=$((i+1)); done; sleep {}; kill -{} $p; wait $p; echo $? > \"{}\"'",
+        command, (work_dir() / "interrupted_err.txt").string(), ready.string(), after_seconds,
+        signal, status.string());
     EXPECT_EQ(std::system(script.c_str()), 0);
     return std::stoi(slurp(status));
 }
@@ -2179,14 +2184,19 @@ TEST(Interrupt, RunTraceAndSweepLeaveNoPartialOutput) {
     const std::string bin = RTSIM_BINARY;
     const std::string big = "--scene " RTSIM_BUNNY_OBJ " --rays diffuse --res 2048x2048";
     const fs::path run_dir = work_dir() / "interrupted_run";
-    EXPECT_EQ(interrupted_status(bin + " run -q " + big + " --out " + run_dir.string(), "INT", 1.0),
+    fs::remove_all(run_dir);
+    // The run's folder is made once the workload is ready, before the simulation (2 s here).
+    EXPECT_EQ(interrupted_status(bin + " run -q " + big + " --out " + run_dir.string(), "INT",
+                                 run_dir, 0.3),
               130);
     EXPECT_FALSE(fs::exists(run_dir));  // the folder it made for its output is gone
     EXPECT_NE(slurp(work_dir() / "interrupted_err.txt").find("interrupted by SIGINT"),
               std::string::npos);
 
     const fs::path trace = work_dir() / "interrupted.rtt";
-    EXPECT_EQ(interrupted_status(bin + " trace -q " + big + " -o " + trace.string(), "TERM", 1.0),
+    fs::remove(trace);
+    EXPECT_EQ(interrupted_status(bin + " trace -q " + big + " -o " + trace.string(), "TERM",
+                                 trace.string() + ".tmp", 0.3),
               143);
     EXPECT_FALSE(fs::exists(trace));
     EXPECT_FALSE(fs::exists(trace.string() + ".tmp"));
@@ -2196,21 +2206,22 @@ TEST(Interrupt, RunTraceAndSweepLeaveNoPartialOutput) {
                                  R"(", "rays": "diffuse", "res": "768x768"},
                                     "vary": {"l1.size_kib": [8, 16, 32, 64, 128, 256]}})";
     const fs::path out = work_dir() / "interrupted_sweep";
+    fs::remove_all(out);
     const std::string sweep = bin + " sweep " + sweep_file.string() + " -j 2 --out " + out.string();
-    EXPECT_EQ(interrupted_status(sweep, "TERM", 2.0), 143);
+    // Signalled as its first point finishes: two more are under way, three not started.
+    EXPECT_EQ(interrupted_status(sweep, "TERM", out / "000_l1.size_kib=8" / "stats.json", 0.0),
+              143);
     EXPECT_FALSE(fs::exists(out / "results.json"));
     EXPECT_NE(slurp(work_dir() / "interrupted_err.txt").find("--resume"), std::string::npos);
     int finished = 0;
     for (const auto& point : fs::directory_iterator(out))
         finished += fs::exists(point.path() / "stats.json");
+    EXPECT_GE(finished, 1);
     EXPECT_LT(finished, 6);  // the signal came before the end
     const Result resumed =
         run_rtsim("sweep " + sweep_file.string() + " -j 2 --out '" + out.string() + "' --resume");
     EXPECT_EQ(resumed.status, 0) << resumed.err;
     EXPECT_TRUE(fs::exists(out / "results.json"));
-    if (finished > 0) {
-        EXPECT_NE(resumed.out.find(std::to_string(finished) + " finished before"),
-                  std::string::npos)
-            << resumed.out;
-    }
+    EXPECT_NE(resumed.out.find(std::to_string(finished) + " finished before"), std::string::npos)
+        << resumed.out;
 }
