@@ -169,10 +169,18 @@ std::vector<double> cycles_by_unit(const json& stats, std::optional<std::string_
     return cycles;
 }
 
+// The cycles of units of `merge` consecutive units each (the last may have fewer).
+std::vector<double> merged_cycles(const std::vector<double>& cycles, uint64_t merge) {
+    std::vector<double> merged((cycles.size() + merge - 1) / merge, 0.0);
+    for (size_t k = 0; k < cycles.size(); ++k) merged[k / merge] += cycles[k];
+    return merged;
+}
+
 // The units of `merge` consecutive units each (the last may have fewer) by their summed
 // `cycles`, ties by unit.
 std::vector<uint32_t> order_by_cycles(const std::vector<double>& cycles, uint64_t merge) {
-    const size_t units = (cycles.size() + merge - 1) / merge;
+    const std::vector<double> merged = merged_cycles(cycles, merge);
+    const size_t units = merged.size();
     // Sorted as one integer key per unit (cycles, then unit) while the cycles are whole numbers
     // below 2^32, as rtsim writes them: 1080p tables' 8,100 units as (double, unit) pairs took
     // half of the order's 10 million instructions to parse and sort.
@@ -180,9 +188,7 @@ std::vector<uint32_t> order_by_cycles(const std::vector<double>& cycles, uint64_
     std::vector<std::pair<double, uint32_t>> by_cycles;  // any other cycles
     keys.reserve(units);
     for (size_t u = 0; u < units; ++u) {
-        double c = 0;
-        for (size_t k = u * merge; k < std::min<size_t>(cycles.size(), (u + 1) * merge); ++k)
-            c += cycles[k];
+        const double c = merged[u];
         if (c == std::floor(c) && c < 4294967296.0)
             keys.push_back(uint64_t(c) << 32 | uint64_t(u));
         else
@@ -286,9 +292,29 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
 }  // namespace
 
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
-                                      uint64_t unit_tiles) {
+                                      uint64_t unit_tiles, std::vector<double>* unit_cycles) {
     const std::string where = fmt::format("{} {}", what, dir);
-    return read_every_unit_run(dir, where, unit_tiles).order();
+    const EveryUnitRun run = read_every_unit_run(dir, where, unit_tiles);
+    if (unit_cycles) *unit_cycles = merged_cycles(run.cycles, run.merge);
+    return run.order();
+}
+
+void balance_unit_order(std::vector<uint32_t>& order, const std::vector<double>& unit_cycles,
+                        const std::vector<AuxFigures>& units, uint64_t period_units) {
+    if (unit_cycles.size() != order.size() || units.size() != order.size())
+        throw std::invalid_argument(
+            "balance_unit_order: the order, cycles and units differ in size");
+    const uint64_t group = kBalancedStrata * std::max<uint64_t>(1, period_units);
+    std::vector<double> key(order.size(), 0.0);
+    for (size_t u = 0; u < order.size(); ++u)
+        if (unit_cycles[u] > 0) key[u] = double(units[u][kAuxWork]) / unit_cycles[u];
+    for (size_t start = 0; start < order.size(); start += group) {
+        const auto first = order.begin() + long(start);
+        const auto last = order.begin() + long(std::min<size_t>(order.size(), start + group));
+        std::sort(first, last, [&](uint32_t a, uint32_t b) {
+            return key[a] < key[b] || (key[a] == key[b] && a < b);
+        });
+    }
 }
 
 std::string summed_counter_name(std::string name) {
@@ -379,6 +405,8 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     // was given another.
     if (sp.unit_order.empty()) {
         sp.unit_order = run.order();
+        balance_unit_order(sp.unit_order, merged_cycles(run.cycles, run.merge), profile.units,
+                           sp.period_units);
         sp.unit_order_of = opt.reference_dir;
     }
     Reference r;

@@ -47,8 +47,22 @@ UnitTable parse_units_csv(const std::string& text, const std::string& path);
 // to this run's units of `unit_tiles` tiles in frame order and put in order of their summed cycles
 // (ties by unit), for SamplingParams::unit_order. `what` names the option in errors (InputError:
 // not such a run, units that do not divide this run's, or a damaged table).
+// `unit_cycles`, when given, receives each merged unit's cycles.
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
-                                      uint64_t unit_tiles);
+                                      uint64_t unit_tiles,
+                                      std::vector<double>* unit_cycles = nullptr);
+
+// Strata of a period's units in order of the reference's cycles are cut in groups of this many;
+// within a group the units are put in order of their functional work per reference cycle.
+constexpr uint64_t kBalancedStrata = 4;
+
+// Reorders `order` (units by their `unit_cycles`, as read_unit_order gives them) within each run
+// of kBalancedStrata * period_units consecutive units by work per cycle (the profile's
+// `units`; a unit without cycles counts 0; ties by unit), so that the strata cut from the group
+// span its range of work per cycle as well as of cycles (bench/results/sampled_estimators.md,
+// section 20). std::invalid_argument when the sizes differ.
+void balance_unit_order(std::vector<uint32_t>& order, const std::vector<double>& unit_cycles,
+                        const std::vector<AuxFigures>& units, uint64_t period_units);
 
 // A counter's column in sampled_units.csv: like blocks summed ("core[3].rays" -> "core.rays").
 std::string summed_counter_name(std::string name);
@@ -74,8 +88,9 @@ struct Reference {
 // Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json
 // sections `meta`, its frame `profile`, its plan `sp`), running the reference design's matched
 // sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
-// for this frame in units that divide the run's (they are merged to the run's units). Without an order of its own (--sample-order), `sp`'s strata are
-// cut from the units in order of the reference's cycles (read_unit_order), before the plan is.
+// for this frame in units that divide the run's (they are merged to the run's units). Without an
+// order of its own (--sample-order), `sp`'s strata are cut from the units in order of the
+// reference's cycles (read_unit_order), before the plan is.
 Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
                          const FrameProfile& profile, SamplingParams& sp);
 

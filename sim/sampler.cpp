@@ -573,9 +573,11 @@ json Sampler::report(Cycle end_cycle) {
                     {"tiles", params_.tiles},
                     {"tiles_traced", tiles_traced_},
                     {"rays_traced", index_}});
-        out["order"] = params_.unit_order.empty()
-                           ? json("frame")
-                           : json({{"by", "cycles"}, {"of", params_.unit_order_of}});
+        out["order"] = params_.unit_order.empty() ? json("frame")
+                                                  : json({{"by", "cycles"},
+                                                          {"then", "work per cycle"},
+                                                          {"strata_per_group", kBalancedStrata},
+                                                          {"of", params_.unit_order_of}});
     } else {
         out.update({{"unit_rays", params_.unit_rays},
                     {"warmup_rays", params_.warmup_rays},

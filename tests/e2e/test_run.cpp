@@ -996,11 +996,20 @@ TEST(Sampled, StrataFollowTheReferenceCycles) {
     const UnitsCsv truth = read_units_csv(ref / "sampled_units.csv");
     const auto& unit = truth.cols.at("unit");
     const auto& cycles = truth.cols.at("cycles");
+    const auto& work = truth.cols.at("work");
     std::vector<size_t> rows(unit.size());
     std::iota(rows.begin(), rows.end(), size_t(0));
     std::sort(rows.begin(), rows.end(), [&](size_t a, size_t b) {
         return std::make_pair(cycles[a], unit[a]) < std::make_pair(cycles[b], unit[b]);
     });
+    // Then, within each run of 4 strata (16 units), by work per cycle (0 without cycles).
+    auto per_cycle = [&](size_t row) { return cycles[row] > 0 ? work[row] / cycles[row] : 0.0; };
+    for (size_t k = 0; k < rows.size(); k += 16)
+        std::sort(rows.begin() + long(k), rows.begin() + long(std::min(rows.size(), k + 16)),
+                  [&](size_t a, size_t b) {
+                      return std::make_pair(per_cycle(a), unit[a]) <
+                             std::make_pair(per_cycle(b), unit[b]);
+                  });
     std::map<uint64_t, size_t> stratum;  // unit -> its stratum in that order
     for (size_t k = 0; k < rows.size(); ++k) stratum[uint64_t(unit[rows[k]])] = k / 4;
     ASSERT_EQ(stratum.size(), 72u);
@@ -1033,7 +1042,10 @@ TEST(Sampled, StrataFollowTheReferenceCycles) {
     for (double u : measured(frame)) ++per_block.at(size_t(u) / 4);
     EXPECT_EQ(per_block, std::vector<int>(18, 1));
 
-    const json order = {{"by", "cycles"}, {"of", ref.string()}};
+    const json order = {{"by", "cycles"},
+                        {"then", "work per cycle"},
+                        {"strata_per_group", 4},
+                        {"of", ref.string()}};
     EXPECT_EQ(stats_of(paired)["sampling"]["order"], order);
     EXPECT_EQ(stats_of(ordered)["sampling"]["order"], order);
     EXPECT_EQ(stats_of(frame)["sampling"]["order"], "frame");

@@ -114,6 +114,33 @@ TEST(Reference, UnitOrderMergesUnits) {
 // The order and the fields a paired run reads are kept in a digest beside the run's files: read
 // from it while they are unchanged, made again when they change (a rerun into the folder) or
 // when it is damaged, never trusted otherwise.
+// Within each run of 4 strata of the cycles' order, units go by work per cycle (worked out by
+// hand here), so that each group's strata span its work per cycle.
+TEST(Reference, BalancedOrderSortsEachGroupByWorkPerCycle) {
+    // Units 0-9's work per cycle: 3, 1, 2, none (no cycles: 0), 4, 1, 2, 3, 5, 5 (8 and 9 a tie,
+    // by unit); by their cycles they come as 3, 1, 0, 2, 4, 6, 5, 7, 9, 8.
+    const std::vector<uint32_t> by_cycles = {3, 1, 0, 2, 4, 6, 5, 7, 9, 8};
+    const std::vector<double> cycles = {10, 10, 10, 0, 10, 10, 10, 10, 10, 10};
+    std::vector<AuxFigures> units(10, AuxFigures{});
+    const double work_per_cycle[10] = {3, 1, 2, 7, 4, 1, 2, 3, 5, 5};
+    for (size_t u = 0; u < 10; ++u) units[u][kAuxWork] = uint64_t(work_per_cycle[u] * cycles[u]);
+    units[3][kAuxWork] = 70;  // work but no cycles: counts 0
+    std::vector<uint32_t> order = by_cycles;
+    // One unit per stratum (period 1): groups of 4 units, {3, 1, 0, 2}, {4, 6, 5, 7}, {9, 8}.
+    balance_unit_order(order, cycles, units, 1);
+    EXPECT_EQ(order, (std::vector<uint32_t>{3, 1, 2, 0, 5, 6, 7, 4, 8, 9}));
+    // Period 2: groups of 8 units.
+    order = by_cycles;
+    balance_unit_order(order, cycles, units, 2);
+    EXPECT_EQ(order, (std::vector<uint32_t>{3, 1, 5, 2, 6, 0, 7, 4, 8, 9}));
+    // Period 3 and more: one group, the whole frame.
+    order = by_cycles;
+    balance_unit_order(order, cycles, units, 3);
+    EXPECT_EQ(order, (std::vector<uint32_t>{3, 1, 5, 2, 6, 0, 7, 4, 8, 9}));
+    EXPECT_THROW(balance_unit_order(order, std::vector<double>(9, 1.0), units, 1),
+                 std::invalid_argument);
+}
+
 TEST(Reference, TheDigestFollowsTheRunsFiles) {
     namespace fs = std::filesystem;
     const EveryUnitRun run(kEveryUnit, "unit,cycles\n0,30\n1,10\n2,20\n3,0\n");
