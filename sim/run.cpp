@@ -272,8 +272,19 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
 
 }  // namespace
 
+namespace {
+// This process's CPU time, every thread's (not a child process's: a paired run's matched
+// sample runs in one).
+double process_cpu_seconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+}  // namespace
+
 int run_command(const RunOptions& opt) {
     const auto host_start = Clock::now();
+    const double cpu_start = process_cpu_seconds();
     const Config cfg = load_config(opt.config_path, opt.sets);
     check_config_combination(cfg, opt.trace_path);
     if (opt.target_error_pct > 0 && cfg.typed.sim.fidelity != "sampled")
@@ -365,6 +376,7 @@ int run_command(const RunOptions& opt) {
     // run's.
     const double functional_l2_s = sampler ? sampler->wait_functional_l2() : 0.0;
     host.run_time_s = seconds_since(host_start);
+    host.run_cpu_s = process_cpu_seconds() - cpu_start;
     if (w.bvh) {
         host.bvh_build_s = w.bvh->quality.build_seconds;
         host.bvh_cache = bvh_cache_outcome_name(w.bvh_cache.outcome);

@@ -105,6 +105,7 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     const double sim_seconds = host.simulation_s;
     out["host"] = {{"run_time_s", host.run_time_s},
+                   {"run_cpu_s", host.run_cpu_s},
                    {"prepare_s", host.prepare_s},
                    {"simulation_s", sim_seconds},
                    {"functional_s", source.functional_seconds},
