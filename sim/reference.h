@@ -90,7 +90,8 @@ struct Reference {
 // sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
 // for this frame in units that divide the run's (they are merged to the run's units). Without an
 // order of its own (--sample-order), `sp`'s strata are cut from the units in order of the
-// reference's cycles (read_unit_order), before the plan is.
+// reference's cycles (read_unit_order), balanced on work per cycle (balance_unit_order), before
+// the plan is.
 Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
                          const FrameProfile& profile, SamplingParams& sp);
 

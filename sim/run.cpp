@@ -270,9 +270,6 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
     out["sampling"] = std::move(sampling);
 }
 
-}  // namespace
-
-namespace {
 // This process's CPU time, every thread's (not a child process's: a paired run's matched
 // sample runs in one).
 double process_cpu_seconds() {
@@ -280,6 +277,7 @@ double process_cpu_seconds() {
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
     return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
+
 }  // namespace
 
 int run_command(const RunOptions& opt) {

@@ -63,9 +63,10 @@ struct Auxiliary {
 // residual variance proportional to the first auxiliary (the ratio estimator's model), total =
 // sum_k b_k X_k, its variance by the delete-one jackknife of that total with the finite-
 // population correction (1 - n/N) (the residuals' N^2 (1 - n/N) s_e^2 / n when leaving out a unit
-// leaves the fit singular), or the fit's model's prediction variance of the total, s^2 (sum of x_0
-// over the units not measured + X_out' M^-1 X_out), where that is larger (Royall 1970: a noisy
-// jackknife on few units), t with m - p degrees of freedom for p auxiliaries fitted on m
+// leaves the fit singular) or, with fewer than 20 residual degrees of freedom, the fit's model's
+// prediction variance of the total where that is larger, s^2 (sum of x_0 over the units not
+// measured + X_out' M^-1 X_out) (Royall 1970: the jackknife on few units is itself noisy), t with
+// m - p degrees of freedom for p auxiliaries fitted on m
 // informative units (those where some auxiliary is not zero: a tile without rays informs no fit).
 // The first auxiliary is always fitted; auxiliary k (k >= 1) only with at least 4 k informative
 // units (fewer leave too few degrees of freedom per coefficient), and not when it is zero in every
