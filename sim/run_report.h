@@ -15,7 +15,7 @@ namespace rtsim {
 // Host wall-clock times of a run (stats.json's "host"; never part of the simulated figures).
 struct HostTimes {
     double run_time_s = 0, prepare_s = 0, simulation_s = 0;
-    double run_cpu_s = 0;  // the process's CPU seconds (all its threads) over run_time_s
+    double run_cpu_s = 0;      // the process's CPU seconds (all its threads) over run_time_s
     double bvh_build_s = -1;   // < 0: the BVH came with a trace
     std::string trace;         // the trace replayed, if any
     std::string bvh_cache;     // what the BVH cache did: off, hit, built, rebuilt (empty: trace)
