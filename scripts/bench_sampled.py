@@ -442,7 +442,8 @@ def main(argv=None):
              "x wall: the same of the whole processes' wall seconds (start, estimates and "
              "outputs included), x cpu: the same of the CPU seconds the run took over its "
              "host.run_time_s, every thread's (host.run_cpu_s: what a busy machine pays, "
-             "whatever else runs beside it), on this shared 2-core machine, "
+             "whatever else runs beside it; a --target-error run's pilot, a child process, is "
+             "not in it), on this shared 2-core machine, "
              f"{args.j} run{'s' if args.j > 1 else ''} at a time.", "",
              "| scene | workload | rays | mode | runs | detailed | units | cycles mean abs err "
              "| max | mean | half-width | cov | DRAM mean abs err | max | half-width | cov "
