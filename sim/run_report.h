@@ -15,7 +15,9 @@ namespace rtsim {
 // Host wall-clock times of a run (stats.json's "host"; never part of the simulated figures).
 struct HostTimes {
     double run_time_s = 0, prepare_s = 0, simulation_s = 0;
-    double run_cpu_s = 0;      // the process's CPU seconds (all its threads) over run_time_s
+    // The process's CPU seconds (all its threads) over run_time_s; a child process's (the
+    // --target-error pilot, a paired run's matched sample) are not in it.
+    double run_cpu_s = 0;
     double bvh_build_s = -1;   // < 0: the BVH came with a trace
     std::string trace;         // the trace replayed, if any
     std::string bvh_cache;     // what the BVH cache did: off, hit, built, rebuilt (empty: trace)
