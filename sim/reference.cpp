@@ -176,10 +176,8 @@ std::vector<double> merged_cycles(const std::vector<double>& cycles, uint64_t me
     return merged;
 }
 
-// The units of `merge` consecutive units each (the last may have fewer) by their summed
-// `cycles`, ties by unit.
-std::vector<uint32_t> order_by_cycles(const std::vector<double>& cycles, uint64_t merge) {
-    const std::vector<double> merged = merged_cycles(cycles, merge);
+// The units by their cycles (`merged`: merged_cycles'), ties by unit.
+std::vector<uint32_t> order_by_cycles(const std::vector<double>& merged) {
     const size_t units = merged.size();
     // Sorted as one integer key per unit (cycles, then unit) while the cycles are whole numbers
     // below 2^32, as rtsim writes them: 1080p tables' 8,100 units as (double, unit) pairs took
@@ -218,7 +216,15 @@ struct EveryUnitRun {
     uint64_t merge = 1;          // its units per unit of the run reading it
     // Its units, merged to the reading run's, in order of their cycles (for
     // SamplingParams::unit_order).
-    std::vector<uint32_t> order() const { return order_by_cycles(cycles, merge); }
+    std::vector<uint32_t> order() const { return order_by_cycles(merged_cycles(cycles, merge)); }
+    // That order balanced on the frame's work per cycle (balance_unit_order): the strata's.
+    std::vector<uint32_t> strata_order(const std::vector<AuxFigures>& units,
+                                       uint64_t period_units) const {
+        const std::vector<double> merged = merged_cycles(cycles, merge);
+        std::vector<uint32_t> o = order_by_cycles(merged);
+        balance_unit_order(o, merged, units, period_units);
+        return o;
+    }
 };
 
 // 2: every unit's cycles, not their order (a paired run's units may merge several).
@@ -292,11 +298,22 @@ EveryUnitRun read_every_unit_run(const fs::path& dir, const std::string& where,
 }  // namespace
 
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
-                                      uint64_t unit_tiles, std::vector<double>* unit_cycles) {
+                                      uint64_t unit_tiles) {
+    const std::string where = fmt::format("{} {}", what, dir);
+    return read_every_unit_run(dir, where, unit_tiles).order();
+}
+
+std::vector<uint32_t> read_strata_order(const std::string& dir, const std::string& what,
+                                        uint64_t unit_tiles, const std::vector<AuxFigures>& units,
+                                        uint64_t period_units) {
     const std::string where = fmt::format("{} {}", what, dir);
     const EveryUnitRun run = read_every_unit_run(dir, where, unit_tiles);
-    if (unit_cycles) *unit_cycles = merged_cycles(run.cycles, run.merge);
-    return run.order();
+    const size_t theirs = (run.cycles.size() + run.merge - 1) / run.merge;
+    if (theirs != units.size())
+        throw InputError(fmt::format(
+            "{}: its run has {} units, this frame {} (a run of a frame of the same size)", where,
+            theirs, units.size()));
+    return run.strata_order(units, period_units);
 }
 
 void balance_unit_order(std::vector<uint32_t>& order, const std::vector<double>& unit_cycles,
@@ -404,9 +421,7 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     // This frame's units: their order by the reference's cycles cuts the strata, unless the run
     // was given another.
     if (sp.unit_order.empty()) {
-        sp.unit_order = run.order();
-        balance_unit_order(sp.unit_order, merged_cycles(run.cycles, run.merge), profile.units,
-                           sp.period_units);
+        sp.unit_order = run.strata_order(profile.units, sp.period_units);
         sp.unit_order_of = opt.reference_dir;
     }
     Reference r;

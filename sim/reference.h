@@ -47,10 +47,15 @@ UnitTable parse_units_csv(const std::string& text, const std::string& path);
 // to this run's units of `unit_tiles` tiles in frame order and put in order of their summed cycles
 // (ties by unit), for SamplingParams::unit_order. `what` names the option in errors (InputError:
 // not such a run, units that do not divide this run's, or a damaged table).
-// `unit_cycles`, when given, receives each merged unit's cycles.
 std::vector<uint32_t> read_unit_order(const std::string& dir, const std::string& what,
-                                      uint64_t unit_tiles,
-                                      std::vector<double>* unit_cycles = nullptr);
+                                      uint64_t unit_tiles);
+
+// read_unit_order's units balanced on the frame's work per cycle (balance_unit_order, `units`
+// the frame profile's): the order a sampled run's strata are cut from. InputError also when
+// the run has not as many units as `units`.
+std::vector<uint32_t> read_strata_order(const std::string& dir, const std::string& what,
+                                        uint64_t unit_tiles, const std::vector<AuxFigures>& units,
+                                        uint64_t period_units);
 
 // Strata of a period's units in order of the reference's cycles are cut in groups of this many;
 // within a group the units are put in order of their functional work per reference cycle.

@@ -160,17 +160,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         // The order strata are cut from, before the design is made: another run's units by their
         // cycles, or (a paired run) the reference's, once it is known to be this frame's.
         if (!opt.sample_order_dir.empty()) {
-            std::vector<double> unit_cycles;
-            sampling->unit_order = read_unit_order(opt.sample_order_dir, "--sample-order",
-                                                   sampling->unit_tiles, &unit_cycles);
+            sampling->unit_order =
+                read_strata_order(opt.sample_order_dir, "--sample-order", sampling->unit_tiles,
+                                  w.profile->units, sampling->period_units);
             sampling->unit_order_of = opt.sample_order_dir;
-            if (sampling->unit_order.size() != w.profile->units.size())
-                throw InputError(fmt::format(
-                    "--sample-order {}: its run has {} units, this frame {} (a run of a frame of "
-                    "the same size)",
-                    opt.sample_order_dir, sampling->unit_order.size(), w.profile->units.size()));
-            balance_unit_order(sampling->unit_order, unit_cycles, w.profile->units,
-                               sampling->period_units);
         }
         if (!opt.reference_dir.empty())
             w.reference = std::make_unique<Reference>(
