@@ -374,17 +374,18 @@ Estimate RegressionDesign::total(const std::vector<double>& y, double confidence
     // of primary rays, 1 unit in 10, its 95% intervals held the full run's cycles in 80% of 200
     // samples, the jackknife's in 92% (bunny: 92% and 94%).
     const double n = double(n_), N = double(population_);
-    auto residual = [&](size_t i) {
+    std::vector<double> residual(n_);
+    for (size_t i = 0; i < n_; ++i) {
         double fitted_y = 0;
         for (size_t a = 0; a < p; ++a) fitted_y += coef[a] * x_[i * p + a];
-        return y[i] - fitted_y;
-    };
+        residual[i] = y[i] - fitted_y;
+    }
     double variance = 0;
     if (!singular_) {
         std::vector<double> replicate(n_);
         double mean = 0;
         for (size_t i = 0; i < n_; ++i) {
-            replicate[i] = e.value - moved_weight_[i] * residual(i) / one_less_leverage_[i];
+            replicate[i] = e.value - moved_weight_[i] * residual[i] / one_less_leverage_[i];
             mean += replicate[i];
         }
         mean /= n;
@@ -395,11 +396,7 @@ Estimate RegressionDesign::total(const std::vector<double>& y, double confidence
         // A unit the fit cannot do without (the only one where an auxiliary moves): the
         // residuals' formula.
         double ss = 0;
-        for (size_t i = 0; i < n_; ++i) {
-            double r = y[i];
-            for (size_t a = 0; a < p; ++a) r -= coef[a] * x_[i * p + a];
-            ss += r * r;
-        }
+        for (double r : residual) ss += r * r;
         variance = N * N * fpc_ * ss / (n - double(p)) / n;
     }
     // With few degrees of freedom, at least the fit's model's variance, sigma^2 estimated from
@@ -413,10 +410,7 @@ Estimate RegressionDesign::total(const std::vector<double>& y, double confidence
     // (a trend the fit through the origin misses): it stands alone there.
     if (informative_ - p < kModelFloorDegrees) {
         double residual_ss = 0;
-        for (size_t i = 0; i < n_; ++i) {
-            const double r = residual(i);
-            residual_ss += weight_[i] * r * r;
-        }
+        for (size_t i = 0; i < n_; ++i) residual_ss += weight_[i] * residual[i] * residual[i];
         variance = std::max(variance, residual_ss / double(informative_ - p) * model_factor_);
     }
     e.t_quantile = student_t_quantile(0.5 + confidence / 2.0, double(informative_ - p));
