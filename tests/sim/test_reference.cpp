@@ -111,14 +111,11 @@ TEST(Reference, UnitOrderMergesUnits) {
     EXPECT_EQ(read_unit_order(odd.dir.string(), "--sample-order", 10), (std::vector<uint32_t>{0}));
 }
 
-// The order and the fields a paired run reads are kept in a digest beside the run's files: read
-// from it while they are unchanged, made again when they change (a rerun into the folder) or
-// when it is damaged, never trusted otherwise.
 // Within each run of 4 strata of the cycles' order, units go by work per cycle (worked out by
 // hand here), so that each group's strata span its work per cycle.
 TEST(Reference, BalancedOrderSortsEachGroupByWorkPerCycle) {
     // Units 0-9's work per cycle: 3, 1, 2, none (no cycles: 0), 4, 1, 2, 3, 5, 5 (8 and 9 a tie,
-    // by unit); by their cycles they come as 3, 1, 0, 2, 4, 6, 5, 7, 9, 8.
+    // by unit); the order given (as by cycles): 3, 1, 0, 2, 4, 6, 5, 7, 9, 8.
     const std::vector<uint32_t> by_cycles = {3, 1, 0, 2, 4, 6, 5, 7, 9, 8};
     const std::vector<double> cycles = {10, 10, 10, 0, 10, 10, 10, 10, 10, 10};
     std::vector<AuxFigures> units(10, AuxFigures{});
@@ -141,6 +138,9 @@ TEST(Reference, BalancedOrderSortsEachGroupByWorkPerCycle) {
                  std::invalid_argument);
 }
 
+// The order and the fields a paired run reads are kept in a digest beside the run's files: read
+// from it while they are unchanged, made again when they change (a rerun into the folder) or
+// when it is damaged, never trusted otherwise.
 TEST(Reference, TheDigestFollowsTheRunsFiles) {
     namespace fs = std::filesystem;
     const EveryUnitRun run(kEveryUnit, "unit,cycles\n0,30\n1,10\n2,20\n3,0\n");

@@ -8,15 +8,16 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <numeric>
 #include <random>
 #include <set>
-#include <sstream>
 
 #include "models/cache.h"
 #include "models/crossbar.h"
+#include "sim/reference.h"
 #include "sim/sampler.h"
 #include "sim/sampling.h"
 
@@ -620,30 +621,27 @@ TEST(Sampling, FewUnitsTakeTheLargerOfTheJackknifeAndTheModelsVariance) {
 // the nominal 95%. In the order paired runs now cut strata from (each run of 4 strata by work per
 // cycle, balance_unit_order), 95.2% and 96.0%.
 TEST(Sampling, AFewUnitsWithRaysCoverAtTheirNominalRate) {
-    std::ifstream in(std::string(RTSIM_SOURCE_DIR) +
-                     "/tests/data/sampling/elephant_ao_1080p_u8_units.csv");
-    ASSERT_TRUE(in) << "tests/data/sampling/elephant_ao_1080p_u8_units.csv";
-    const size_t N = 4050, kColumns = 5;
+    const std::string path =
+        std::string(RTSIM_SOURCE_DIR) + "/tests/data/sampling/elephant_ao_1080p_u8_units.csv";
+    std::ifstream in(path);
+    ASSERT_TRUE(in) << path;
+    const UnitTable table =
+        parse_units_csv(std::string(std::istreambuf_iterator<char>(in), {}), path);
+    ASSERT_EQ(table.rows, 378u);
+    const size_t N = 4050;
+    // The columns regressed on, in a paired run's order.
+    const std::vector<std::string> names = {"reference_cycles", "work", "new_line_rays",
+                                            "node_steps", "rays"};
+    const size_t kColumns = names.size();
     std::vector<double> cycles(N, 0.0);
     std::vector<std::vector<double>> column(kColumns, std::vector<double>(N, 0.0));
-    std::string line;
-    std::getline(in, line);  // unit,cycles,reference_cycles,work,new_line_rays,node_steps,rays
-    size_t rows = 0;
-    while (std::getline(in, line)) {
-        std::istringstream fields(line);
-        std::string f;
-        std::getline(fields, f, ',');
-        const size_t unit = std::stoul(f);
-        ASSERT_LT(unit, N);
-        std::getline(fields, f, ',');
-        cycles[unit] = std::stod(f);
-        for (size_t k = 0; k < kColumns; ++k) {
-            std::getline(fields, f, ',');
-            column[k][unit] = std::stod(f);
-        }
-        ++rows;
+    for (size_t row = 0; row < table.rows; ++row) {
+        const double unit = table.cols.at("unit")[row];
+        ASSERT_LT(unit, double(N));
+        cycles[size_t(unit)] = table.cols.at("cycles")[row];
+        for (size_t k = 0; k < kColumns; ++k)
+            column[k][size_t(unit)] = table.cols.at(names[k])[row];
     }
-    ASSERT_EQ(rows, 378u);
     const double truth = total(cycles);
     // The reference's cycles' order; balanced: then work per cycle within each run of 4 strata.
     const size_t period = 50;
