@@ -152,7 +152,7 @@ class LinePass {
 class CoreLinePass {
   public:
     static constexpr size_t kMaxCores = 64;
-    // Ready for passes meeting about `lines` distinct lines.
+    // Ready for passes meeting about `lines` distinct lines (more grow it).
     void reserve(size_t lines) {
         size_t slots = 64;
         while (slots < 2 * lines) slots *= 2;
