@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <iterator>
 #include <map>
@@ -191,6 +192,15 @@ double Sampler::wait_functional_l2() {
 
 void Sampler::replay_skipped_tiles(uint64_t tile) {
     if (profile_ && l2_ && tile > replayed_tiles_) {
+        const auto start = std::chrono::steady_clock::now();
+        struct AddSeconds {  // on every way out
+            std::chrono::steady_clock::time_point start;
+            double& to;
+            ~AddSeconds() {
+                to +=
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+            }
+        } timed{start, replay_seconds_};
         const FrameProfile& p = *profile_;
         const uint64_t last = std::min<uint64_t>(tile, p.tile_line_start.size() - 1);
         const uint32_t end = p.tile_line_start[last];

@@ -268,6 +268,9 @@ class Sampler {
     double wait_functional_l2();
     // What the cache of that count did ("off", "hit", "built", "rebuilt: why"; empty: no count).
     const std::string& functional_l2_cache() const { return functional_l2_.cache; }
+    // Skip design: host seconds spent loading skipped tiles' lines into the caches (part of the
+    // simulation's; stats.json's host.replay_s).
+    double replay_seconds() const { return replay_seconds_; }
     // stats.json's "sampling" section: the plan, what ran in detail, and each estimate with
     // its interval. `end_cycle`: the sampled run's last cycle.
     nlohmann::json report(Cycle end_cycle);
@@ -392,6 +395,7 @@ class Sampler {
     uint64_t direct_first_line_ = 0;  // profile line 0 in lines of the caches
     void warm_l2_line(uint32_t entry);
     uint64_t replayed_tiles_ = 0;  // tiles before this one were traced or replayed
+    double replay_seconds_ = 0;    // host seconds in replay_skipped_tiles
     size_t replay_core_ = 0;       // the core whose L1 the next replayed line goes to first
     // replay_skipped_tiles' L1 window and warm_l2_lines' last touches each meet a line once.
     LinePass line_pass_;

@@ -725,6 +725,11 @@ TEST(Sampled, SkipDesignCountsCapacityMissesFunctionally) {
     EXPECT_GT(fl2["capacity_misses"].get<double>(), 0.4 * fl2["misses"].get<double>());
     EXPECT_EQ(p["sampling"]["functional_l2"], fl2);  // the frame's, whatever the sample
     EXPECT_GT(a["host"]["functional_l2_s"].get<double>(), 0.0);
+    // The replay's host seconds: a part of the simulation's where tiles are skipped; no such
+    // field outside the skip design.
+    EXPECT_GT(p["host"]["replay_s"].get<double>(), 0.0);
+    EXPECT_LT(p["host"]["replay_s"].get<double>(), p["host"]["simulation_s"].get<double>());
+    EXPECT_FALSE(f["host"].contains("replay_s"));
     // Every unit measured: the units' counts sum to the frame's, the estimate is the full run's.
     const UnitsCsv csv = read_units_csv(all / "sampled_units.csv");
     EXPECT_EQ(column_sum(csv, "functional_capacity_misses"), fl2["capacity_misses"].get<double>());
