@@ -193,14 +193,6 @@ double Sampler::wait_functional_l2() {
 void Sampler::replay_skipped_tiles(uint64_t tile) {
     if (profile_ && l2_ && tile > replayed_tiles_) {
         const auto start = std::chrono::steady_clock::now();
-        struct AddSeconds {  // on every way out
-            std::chrono::steady_clock::time_point start;
-            double& to;
-            ~AddSeconds() {
-                to +=
-                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-            }
-        } timed{start, replay_seconds_};
         const FrameProfile& p = *profile_;
         const uint64_t last = std::min<uint64_t>(tile, p.tile_line_start.size() - 1);
         const uint32_t end = p.tile_line_start[last];
@@ -323,6 +315,8 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
             replay_core_ = next_core;
             if (defer_l2) warm_l2_lines(p.tile_line_start[replayed_tiles_], l1_from, l1_misses_);
         }
+        replay_seconds_ +=
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     }
     replayed_tiles_ = tile + 1;
 }
