@@ -119,8 +119,8 @@ SampleDesign::TileRole SampleDesign::tile_role(uint64_t tile) const {
 Sampler::Sampler(const SamplingParams& params,
                  std::vector<std::array<MemoryPort*, kStepKinds>> ports,
                  const StatsRegistry& counters, std::shared_ptr<const SampleDesign> design)
-    : params_(params),
-      design_(design ? std::move(design) : std::make_shared<const SampleDesign>(params)),
+    : design_(design ? std::move(design) : std::make_shared<const SampleDesign>(params)),
+      params_(design_->params()),
       ports_(std::move(ports)),
       counters_(counters) {
     deltas_.resize(counters_.entries().size());

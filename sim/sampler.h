@@ -105,6 +105,7 @@ class SampleDesign {
         return tile_role(tile) != TileRole::Skipped &&
                (params_.tile_rays.size() != params_.tiles || params_.tile_rays[tile] > 0);
     }
+    const SamplingParams& params() const { return params_; }
     // Skip design: units in the frame.
     uint64_t units() const {
         return (params_.tiles + params_.unit_tiles - 1) / std::max<uint64_t>(1, params_.unit_tiles);
@@ -217,7 +218,8 @@ class Sampler {
     // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
     // turn, core by core, as the cores would have taken the rays). `counters`: what is measured.
     // `design`: the sample design of `params`, if one was made already (the run's ray source asks
-    // it which tiles to generate); made here otherwise.
+    // it which tiles to generate); made here otherwise. The plan is read from the design, which
+    // holds the one copy of it (a frame's per-tile rays and unit order among it).
     Sampler(const SamplingParams& params, std::vector<std::array<MemoryPort*, kStepKinds>> ports,
             const StatsRegistry& counters, std::shared_ptr<const SampleDesign> design = nullptr);
 
@@ -348,8 +350,8 @@ class Sampler {
     // ray right after one.
     bool detailed_ray(uint64_t i) const;
 
-    SamplingParams params_;
     std::shared_ptr<const SampleDesign> design_;  // shared with the ray source, read only
+    const SamplingParams& params_;                // the design's
     std::vector<std::array<MemoryPort*, kStepKinds>> ports_;
     uint32_t l2_line_bytes_ = 0;  // 0: no counter estimated from first fills
     uint64_t dram_bytes_per_fill_ = 0;
