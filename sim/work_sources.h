@@ -256,9 +256,11 @@ class PrefetchingSource : public CountingSource {
     std::thread helper_;
     std::mutex mutex_;  // guards what follows
     std::condition_variable cv_;
-    std::deque<Batch> filled_;     // filled, in order, not taken yet
-    std::vector<Batch> recycled_;  // used batches, their memory for the next fills
-    bool filled_last_ = false;     // the helper filled the last batch (or one that failed)
+    std::deque<Batch> filled_;  // filled, in order, not taken yet
+    // Used batches, whole: their records' memory starts the next fills, and the rest (tiles,
+    // packet counts) is freed here on the helper thread, which allocated it.
+    std::vector<Batch> recycled_;
+    bool filled_last_ = false;  // the helper filled the last batch (or one that failed)
     bool stopping_ = false;
 };
 
