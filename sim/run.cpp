@@ -376,7 +376,7 @@ int run_command(const RunOptions& opt) {
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);
-    if (w.profile) out["host"]["replay_s"] = sampler->replay_seconds();
+    if (sampler && w.profile) out["host"]["replay_s"] = sampler->replay_seconds();
     if (sampler && !sampler->functional_l2_cache().empty()) {
         out["host"]["functional_l2_s"] = functional_l2_s;
         out["host"]["functional_l2_cache"] = sampler->functional_l2_cache();

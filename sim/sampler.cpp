@@ -168,11 +168,11 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
     const auto& lines = profile->tile_lines;
     const size_t distinct = lines.empty() ? 0 : *std::max_element(lines.begin(), lines.end()) + 1;
     line_pass_.resize(distinct);
-    // Started small, the table grows to what the windows meet: sized for the most an L1 window
-    // can meet (what the L1s hold together, 4,352 lines in 16,384 slots, 256 KB), its slots
-    // missed the host's caches, and half of the window's search was that one load (1080p camel
-    // primary at 1 in 50, 15 runs: its median 2.32 ms, 1.57 ms grown from 512 slots; a window
-    // there walks about a thousand line entries).
+    // Started small, the table grows to what the windows meet. Sized for the most a window can
+    // meet (what the L1s hold together: the default chip's, 4,352 lines in 16,384 slots, 256 KB),
+    // its slots missed the host's caches, and half of the window's search was that one load
+    // (1080p camel primary at 1 in 50, 15 runs: its median 2.32 ms, 1.57 ms grown from 512
+    // slots; a window there walks about a thousand line entries).
     if (l1_lru_ && ports_.size() <= CoreLinePass::kMaxCores) core_line_pass_.reserve(256);
     // A reference design's matched sample already carries its capacity misses (section 10 of
     // bench/results/sampled_estimators.md); other replacement policies would need their own
