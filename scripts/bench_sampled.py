@@ -43,6 +43,7 @@ import argparse
 import concurrent.futures
 import math
 import os
+import random
 import statistics
 import sys
 import tempfile
@@ -92,6 +93,21 @@ def summarise(rows):
     out["matched_host_s"] = statistics.median(r.get("matched_host_s", 0.0) for r in rows)
     out["runs"] = len(rows)
     return out
+
+
+# The issue's speed target: sampled runs this many times faster than the full run.
+TARGET_SPEEDUP = 20.0
+
+
+def speedup_interval(full, sampled, draws=2000, seed=1):
+    """The 95% percentile-bootstrap interval of median(full) / median(sampled): each side's runs
+    resampled with replacement (a shared machine moves run times by 10% and more between runs,
+    so a cell's x is an estimate too). Seeded: the same runs give the same interval."""
+    rng = random.Random(seed)
+    ratios = sorted(statistics.median(rng.choices(full, k=len(full))) /
+                    statistics.median(rng.choices(sampled, k=len(sampled)))
+                    for _ in range(draws))
+    return ratios[int(0.025 * draws)], ratios[int(0.975 * draws) - 1]
 
 
 def wilson(hits, n, z=1.96):
@@ -348,7 +364,11 @@ def main(argv=None):
                              "energy": truth["energy"]["per_ray_nj"],
                              "host_s": statistics.median(f["host"]["run_time_s"] for f in fulls),
                              "wall_s": statistics.median(f["bench_wall_s"] for f in fulls),
-                             "cpu_s": statistics.median(cpu_seconds(f) for f in fulls)},
+                             "cpu_s": statistics.median(cpu_seconds(f) for f in fulls),
+                             # Each full run's, for the speed-ups' intervals.
+                             "runs_host_s": [f["host"]["run_time_s"] for f in fulls],
+                             "runs_wall_s": [f["bench_wall_s"] for f in fulls],
+                             "runs_cpu_s": [cpu_seconds(f) for f in fulls]},
                     "modes": []}
             for mode in [f"1/{p}" for p in periods] + [f"target {t:g}%" for t in targets]:
                 rows = []
@@ -409,6 +429,10 @@ def main(argv=None):
                 summary["speedup"] = cell["full"]["host_s"] / summary["host_s"]
                 summary["wall_speedup"] = cell["full"]["wall_s"] / summary["wall_s"]
                 summary["cpu_speedup"] = cell["full"]["cpu_s"] / summary["cpu_s"]
+                for key, measure in (("speedup", "host_s"), ("wall_speedup", "wall_s"),
+                                     ("cpu_speedup", "cpu_s")):
+                    summary[key + "_interval"] = speedup_interval(
+                        cell["full"]["runs_" + measure], [r[measure] for r in rows])
                 summary["rows"] = rows
                 cell["modes"].append(summary)
             cells.append(cell)
@@ -537,6 +561,26 @@ def main(argv=None):
             lines.append(f"| {mode} | {label} | {'; '.join(below) or 'none'} | "
                          f"{', '.join(short) or 'none'} | {100 * hits / max(n, 1):.1f}% "
                          f"({100 * lo:.1f}-{100 * hi:.1f}%) |")
+    # Speed: a cell's x is a ratio of medians over its runs on a shared machine, so it carries
+    # an interval too; a cell whose interval lies wholly below the target falls short beyond
+    # the machine's noise.
+    lines += ["", f"Cells below {TARGET_SPEEDUP:g}x (each x with the 95% bootstrap interval of "
+              "its ratio of medians over the cell's full and sampled runs; 'short' when the "
+              "interval lies wholly below):", "",
+              "| mode | measure | cells below | short beyond noise |", "|---|---|---|---|"]
+    for mode in mode_names:
+        ms = [(c, m) for c in cells for m in c["modes"] if m["mode"] == mode and m["runs"] > 0]
+        for key, label in (("speedup", "x"), ("wall_speedup", "x wall"),
+                           ("cpu_speedup", "x cpu")):
+            below, short = [], []
+            for c, m in ms:
+                lo, hi = m[key + "_interval"]
+                if m[key] < TARGET_SPEEDUP:
+                    below.append(f"{c['scene']} {c['workload']} {m[key]:.1f} ({lo:.1f}-{hi:.1f})")
+                    if hi < TARGET_SPEEDUP:
+                        short.append(f"{c['scene']} {c['workload']}")
+            lines.append(f"| {mode} | {label} | {'; '.join(below) or 'none'} | "
+                         f"{', '.join(short) or 'none'} |")
     if profiles:
         lines += ["", "Frame profiles (the skip design's; computed once per frame by an untimed "
                   "sampled run before the timed ones, which all loaded it from the cache; on all "
