@@ -97,6 +97,9 @@ def summarise(rows):
 
 # The issue's speed target: sampled runs this many times faster than the full run.
 TARGET_SPEEDUP = 20.0
+# The speed-ups: (key in a mode's summary, the seconds it divides, its label in the tables).
+SPEEDUPS = (("speedup", "host_s", "x"), ("wall_speedup", "wall_s", "x wall"),
+            ("cpu_speedup", "cpu_s", "x cpu"))
 
 
 def speedup_interval(full, sampled, draws=2000, seed=1):
@@ -358,18 +361,18 @@ def main(argv=None):
             for f in fulls[1:]:
                 if f["total_cycles"] != truth["total_cycles"]:
                     sys.exit(f"bench_sampled: {scene}/{wl}: full runs differ")
+            # Each full run's seconds (for the speed-ups' intervals) and their medians.
+            full_runs = {"host_s": [f["host"]["run_time_s"] for f in fulls],
+                         "wall_s": [f["bench_wall_s"] for f in fulls],
+                         "cpu_s": [cpu_seconds(f) for f in fulls]}
+            full = {"total_cycles": truth["total_cycles"],
+                    "dram_bytes": truth["counters"]["dram.bytes"],
+                    "energy": truth["energy"]["per_ray_nj"]}
+            for measure, runs in full_runs.items():
+                full[measure] = statistics.median(runs)
+                full["runs_" + measure] = runs
             cell = {"scene": scene, "workload": wl, "rays": truth["rays"]["total"],
-                    "full": {"total_cycles": truth["total_cycles"],
-                             "dram_bytes": truth["counters"]["dram.bytes"],
-                             "energy": truth["energy"]["per_ray_nj"],
-                             "host_s": statistics.median(f["host"]["run_time_s"] for f in fulls),
-                             "wall_s": statistics.median(f["bench_wall_s"] for f in fulls),
-                             "cpu_s": statistics.median(cpu_seconds(f) for f in fulls),
-                             # Each full run's, for the speed-ups' intervals.
-                             "runs_host_s": [f["host"]["run_time_s"] for f in fulls],
-                             "runs_wall_s": [f["bench_wall_s"] for f in fulls],
-                             "runs_cpu_s": [cpu_seconds(f) for f in fulls]},
-                    "modes": []}
+                    "full": full, "modes": []}
             for mode in [f"1/{p}" for p in periods] + [f"target {t:g}%" for t in targets]:
                 rows = []
                 no_estimate = 0
@@ -426,13 +429,10 @@ def main(argv=None):
                 summary = summarise(rows)
                 summary["no_estimate"] = no_estimate
                 summary["mode"] = mode
-                summary["speedup"] = cell["full"]["host_s"] / summary["host_s"]
-                summary["wall_speedup"] = cell["full"]["wall_s"] / summary["wall_s"]
-                summary["cpu_speedup"] = cell["full"]["cpu_s"] / summary["cpu_s"]
-                for key, measure in (("speedup", "host_s"), ("wall_speedup", "wall_s"),
-                                     ("cpu_speedup", "cpu_s")):
+                for key, measure, _ in SPEEDUPS:
+                    summary[key] = full[measure] / summary[measure]
                     summary[key + "_interval"] = speedup_interval(
-                        cell["full"]["runs_" + measure], [r[measure] for r in rows])
+                        full["runs_" + measure], [r[measure] for r in rows])
                 summary["rows"] = rows
                 cell["modes"].append(summary)
             cells.append(cell)
@@ -495,8 +495,8 @@ def main(argv=None):
                 f"{dr['mean_half_width_pct']:.2f}% | {100 * dr['coverage']:.0f}% | "
                 f"{en['mean_abs_error_pct']:.2f}% | {en['max_abs_error_pct']:.2f}% | "
                 f"{en['mean_half_width_pct']:.2f}% | {100 * en['coverage']:.0f}% | "
-                f"{m['host_s']:.2f} | {m['speedup']:.2f} | {m['wall_speedup']:.2f} | "
-                f"{m['cpu_speedup']:.2f} |")
+                f"{m['host_s']:.2f} | "
+                + "".join(f"{m[key]:.2f} | " for key, _, _ in SPEEDUPS).rstrip())
     # Per mode over every cell: the figures the issue's targets are stated in.
     lines += ["", "Per mode, over every cell:", "",
               "| mode | cells | cycles mean abs err (worst cell) | cycles coverage (worst cell) "
@@ -527,12 +527,8 @@ def main(argv=None):
             f"({max(x['mean_abs_error_pct'] for x in en):.2f}%) | "
             f"{100 * statistics.mean(x['coverage'] for x in en):.0f}% "
             f"({100 * min(x['coverage'] for x in en):.0f}%) | "
-            f"{statistics.median(m['speedup'] for m in ms):.2f} "
-            f"({min(m['speedup'] for m in ms):.2f}) | "
-            f"{statistics.median(m['wall_speedup'] for m in ms):.2f} "
-            f"({min(m['wall_speedup'] for m in ms):.2f}) | "
-            f"{statistics.median(m['cpu_speedup'] for m in ms):.2f} "
-            f"({min(m['cpu_speedup'] for m in ms):.2f}) |")
+            + "".join(f"{statistics.median(m[key] for m in ms):.2f} "
+                      f"({min(m[key] for m in ms):.2f}) | " for key, _, _ in SPEEDUPS).rstrip())
     # A cell's coverage over 100 seeds is itself a sample: a cell whose intervals truly cover
     # 95% shows less than 93% (92 of 100 or fewer) about one time in eight, so a few of 24 cells
     # fall below 93% by chance alone. Listed: the cells below the target, with the 95% interval
@@ -570,8 +566,7 @@ def main(argv=None):
               "| mode | measure | cells below | short beyond noise |", "|---|---|---|---|"]
     for mode in mode_names:
         ms = [(c, m) for c in cells for m in c["modes"] if m["mode"] == mode and m["runs"] > 0]
-        for key, label in (("speedup", "x"), ("wall_speedup", "x wall"),
-                           ("cpu_speedup", "x cpu")):
+        for key, _, label in SPEEDUPS:
             below, short = [], []
             for c, m in ms:
                 lo, hi = m[key + "_interval"]
