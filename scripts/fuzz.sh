@@ -18,6 +18,9 @@ cmake --build "$dir" -j"$(nproc)" --target "${targets[@]/#/fuzz_}" >/dev/null
 # containers may deny (it then fails the run after the fuzzing itself passed). Unbounded memory
 # is caught by the RSS and malloc limits instead.
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=0}"
+# The targets' scratch inputs (fuzz/fuzz_input.h) stay in the build folder, also after a crash.
+export TMPDIR="$(cd "$dir" && pwd)/scratch"
+mkdir -p "$TMPDIR"
 for t in "${targets[@]}"; do
     mkdir -p "$dir/corpus/$t" "$dir/crashes/$t"
     # New inputs go to the first folder (build-fuzz/corpus); the seeds are read only.

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # One-step set-up for a fresh Debian bookworm machine (as root, no terminal needed):
 # installs what is missing, fetches the Debian test meshes, builds Release, then
-#   scripts/setup.sh run    runs the main job (rtsim run, default config, built-in scene)
-#   scripts/setup.sh test   runs the whole test suite through ctest, then the fuzz targets briefly
-#   scripts/setup.sh build  only builds
+#   scripts/setup.sh run    builds rtsim alone and runs the main job (rtsim run, default config,
+#                           built-in scene)
+#   scripts/setup.sh test   builds everything, runs the whole test suite through ctest, then the
+#                           fuzz targets briefly
+#   scripts/setup.sh build  only builds everything (tests and benchmarks too)
 # Environment: BUILD_DIR (default build), RTSIM_SANITIZE=ON for an ASan+UBSan build,
-# RTSIM_FUZZ_SECONDS (default 8) for each fuzz target in the test command.
+# RTSIM_FUZZ_SECONDS (default 6) for each fuzz target in the test command.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode="${1:-run}"
@@ -57,7 +59,10 @@ if [ ! -f "$mesh_dir/.done" ]; then
 fi
 
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DRTSIM_SANITIZE="${RTSIM_SANITIZE:-OFF}" >/dev/null
-cmake --build "$build_dir" -j"$(nproc)"
+# A user who only runs needs the simulator (and its assimp module), not the test programs.
+targets=()
+[ "$mode" != run ] || targets=(--target rtsim)
+cmake --build "$build_dir" -j"$(nproc)" "${targets[@]}"
 
 case "$mode" in
     build) ;;

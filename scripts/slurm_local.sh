@@ -3,8 +3,11 @@
 # Slurm (Debian's slurm-wlm and munge): a fresh munge key, munged, and slurmctld and slurmd on
 # loopback with non-default ports, every file under DIR (nothing in /etc or /var).
 #
-#   scripts/slurm_local.sh start DIR    # prints the SLURM_CONF to export
+#   scripts/slurm_local.sh start DIR    # prints the SLURM_CONF to export (alone on stdout)
 #   scripts/slurm_local.sh stop DIR     # stops what start started
+# Whatever the daemons print (munged warns when the host's name does not resolve) goes to
+# stderr, so stdout holds the path and nothing else. A daemon that does not start is named with
+# the log to read, and what did start is stopped.
 set -euo pipefail
 cmd="${1:-}"
 dir="${2:-}"
@@ -48,9 +51,16 @@ chmod 700 "$dir/munge"
 rm -f "$dir/munge/munge.key"
 dd if=/dev/urandom bs=1 count=1024 of="$dir/munge/munge.key" 2>/dev/null
 chmod 400 "$dir/munge/munge.key"
+# Under `set -e` a daemon that fails to start would end the script before it says which.
+fail() {
+    echo "$0: $1 did not start; see $2" >&2
+    [ ! -f "$2" ] || tail -n 5 "$2" >&2
+    stop
+    exit 1
+}
 /usr/sbin/munged --force --socket="$dir/munge/munge.sock" --key-file="$dir/munge/munge.key" \
     --log-file="$dir/munge/munged.log" --pid-file="$dir/munge/munged.pid" \
-    --seed-file="$dir/munge/munged.seed"
+    --seed-file="$dir/munge/munged.seed" >&2 || fail munged "$dir/munge/munged.log"
 host="$(hostname -s)"
 user="$(id -un)"
 port="${RTSIM_SLURM_PORT:-16817}"
@@ -83,8 +93,8 @@ JobAcctGatherType=jobacct_gather/none
 NodeName=$host NodeAddr=127.0.0.1 CPUs=$(nproc) RealMemory=1000 State=UNKNOWN
 PartitionName=debug Nodes=$host Default=YES MaxTime=INFINITE State=UP
 CONF
-/usr/sbin/slurmctld -f "$conf"
-/usr/sbin/slurmd -f "$conf"
+/usr/sbin/slurmctld -f "$conf" >&2 || fail slurmctld "$dir/slurmctld.log"
+/usr/sbin/slurmd -f "$conf" >&2 || fail slurmd "$dir/slurmd.log"
 # Ready once the node is idle.
 for _ in $(seq 1 60); do
     if SLURM_CONF="$conf" sinfo -h -o %T 2>/dev/null | grep -q idle; then

@@ -1,4 +1,4 @@
-// rtsim sweep --slurm against a real Slurm (issue 19): a one-node cluster started on this machine
+// rtsim sweep --slurm against a real Slurm: a one-node cluster started on this machine
 // (scripts/slurm_local.sh: munge, slurmctld and slurmd on loopback with their own ports and
 // folders), a sweep through it whose table equals the local sweep's, a task cancelled so that
 // --collect names it, and --resume finishing only that point. Where Slurm cannot start, the test
@@ -10,6 +10,8 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+
 #include "support/run_rtsim.h"
 
 namespace fs = std::filesystem;
@@ -18,21 +20,30 @@ using namespace rtsim::test;
 
 namespace {
 
+// The last non-empty line of a text: slurm_local.sh prints the SLURM_CONF path alone on stdout.
+std::string last_line(std::string text) {
+    while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+    const size_t nl = text.rfind('\n');
+    return nl == std::string::npos ? text : text.substr(nl + 1);
+}
+
+// slurm_local.sh start in DIR, run through `prefix` (a shell word or two, e.g. an unshare that
+// gives it a host name of its own); stdout and stderr kept apart.
 struct Cluster {
     fs::path dir, conf;
     bool up = false;
-    std::string why;
-    Cluster() : dir(work_dir() / "slurm_cluster") {
-        const fs::path log = work_dir() / "slurm_start.log";
-        const std::string cmd =
-            fmt::format("RTSIM_SLURM_PORT=17817 '{}/scripts/slurm_local.sh' start '{}' > '{}' 2>&1",
-                        RTSIM_SOURCE_DIR, dir.string(), log.string());
+    std::string out, err;
+    Cluster(const std::string& name, int port, const std::string& prefix = "")
+        : dir(work_dir() / name) {
+        const fs::path out_log = work_dir() / (name + ".out"),
+                       err_log = work_dir() / (name + ".err");
+        const std::string cmd = fmt::format(
+            "{} env RTSIM_SLURM_PORT={} '{}/scripts/slurm_local.sh' start '{}' > '{}' 2> '{}'",
+            prefix, port, RTSIM_SOURCE_DIR, dir.string(), out_log.string(), err_log.string());
         up = std::system(cmd.c_str()) == 0;
-        const std::string out = slurp(log);
-        if (up)
-            conf = out.substr(0, out.find('\n'));
-        else
-            why = out;
+        out = slurp(out_log);
+        err = slurp(err_log);
+        if (up) conf = last_line(out);
     }
     ~Cluster() {
         const std::string cmd = fmt::format("'{}/scripts/slurm_local.sh' stop '{}' >/dev/null 2>&1",
@@ -57,8 +68,8 @@ json table_of(const fs::path& dir) {
 TEST(Slurm, ASweepThroughSlurmMatchesTheLocalOneAndResumesACancelledTask) {
     if (std::system("command -v sbatch >/dev/null 2>&1") != 0)
         GTEST_SKIP() << "Slurm is not installed (Debian: slurm-wlm munge): --slurm not tested";
-    Cluster cluster;
-    if (!cluster.up) GTEST_SKIP() << "Slurm could not start here: " << cluster.why;
+    Cluster cluster("slurm_cluster", 17817);
+    if (!cluster.up) GTEST_SKIP() << "Slurm could not start here: " << cluster.err;
     setenv("SLURM_CONF", cluster.conf.c_str(), 1);
     const fs::path file = work_dir() / "slurm_sweep.json";
     std::ofstream(file) << R"({"workload": {"rays": "primary,ao", "res": "24x24"},
@@ -110,6 +121,26 @@ TEST(Slurm, ASweepThroughSlurmMatchesTheLocalOneAndResumesACancelledTask) {
     EXPECT_NE(slurp(cut / "slurm" / "sweep.sbatch").find("#SBATCH --array=2\n"), std::string::npos);
     EXPECT_EQ(table_of(cut), table_of(local));
     unsetenv("SLURM_CONF");
+}
+
+// A host whose name does not resolve: munged warns about it on stderr, and stdout still holds
+// the SLURM_CONF path alone (it once took the warning's first line for the path). The cluster
+// runs in a UTS namespace of its own, under a name no resolver knows.
+TEST(Slurm, StartsOnAHostWhoseNameDoesNotResolve) {
+    if (std::system("command -v sbatch >/dev/null 2>&1") != 0)
+        GTEST_SKIP() << "Slurm is not installed (Debian: slurm-wlm munge)";
+    const std::string name = fmt::format("rtsim-unresolvable-{}", getpid());
+    if (std::system(
+            fmt::format("unshare --uts sh -c 'hostname {}' >/dev/null 2>&1", name).c_str()) != 0)
+        GTEST_SKIP() << "cannot make a UTS namespace here (unshare --uts needs root)";
+    ASSERT_NE(std::system(fmt::format("getent hosts {} >/dev/null 2>&1", name).c_str()), 0)
+        << name << " resolves here";
+    Cluster cluster("slurm_unresolvable", 17917,
+                    fmt::format("unshare --uts sh -c 'hostname {} && exec \"$0\" \"$@\"'", name));
+    ASSERT_TRUE(cluster.up) << cluster.err;
+    EXPECT_EQ(cluster.out, cluster.conf.string() + "\n") << "stdout holds more than the path";
+    EXPECT_EQ(cluster.conf, cluster.dir / "slurm.conf");
+    EXPECT_NE(slurp(cluster.conf).find("NodeName=" + name + " "), std::string::npos);
 }
 
 TEST(Slurm, SlurmOptionsWithoutSlurmAreRefused) {
