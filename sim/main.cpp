@@ -87,6 +87,10 @@ int main_impl(int argc, char** argv) {
     CLI::App app{"RTSim: a cycle-approximate ray-tracing hardware simulator"};
     app.require_subcommand(1);
     app.set_version_flag("--version", std::string("rtsim ") + RTSIM_VERSION);
+    // Checks that a command line parses and does nothing else: the documentation's command
+    // lines are tested this way without their files (tests/e2e/test_docs.cpp). Hidden.
+    bool parse_only = false;
+    app.add_flag("--parse-only", parse_only, "Check the command line only")->group("");
 
     rtsim::RunOptions run;
     CLI::App* run_cmd = add_run_command(app, run);
@@ -208,6 +212,7 @@ int main_impl(int argc, char** argv) {
         const int code = app.exit(e);
         return code == 0 ? 0 : 2;
     }
+    if (parse_only) return 0;
 
     try {
         if (*run_cmd) {
