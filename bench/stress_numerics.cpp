@@ -1,4 +1,4 @@
-// The numerical stress suite at full size (issue 18): watertightness on closed Debian meshes on
+// The numerical stress suite at full size: watertightness on closed Debian meshes on
 // every BVH variant, meshes scaled and moved against a double-precision reference, axis-parallel
 // and in-plane rays on flat geometry with degenerate triangles, and secondary rays from hit
 // points. Prints one line per case with its counts; bench/results/stress_numerics.txt is the last

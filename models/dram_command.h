@@ -1,4 +1,4 @@
-// A command-level DRAM model (issue 17): a channel controller with read and write queues that
+// A command-level DRAM model: a channel controller with read and write queues that
 // issues ACT, RD, WR, PRE and REF commands one per cycle on a command bus, under the JEDEC
 // timing constraints between them, with one burst at a time on each channel's data bus.
 //

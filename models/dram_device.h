@@ -1,4 +1,4 @@
-// DRAM devices as data (issue 17): presets in configs/dram/*.json, embedded at build time and
+// DRAM devices as data: presets in configs/dram/*.json, embedded at build time and
 // registered by name (`rtsim list dram_device`), read into a DramDeviceSpec field by field.
 #pragma once
 

@@ -96,7 +96,7 @@ class MemoryPort {
                               Cycle& /*ready*/, AccessBreakdown* /*breakdown*/ = nullptr) {
         return false;
     }
-    // Functional warming (sampled simulation, issue 16): leaves the state an access would
+    // Functional warming (sampled simulation): leaves the state an access would
     // (tags and replacement order of every level it reaches), taking no time, reserving nothing
     // and counting nothing. A level with no such state ignores it.
     virtual void warm(uint64_t /*addr*/, uint32_t /*size_bytes*/) {}

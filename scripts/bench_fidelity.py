@@ -7,7 +7,7 @@ fast model's error in total cycles and DRAM bytes (percent of the reference), th
 L1 and L2 hit rates and in every stall share (percentage points), and the host seconds each
 fidelity spent simulating (host.simulation_s: the timing models, not scene loading or tracing).
 
-Writes bench/results/fidelity.json (every cell) and bench/results/fidelity.md (the summary: per
+Writes out/bench/fidelity.json (every cell, untracked) and bench/results/fidelity.md (the summary: per
 config the largest errors, every cell over the 1% target with its figures, and the host-time
 ratio), and prints the summary. (Until the temporal-decoupling quantum was removed it also ran
 the quanta: bench/results/fidelity_quanta.md is that record.)
@@ -16,7 +16,7 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
                               [--scenes a,b] [--kinds primary,ao,diffuse] [--configs a,b] [-j 2]
                               [--out bench/results]
 
-The sampled mode's run time against its error (issue 16) is the other half of this benchmark:
+The sampled mode's run time against its error is the other half of this benchmark:
     scripts/bench_fidelity.py --sampled [ARGS...]
 runs scripts/bench_sampled.py with ARGS (its own options: 6 scenes x primary, AO, diffuse and a
 2-bounce path at 1920x1080, several sampling periods and --target-error against the full run of
@@ -32,7 +32,7 @@ import sys
 import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from rtsim_run import SCENES, run_stats  # noqa: E402
+from rtsim_run import SCENES, run_stats, write_results  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEFAULT_SCENES = "cornell,sphere,bunny,armadillo"
@@ -193,11 +193,7 @@ def main():
               f"accurate {ref_s:.2f} s ({ref_s / fast_s:.1f}x)."]
     text = "\n".join(lines) + "\n"
     print(text)
-    os.makedirs(a.out, exist_ok=True)
-    with open(os.path.join(a.out, "fidelity.json"), "w") as f:
-        json.dump({"res": a.res, "cells": cells}, f, indent=1)
-    with open(os.path.join(a.out, "fidelity.md"), "w") as f:
-        f.write(text)
+    write_results(a.out, "fidelity", text, {"res": a.res, "cells": cells})
 
 
 if __name__ == "__main__":

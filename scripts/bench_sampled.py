@@ -17,11 +17,12 @@ intervals and their coverage, the share of rays run in detail, and the host time
 seconds of the sampled runs against the median of --full-repeats full runs (on this shared
 machine, in this run).
 
-Writes bench/results/sampled.{md,json} and sampled_pareto.svg: host seconds against the cycles'
-mean absolute error, one point per mode and cell, the Pareto front marked. Prints the summary.
-With --skip, the skip design (sim.sample_fast_forward=skip: tiles far from a measured unit are
-never traced; each frame's profile is computed once, untimed, before the timed runs) and
-bench/results/sampled_skip.* instead.
+Writes bench/results/sampled_warm.md and sampled_warm_pareto.svg: host seconds against the
+cycles' mean absolute error, one point per mode and cell, the Pareto front marked; every run's
+figures go to out/bench/NAME.json (untracked). Prints the summary. With --skip, the skip design
+(sim.sample_fast_forward=skip: tiles far from a measured unit are never traced; each frame's
+profile is computed once, untimed, before the timed runs) and bench/results/sampled_unpaired.*
+instead.
 
 With --design-set (repeatable) the design simulated, full and sampled, is the default config
 with those fields changed. With --reference-set (repeatable; --skip only) each sampled run is
@@ -30,7 +31,7 @@ itself): the reference measures every unit of each frame once, untimed (its cost
 every sampled run passes --reference (sim/reference.h), which samples the reference design on
 the same units (a child run, once per seed and period: in a sweep of designs with one seed it is
 paid once, so its seconds are listed apart and left out of the run's host time). Writes
-sampled_skip_paired.* (or --name).
+sampled.* (or --name).
 
     scripts/bench_sampled.py [--rtsim build/rtsim] [--res 1920x1080]
         [--scenes bunny,armadillo,cornell,camel,elephant,homer]
@@ -222,7 +223,8 @@ def main(argv=None):
     ap.add_argument("--unit-rays", type=int, default=1024)
     ap.add_argument("--skip", action="store_true",
                     help="the skip design (sim.sample_fast_forward=skip: units of tiles, tiles "
-                         "far from a measured unit never traced); writes sampled_skip.*")
+                         "far from a measured unit never traced); writes sampled_unpaired.*, "
+                         "or sampled.* with --reference-set")
     ap.add_argument("--set", action="append", default=[],
                     help="KEY=VALUE config override for the sampled runs (repeatable)")
     ap.add_argument("--design-set", action="append", default=[],
@@ -257,8 +259,8 @@ def main(argv=None):
     reference = [a for kv in (args.reference_set or []) if kv for a in ("--set", kv)]
     if paired and not args.skip:
         sys.exit("bench_sampled: --reference-set needs --skip (a reference's units are tiles)")
-    out_name = args.name or ("sampled_skip_paired" if paired else
-                             "sampled_skip" if args.skip else "sampled")
+    out_name = args.name or ("sampled" if paired else
+                             "sampled_unpaired" if args.skip else "sampled_warm")
     references = {}  # (scene, workload): the reference's folder and its full run's seconds
 
     profiles = {}

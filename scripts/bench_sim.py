@@ -10,7 +10,7 @@ With --replay N it then records each kind's rays to a trace once and replays it 
 variant (the default config; the same pinned to one host core with taskset, so trace decoding
 shares that core with the simulation instead of using a second one; ideal memory; one simulated
 core): simulated rays per host second without any functional work, best and median, and the
-best one-host-core default replay against issue 5's target of 1 M simulated rays per host
+best one-host-core default replay against the target of 1 M simulated rays per host
 second on one host core. With --profile as well, one more default replay runs under
 `perf record -e cpu-clock` (a software clock: no hardware counters needed) and the functions
 taking the most of the simulation thread's samples are listed; skipped with a note where perf
@@ -37,7 +37,7 @@ def run(rtsim, args, out, prefix=()):
     return run_stats(rtsim, args, out, "bench_sim", prefix)
 
 
-TARGET_RAYS_PER_HOST_S = 1e6  # issue 5, BVH8 diffuse, one host core, default mode
+TARGET_RAYS_PER_HOST_S = 1e6  # BVH8 diffuse, one host core, default mode
 ONE_HOST_CORE = ("taskset", "-c", "0")  # the simulation and the trace decoding share one core
 # (name, config overrides, command prefix)
 REPLAY_VARIANTS = [("default", [], ()),

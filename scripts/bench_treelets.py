@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Where treelet queues cut DRAM traffic and energy, and where they do not (issue 17, item 6).
+"""Where treelet queues cut DRAM traffic and energy, and where they do not.
 
 Aila & Karras (HPG 2010) queue rays by treelet so that a treelet's data is fetched once for many
 rays, and report up to 90% less memory traffic in difficult scenes. This runs RTSim's treelet
@@ -188,7 +188,7 @@ def main():
             best = d
 
     lines = [
-        "# Treelet queues against independent traversal (issue 17, item 6)",
+        "# Treelet queues against independent traversal",
         "",
         f"`scripts/bench_treelets.py --res {a.res}`: diffuse rays (one bounce from "
         "each primary hit) of libcgal-demo's refined_elephant.off and a 3x3 grid of it, BVH4, "

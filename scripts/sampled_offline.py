@@ -23,7 +23,7 @@ truth; against it:
       the truth: what the simulation of the sample adds (a unit measured in a sampled run should
       take what it took in the full run).
 
-bench/results/sampled_estimators.md, section 7, reads both for the 24 cells of bench_sampled.py.
+docs/sampling.md says what these showed on the 24 frames of bench_sampled.py.
 """
 import argparse
 import csv

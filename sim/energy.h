@@ -1,4 +1,4 @@
-// stats.json's "energy" section (issue 17): each block's energy from its counters and a cost
+// stats.json's "energy" section: each block's energy from its counters and a cost
 // per access or operation (energy.*, defaults from public sources named in the schema), DRAM's
 // from the command-level model's currents when it ran, the total, energy per ray and average
 // power. A sampled run's blocks use its estimated totals.

@@ -1,4 +1,4 @@
-// Progress lines on a terminal (issue 19): how far a run or a sweep is and an estimate of the
+// Progress lines on a terminal: how far a run or a sweep is and an estimate of the
 // time left, from the share done so far and the time it took.
 #pragma once
 

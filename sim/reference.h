@@ -13,7 +13,7 @@
 // units twice as slow, paired with the default design, on the 24 1080p frames of
 // bench_sampled.py at 1 in 20, took the cycles' mean error from 1.26% to 0.31% (worst frame 2.67%
 // to 0.54%); offline, slower DRAM gave 2.3% -> 0.8% and L1 and L2 eight and sixteen times smaller
-// 2.8% -> 2.0% (bench/results/sampled_estimators.md, section 10). The reference's measured units
+// 2.8% -> 2.0% (docs/sampling.md). The reference's measured units
 // were simulated with the same warm-up and cache replay as the run's own, so the simulation's
 // bias in them mostly cancels: bunny primary's +1.2 points fell to +0.2.
 #pragma once
@@ -64,8 +64,8 @@ constexpr uint64_t kBalancedStrata = 4;
 // Reorders `order` (units by their `unit_cycles`, as read_unit_order gives them) within each run
 // of kBalancedStrata * period_units consecutive units by work per cycle (the profile's
 // `units`; a unit without cycles counts 0; ties by unit), so that the strata cut from the group
-// span its range of work per cycle as well as of cycles (bench/results/sampled_estimators.md,
-// section 20). std::invalid_argument when the sizes differ.
+// span its range of work per cycle as well as of cycles (docs/sampling.md).
+// std::invalid_argument when the sizes differ.
 void balance_unit_order(std::vector<uint32_t>& order, const std::vector<double>& unit_cycles,
                         const std::vector<AuxFigures>& units, uint64_t period_units);
 

@@ -1,4 +1,4 @@
-// rtsim report (issue 19): one self-contained HTML page (inline CSS and SVG; no script, no
+// rtsim report: one self-contained HTML page (inline CSS and SVG; no script, no
 // network) for a run, a comparison of runs, or a sweep: the config and workload, the summary
 // figures with their confidence intervals when sampled, the stall breakdown, bandwidth over
 // time, cache hit rates per level, energy per block, and a sweep's table and plots.

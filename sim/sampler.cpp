@@ -175,7 +175,7 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
     // slots; a window there walks about a thousand line entries).
     if (l1_lru_ && ports_.size() <= CoreLinePass::kMaxCores) core_line_pass_.reserve(256);
     // A reference design's matched sample already carries its capacity misses (section 10 of
-    // bench/results/sampled_estimators.md); other replacement policies would need their own
+    // docs/sampling.md); other replacement policies would need their own
     // functional model.
     if (!reference_ && l2_lru_ && l2_sets_ > 0 && l2_ways_ > 0 &&
         profile->line_bytes == l2_line_bytes_)
@@ -512,7 +512,7 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
     // to estimate: the known part is then per_fill * (first fills + capacity misses), the
     // measured units' functional capacity misses taken off their change with their first fills.
     // The regression on work alone left Cornell diffuse frames' DRAM bytes 5.7% off at 1 in 20
-    // (sampled_estimators.md, section 13).
+    // (docs/sampling.md).
     const double frame_capacity = capacity.x.empty() ? 0.0 : capacity.total;
     json counters = json::object();
     const auto& e = counters_.entries();
@@ -639,7 +639,7 @@ json Sampler::report(Cycle end_cycle) {
         // lines themselves: the residual over every unit of a 1080p frame fell from 41.5% to
         // 39.1% of the mean unit's cycles (bunny primary), 41.1% to 35.0% (Cornell primary),
         // 26.1% to 19.5% (bunny AO), and a 1-in-20 sample's error by 5-30% on 8 of 9 frames
-        // (sampled_estimators.md, section 12). The frame's new lines still give its first fills.
+        // (docs/sampling.md). The frame's new lines still give its first fills.
         Auxiliary& a = aux[kNewLines];
         a.total = 0;
         for (size_t i = 0; i < cycles_.size(); ++i)
@@ -648,7 +648,7 @@ json Sampler::report(Cycle end_cycle) {
         // A fifth auxiliary where the frame outgrows the L2: the units' capacity misses as
         // counted functionally (sim/functional_l2.h). Cornell 2-bounce path frames, 1080p: the
         // residual over every unit fell from 28.2% to 15.6% of the mean unit's cycles, a 1-in-20
-        // sample's error from 0.88% to 0.54% (sampled_estimators.md, section 13). Fitted only
+        // sample's error from 0.88% to 0.54% (docs/sampling.md). Fitted only
         // where at least 4 measured units had some: a unit alone in having them has a leverage
         // of 1 (a 96x96 bunny frame with 23 capacity misses left the jackknife without
         // replicates).

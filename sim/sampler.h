@@ -1,4 +1,4 @@
-// Sampled simulation (sim.fidelity = sampled; issue 16): systematic sampling of the ray stream
+// Sampled simulation (sim.fidelity = sampled): systematic sampling of the ray stream
 // with functional warming, as SMARTS (Wunderlich et al., ISCA 2003) samples instruction streams.
 //
 // The stream of rays, in the order the work source hands them out, is cut into units of
@@ -17,7 +17,7 @@
 // ratio to rays (on a 96x96 bunny frame, 13 measured units: +-42% over rays).
 //
 // Tracing every ray bounds the speed-up: the fast model costs about what the functional tracer
-// does (bench/results/sampled_estimators.md). With skip = true (sim.sample_fast_forward = skip)
+// does (docs/sampling.md). With skip = true (sim.sample_fast_forward = skip)
 // units are groups of unit_tiles tiles of the image instead, and a tile far from a measured unit
 // is never generated or traced: only the warm_tiles before each measured unit warm the caches
 // functionally, and the warmup_tiles right before it run in detail unmeasured (more, going back,
@@ -75,7 +75,7 @@ struct SamplingParams {
     // Skip design: the frame's units in the order the strata are cut from (empty: the frame's
     // own order, so a stratum is period_units neighbouring units). Units sorted by what they
     // cost in a run that measured every unit (--sample-order; a paired run's reference) put
-    // like units in a stratum: bench/results/sampled_estimators.md, section 14.
+    // like units in a stratum: docs/sampling.md.
     std::vector<uint32_t> unit_order;
     std::string unit_order_of;  // the run whose units' cycles gave unit_order (reported)
 };

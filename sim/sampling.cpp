@@ -405,7 +405,7 @@ Estimate RegressionDesign::total(const std::vector<double>& y, double confidence
     // informative units), its half-widths spread 0.27-14.8% of the cycles about errors of
     // standard deviation 0.57%, and held the full run's cycles in 90.0% of them; the model's
     // variance knows the reference's cycles of every unit left out, and the larger of the two
-    // held them in 94.3%, 4% wider on average (sampled_estimators.md, section 19). With many
+    // held them in 94.3%, 4% wider on average (docs/sampling.md). With many
     // units the jackknife is reliable and, unlike the model's, right where the model is not
     // (a trend the fit through the origin misses): it stands alone there.
     if (informative_ - p < kModelFloorDegrees) {

@@ -1,5 +1,5 @@
-// Confidence intervals for figures estimated from a sample of a run's work (sampled simulation,
-// issue 16): a frame's rays are cut into N units of consecutive rays, n of them are simulated in
+// Confidence intervals for figures estimated from a sample of a run's work (sampled
+// simulation): a frame's rays are cut into N units of consecutive rays, n of them are simulated in
 // detail, and every figure of the whole run is estimated from them with a confidence interval.
 //
 // The estimators are the survey-sampling ones (Cochran, Sampling Techniques, 1977, ch. 2 and 6):

@@ -1,4 +1,4 @@
-// Sweep plots (issue 19): for each varied axis, one figure of small multiples, each figure of
+// Sweep plots: for each varied axis, one figure of small multiples, each figure of
 // merit against that axis with one line per combination of the other axes' values, labelled at
 // its end; and, with two objectives named, the Pareto front of the points. Written as SVG here,
 // and as PNG through rsvg-convert (librsvg2-bin) when the machine has it.

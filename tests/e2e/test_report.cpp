@@ -1,4 +1,4 @@
-// rtsim report (issue 19): one self-contained HTML page for a run, a comparison or a sweep, checked
+// rtsim report: one self-contained HTML page for a run, a comparison or a sweep, checked
 // for its content, for needing nothing outside itself, and rendered by a real browser (headless
 // Chromium) into a screenshot that is not blank, with no script error logged.
 #include <gtest/gtest.h>

@@ -157,7 +157,7 @@ TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
               s["caches"]["l1_total"]["misses"].get<uint64_t>() * 64);
 }
 
-// Shared state served out of simulated-time order is counted, not hidden (issue 15): L2 MSHRs
+// Shared state served out of simulated-time order is counted, not hidden: L2 MSHRs
 // starved to 8 with 2 per L1, and one DRAM bank, see requests from many cores out of order.
 TEST(Run, OutOfOrderServiceIsCountedWhereItHappens) {
     const fs::path out = work_dir() / "ooo";
@@ -185,7 +185,7 @@ TEST(Run, BiggerCachesNeverMoveMoreDramBytes) {
               stats_of(small)["bandwidth"]["dram"]["bytes"].get<uint64_t>());
 }
 
-// Issue 18: a reduced-precision box unit finds the same hits (conservative rounding) with more
+// A reduced-precision box unit finds the same hits (conservative rounding) with more
 // box and triangle operations, and the trace it records carries its width.
 TEST(Run, ReducedPrecisionBoxUnitsKeepHitsAndAddWork) {
     const fs::path full = work_dir() / "fp32", narrow = work_dir() / "box6b";
@@ -218,7 +218,7 @@ TEST(Run, AMeshReaderThatHangsIsStoppedWithOneLine) {
     EXPECT_FALSE(fs::exists(out));
 }
 
-// Issue 16: a mesh file is parsed once and later runs load it from the cache beside the BVHs,
+// A mesh file is parsed once and later runs load it from the cache beside the BVHs,
 // simulating exactly what a run that parsed it does.
 TEST(Run, TheMeshCacheServesLaterRunsTheSameScene) {
     ASSERT_TRUE(fs::exists(RTSIM_BUNNY_OBJ)) << "run scripts/setup.sh";
@@ -242,7 +242,7 @@ TEST(Run, TheMeshCacheServesLaterRunsTheSameScene) {
     EXPECT_EQ(without_host(a), without_host(c));
 }
 
-// Issue 16: a scene's BVH is built once per scene content and settings and reused from the cache;
+// A scene's BVH is built once per scene content and settings and reused from the cache;
 // a run from the cache simulates exactly what a run that built it does.
 TEST(Run, TheBvhCacheServesLaterRunsTheSameTree) {
     const fs::path cache = work_dir() / "bvh_cache";
@@ -275,7 +275,7 @@ TEST(Run, TheBvhCacheServesLaterRunsTheSameTree) {
     EXPECT_EQ(entries, 2u);
 }
 
-// Issue 16: sampled simulation. Measuring every unit fast-forwards nothing, so the sampled run
+// Sampled simulation. Measuring every unit fast-forwards nothing, so the sampled run
 // is the full run itself (the sampler only watches), and its estimate of the frame's cycles is
 // within a unit's hand-out granularity of what that run measured.
 // A sampled run's counters less the one it adds, l2.first_fills: the L2's misses on BVH lines it
@@ -1942,7 +1942,7 @@ TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
     EXPECT_EQ(ran, 1);
 }
 
-// Plots (issue 19): a figure per varied axis and the Pareto front the file names, as SVG, and
+// Plots: a figure per varied axis and the Pareto front the file names, as SVG, and
 // PNG when rsvg-convert is installed (setup.sh installs it; without it the PNG part is skipped,
 // said so). A figure name that does not exist is refused before anything runs.
 TEST(Sweep, WritesAFigurePerAxisAndTheParetoFront) {
@@ -2195,7 +2195,7 @@ int interrupted_status(const std::string& command, const char* signal, const fs:
 }
 }  // namespace
 
-// Issue 18: SIGINT or SIGTERM stops a long run, trace or sweep with one line and 128 + the
+// SIGINT or SIGTERM stops a long run, trace or sweep with one line and 128 + the
 // signal, leaving no partial output; a sweep keeps its finished points and --resume completes it.
 TEST(Interrupt, RunTraceAndSweepLeaveNoPartialOutput) {
     const std::string bin = RTSIM_BINARY;

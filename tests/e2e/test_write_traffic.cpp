@@ -1,4 +1,4 @@
-// The traversal's own memory traffic (issue 17): short-stack spills and refills, hit records,
+// The traversal's own memory traffic: short-stack spills and refills, hit records,
 // the write-back L2 and DRAM writes, end to end, against an independent replay of the trace and
 // against conservation of bytes between the levels.
 #include <gtest/gtest.h>

@@ -492,7 +492,7 @@ TEST(Crossbar, LinesCrossWhenTheL2ReturnsThem) {
 }
 
 // The fast model serves a cache's tag state and MSHRs in the order requests reach it; where that
-// is not simulated-time order it counts it (issue 15's probe: with one MSHR, a miss at cycle
+// is not simulated-time order it counts it (a probe: with one MSHR, a miss at cycle
 // 1000 handled before a miss at cycle 0).
 TEST(Cache, RequestsOutOfTimeOrderAreCounted) {
     CacheParams p;

@@ -99,7 +99,7 @@ TEST(Dram, RowLocalityStreamsAtPeakAcrossChannels) {
 }
 
 // A bank keeps one next-free cycle and its open row: a request reaching it after a later one is
-// served out of time order, and counted (issue 15's probe with one bank).
+// served out of time order, and counted (a probe with one bank).
 TEST(Dram, BankRequestsOutOfTimeOrderAreCounted) {
     Dram d("dram_ooo", rows(1, 1));
     d.access(0, 64, 1000);

@@ -1,4 +1,4 @@
-// Progress lines (issue 19): the time left from the share done and the time it took.
+// Progress lines: the time left from the share done and the time it took.
 #include <gtest/gtest.h>
 
 #include "sim/progress.h"

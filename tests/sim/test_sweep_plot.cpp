@@ -1,4 +1,4 @@
-// Sweep plots (issue 19): the Pareto front against hand-picked points, and the per-axis figure's
+// Sweep plots: the Pareto front against hand-picked points, and the per-axis figure's
 // content (a panel per figure, a line per value of the other axes, labels, directions).
 #include <gtest/gtest.h>
 

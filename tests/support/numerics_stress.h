@@ -1,4 +1,4 @@
-// The numerical stress suite (issue 18): cases whose right answer is known without the tracer,
+// The numerical stress suite: cases whose right answer is known without the tracer,
 // run on every BVH variant. Shared by tests/workloads/test_numerics.cpp (small sizes, in the test
 // command) and bench/stress_numerics.cpp (millions of rays, counts for bench/results/).
 //

@@ -1,5 +1,5 @@
 // Outputs appear whole or not at all, and never replace what the user named: a symlink stays a
-// symlink (issue 18, item 5: `--hits LINK` replaced the link with a regular file), a pipe or a
+// symlink (`--hits LINK` once replaced the link with a regular file), a pipe or a
 // device is written in place.
 #include <gtest/gtest.h>
 #include <sys/stat.h>

@@ -175,7 +175,7 @@ TEST(Tracer, RayMissingRootBoxCostsNoStep) {
     EXPECT_TRUE(steps.empty());
 }
 
-// Issue 18, item 1: a ray with a NaN origin (from a scene so large its camera overflowed) made
+// A ray with a NaN origin (from a scene so large its camera overflowed) made
 // the scalar box test count every box as hit, and BVH2 traversal never ended. Such a ray is now
 // a miss at the root, with no step, for every width, format and builder, single or in packets.
 TEST(Tracer, NonFiniteRaysMissAndEnd) {
@@ -267,7 +267,7 @@ TEST(Intersect, SlabTestHandlesAxisParallelRaysOnPlanes) {
     EXPECT_EQ(tn, 0.0f);
 }
 
-// Issue 18, item 2: a ray lying exactly in a box's face plane overlaps the (closed) box whatever
+// A ray lying exactly in a box's face plane overlaps the (closed) box whatever
 // the sign of its zero direction component, on the lower and the upper face, for tmin 0 and > 0.
 // (With a clamped reciprocal, 1 of the 4 sign and face pairs culled it once tmin > 0.)
 TEST(Intersect, RaysInAFacePlaneOverlapWhateverTheSignOfZero) {
@@ -310,7 +310,7 @@ Scene flat_quad() {
 }
 }  // namespace
 
-// Issue 18, item 2, through whole traversals: rays straight down (x and y direction components
+// Rays straight down (x and y direction components
 // +0 or -0) at every vertex and along every edge and the diagonal of an axis-aligned quad must
 // hit, for every BVH width, node format and builder, closest and any hit, single rays and packets.
 // (Before: an axis-aligned quad missed 40 of 88 such rays.)
@@ -354,7 +354,7 @@ TEST(Tracer, AxisAlignedQuadHitsAtVerticesAndEdgesWithSignedZeros) {
     }
 }
 
-// Issue 18, item 3: tiny direction components are not clamped, so far hits stay hits: a ray
+// Tiny direction components are not clamped, so far hits stay hits: a ray
 // whose only direction component is -1e-30 reaches the quad (at t = 1e30), and rays from 1e18
 // away along an axis with tiny sideways components hit it where a double-precision check says.
 TEST(Tracer, TinyDirectionComponentsKeepFarHits) {
