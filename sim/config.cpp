@@ -272,6 +272,11 @@ void validate_cross(const json& c, const std::string& where) {
             "sim.sample_design=systematic (a stratified sample draws one unit per period; "
             "sim.sample_seed picks another draw)",
             where));
+    if (c["sim"]["sample_design"] == "work" && c["sim"]["sample_fast_forward"] != "skip")
+        throw InputError(fmt::format(
+            "{}: sim.sample_design=work: needs sim.sample_fast_forward=skip (the units' work comes "
+            "from the frame's profile)",
+            where));
     if (c["sim"]["sample_first_unit"].get<int64_t>() >=
         c["sim"]["sample_period_units"].get<int64_t>())
         throw InputError(fmt::format(

@@ -141,6 +141,9 @@ std::vector<FigureDef> make_figures() {
 
 double interval_pct(const FigureDef& f, const json& stats) {
     if (f.sampled.empty()) return kNone;
+    const json::json_pointer p(f.sampled + "/half_width_pct");
+    // An estimate with no interval the data support (null): infinitely wide, not exact.
+    if (stats.contains(p) && stats.at(p).is_null()) return std::numeric_limits<double>::infinity();
     return number_at(stats, (f.sampled + "/half_width_pct").c_str());
 }
 

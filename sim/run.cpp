@@ -23,6 +23,7 @@
 #include "sim/mem_trace.h"
 #include "sim/reference.h"
 #include "sim/run_report.h"
+#include "sim/sampler.h"
 #include "sim/work_sources.h"
 #include "workloads/bvh_cache.h"
 #include "workloads/error.h"
@@ -91,7 +92,8 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     sp.warmup_rays = s.sample_warmup_rays;
     sp.seed = s.sample_seed ? s.sample_seed : opt.workload.gen.seed;
     sp.first_unit = s.sample_first_unit;
-    sp.stratified = s.sample_design == "stratified";
+    sp.stratified = s.sample_design != "systematic";
+    sp.by_work = s.sample_design == "work";
     sp.skip = s.sample_fast_forward == "skip";
     sp.warm_tiles = s.sample_warm_tiles;
     // A paired run's regression on its reference's same units takes up most of what a short
@@ -157,6 +159,11 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
         sampling->tiles = uint64_t(w.gen->tile_count());
         sampling->tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
+        if (sampling->by_work) {
+            sampling->unit_work.resize(w.profile->units.size());
+            for (size_t u = 0; u < w.profile->units.size(); ++u)
+                sampling->unit_work[u] = w.profile->units[u][kAuxWork];
+        }
         // The order strata are cut from, before the design is made: another run's units by their
         // cycles, or (a paired run) the reference's, once it is known to be this frame's.
         if (!opt.sample_order_dir.empty()) {
@@ -195,9 +202,9 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
                 {"note", "the pilot measured fewer than 2 units: every unit is measured"},
                 {"period_units", 1}};
     }
-    double worst = sm["total_cycles"]["half_width_pct"].get<double>();
+    double worst = half_width_pct_of(sm["total_cycles"]);
     if (sm["counters"].contains("dram.bytes"))
-        worst = std::max(worst, sm["counters"]["dram.bytes"]["half_width_pct"].get<double>());
+        worst = std::max(worst, half_width_pct_of(sm["counters"]["dram.bytes"]));
     const double n_pilot = sm["units_measured"].get<double>();
     const double units = sm["units"].get<double>();
     const double ratio = worst / opt.target_error_pct;
@@ -223,10 +230,9 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
 // Whether the frame's cycles and DRAM bytes came within the target.
 bool target_met(const json& sampling, double target_pct) {
     if (!sampling.contains("total_cycles")) return false;
-    if (sampling["total_cycles"]["half_width_pct"].get<double>() > target_pct) return false;
+    if (half_width_pct_of(sampling["total_cycles"]) > target_pct) return false;
     const json& c = sampling["counters"];
-    return !c.contains("dram.bytes") ||
-           c["dram.bytes"]["half_width_pct"].get<double>() <= target_pct;
+    return !c.contains("dram.bytes") || half_width_pct_of(c["dram.bytes"]) <= target_pct;
 }
 
 // stats.json's "sampling" section (with the --target-error plan, if any), and the frame's cycles
@@ -251,14 +257,19 @@ void add_sampling(json& out, json sampling, json plan, double target_pct, double
         out["total_cycles"] = uint64_t(std::llround(std::max(0.0, cycles)));
         out["simulated_seconds"] = seconds;
         out["rays_per_second"] = rate;
-        // Its interval is the cycles' one, inverted.
-        const double lo = rays * hz / c["hi"].get<double>(),
-                     hi = c["lo"].get<double>() > 0 ? rays * hz / c["lo"].get<double>() : 0.0;
-        sampling["figures"]["rays_per_second"] = {
-            {"value", rate},
-            {"lo", lo},
-            {"hi", hi},
-            {"half_width_pct", rate > 0 ? 100.0 * (hi - lo) / 2.0 / rate : 0.0}};
+        // Its interval is the cycles' one, inverted (none where the cycles have none).
+        if (c["hi"].is_number()) {
+            const double lo = rays * hz / c["hi"].get<double>(),
+                         hi = c["lo"].get<double>() > 0 ? rays * hz / c["lo"].get<double>() : 0.0;
+            sampling["figures"]["rays_per_second"] = {
+                {"value", rate},
+                {"lo", lo},
+                {"hi", hi},
+                {"half_width_pct", rate > 0 ? 100.0 * (hi - lo) / 2.0 / rate : 0.0}};
+        } else {
+            sampling["figures"]["rays_per_second"] = {
+                {"value", rate}, {"lo", nullptr}, {"hi", nullptr}, {"half_width_pct", nullptr}};
+        }
     }
     out["sampling"] = std::move(sampling);
 }
@@ -296,6 +307,12 @@ int run_command(const RunOptions& opt) {
             "--sample-order {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (it "
             "orders units of tiles)",
             opt.sample_order_dir));
+    if (sampled && cfg.typed.sim.sample_design == "work" &&
+        (!opt.reference_dir.empty() || !opt.sample_order_dir.empty()))
+        throw InputError(fmt::format(
+            "{}: cannot be combined with sim.sample_design=work (which orders the units by their "
+            "work itself); drop one",
+            opt.reference_dir.empty() ? "--sample-order" : "--reference"));
     SamplingParams sp;
     json plan;  // --target-error: the pilot and the period it chose
     if (sampled) {

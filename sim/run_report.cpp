@@ -4,6 +4,10 @@
 
 #include <fmt/format.h>
 
+#include <string>
+#include <utility>
+#include <vector>
+
 #include "models/calendar.h"
 
 namespace rtsim {
@@ -157,23 +161,30 @@ void print_run_summary(const json& out, const std::string& stats_path) {
         fmt::print("  sampled  {:.1f}% of rays in detail ({} of {} units measured)",
                    100 * sm.value("detailed_share", 0.0), sm.value("units_measured", 0),
                    sm.value("units", 0));
+        // "+- 2.4%", or "(no interval)" where the data support none.
+        auto interval = [](const json& e) {
+            return e["half_width_pct"].is_number()
+                       ? fmt::format("+- {:.1f}%", e["half_width_pct"].get<double>())
+                       : std::string("(no interval)");
+        };
+        std::vector<std::pair<std::string, std::string>> caveats;
         if (sm.contains("total_cycles")) {
             const json& c = sm["total_cycles"];
-            fmt::print("; frame cycles {:.0f} +- {:.1f}% (95%)", c["value"].get<double>(),
-                       c["half_width_pct"].get<double>());
+            fmt::print("; frame cycles {:.0f} {} (95%)", c["value"].get<double>(), interval(c));
+            if (c.contains("caveat")) caveats.emplace_back("cycles", c["caveat"]);
         }
         // The traffic line below is the detailed part's; the frame's DRAM bytes are estimated.
         if (sm.contains("counters") && sm["counters"].contains("dram.bytes")) {
             const json& d = sm["counters"]["dram.bytes"];
-            fmt::print(", DRAM {:.2f} MB +- {:.1f}%", d["value"].get<double>() / 1e6,
-                       d["half_width_pct"].get<double>());
+            fmt::print(", DRAM {:.2f} MB {}", d["value"].get<double>() / 1e6, interval(d));
+            if (d.contains("caveat")) caveats.emplace_back("DRAM bytes", d["caveat"]);
         }
         if (sm.contains("energy")) {
             const json& e = sm["energy"]["per_ray_nj"];
-            fmt::print(", energy {:.3g} nJ/ray +- {:.1f}%", e["value"].get<double>(),
-                       e["half_width_pct"].get<double>());
+            fmt::print(", energy {:.3g} nJ/ray {}", e["value"].get<double>(), interval(e));
         }
         fmt::print("\n");
+        for (const auto& [what, why] : caveats) fmt::print("  caution  {}: {}\n", what, why);
         const bool skip = sm.value("fast_forward", std::string()) == "skip";
         if (skip)
             fmt::print(
@@ -199,7 +210,7 @@ void print_run_summary(const json& out, const std::string& stats_path) {
         if (sm.value("units_measured", 0) < 30)
             fmt::print(
                 "  note     intervals from fewer than 30 measured units under-cover (50-90% for a "
-                "nominal 95% in bench/results/sampled.md): lower sim.sample_period_units or "
+                "nominal 95%, docs/sampling.md): lower sim.sample_period_units or "
                 "sim.{}\n",
                 !skip                      ? "sample_unit_rays"
                 : sm.contains("reference") ? "sample_paired_unit_tiles"

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <iterator>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
@@ -27,6 +28,7 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
                       ? uint64_t(params_.first_unit) % params_.period_units
                       : std::uniform_int_distribution<uint64_t>(0, params_.period_units - 1)(rng);
     if (!params_.skip || params_.tiles == 0) return;
+    if (params_.by_work) draw_by_work();
     if (!params_.unit_order.empty()) {
         if (params_.unit_order.size() != units())
             throw std::invalid_argument("SampleDesign: unit_order does not list the frame's units");
@@ -89,25 +91,86 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
 }
 
 uint64_t SampleDesign::pick(uint64_t stratum) const {
+    uint64_t size = params_.period_units;
+    // The skip design knows the frame's units: a last, shorter stratum draws among the units it
+    // has (the expansion needs a measured unit in every stratum).
+    if (params_.skip) size = std::min(size, units() - stratum * params_.period_units);
+    return draw(stratum, size);
+}
+
+void SampleDesign::draw_by_work() {
+    const std::vector<uint64_t>& work = params_.unit_work;
+    if (work.size() != units())
+        throw std::invalid_argument("SampleDesign: unit_work does not list the frame's units");
+    measured_.assign(units(), 0);
+    certainty_.assign(units(), 0);
+    // The units that hold work, heaviest first (ties by unit).
+    std::vector<uint32_t> active;
+    uint64_t remaining_work = 0;
+    for (uint32_t u = 0; u < units(); ++u)
+        if (work[u] > 0) {
+            active.push_back(u);
+            remaining_work += work[u];
+        }
+    if (active.empty()) return;
+    std::sort(active.begin(), active.end(), [&](uint32_t a, uint32_t b) {
+        return work[a] != work[b] ? work[a] > work[b] : a < b;
+    });
+    // The sample's size: one unit in period_units of those with work, at least 2.
+    const uint64_t budget = std::min<uint64_t>(
+        active.size(),
+        std::max<uint64_t>(2, (active.size() + params_.period_units - 1) / params_.period_units));
+    // Certainty units: a unit whose work is at least the mean work per unit left to draw
+    // (what a draw in proportion to work would take for sure) is measured outright, heaviest
+    // first, the threshold recomputed as they leave; at most half the sample, so that the rest
+    // is drawn. A frame whose cycles sit in a few units (1024x768 fandisk diffuse: 144 of 3,072
+    // units hold 86%) then measures them instead of extrapolating to them.
+    size_t c = 0;
+    while (c < active.size() && c < budget / 2 &&
+           double(work[active[c]]) * double(budget - c) >= double(remaining_work)) {
+        certainty_[active[c]] = measured_[active[c]] = 1;
+        remaining_work -= work[active[c]];
+        ++c;
+    }
+    certainty_count_ = c;
+    // The rest, lightest first, in strata of equal size: one unit drawn in each, so the sample
+    // spans the frame's range of work; every unit has the same chance, 1 in the stratum size.
+    std::vector<uint32_t> rest(active.begin() + long(c), active.end());
+    std::reverse(rest.begin(), rest.end());
+    drawn_population_ = rest.size();
+    if (rest.empty()) return;
+    const uint64_t draws = std::max<uint64_t>(1, budget - c);
+    // Strata of ceil(rest / draws) units: as many strata as draws, or fewer (a last, shorter
+    // stratum draws among the units it has).
+    drawn_stratum_units_ = (rest.size() + draws - 1) / draws;
+    for (uint64_t s = 0; s * drawn_stratum_units_ < rest.size(); ++s) {
+        const uint64_t begin = s * drawn_stratum_units_;
+        const uint64_t size = std::min<uint64_t>(drawn_stratum_units_, rest.size() - begin);
+        measured_[rest[begin + draw(s, size)]] = 1;
+    }
+}
+
+uint64_t SampleDesign::draw(uint64_t stratum, uint64_t size) const {
     // splitmix64 of (seed, stratum): independent, uniform picks, the same for a seed.
     uint64_t z = (params_.seed ^ 0x9e3779b97f4a7c15ull) + stratum * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
     z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
     z ^= z >> 31;
-    uint64_t size = params_.period_units;
-    // The skip design knows the frame's units: a last, shorter stratum draws among the units it
-    // has (the expansion needs a measured unit in every stratum).
-    if (params_.skip) size = std::min(size, units() - stratum * params_.period_units);
     return z % std::max<uint64_t>(1, size);
 }
 
 bool SampleDesign::measured_unit(uint64_t unit) const {
+    if (params_.by_work) return unit < measured_.size() && measured_[unit];
     const uint64_t k = rank_.empty() || unit >= rank_.size() ? unit : rank_[unit];
     return k % params_.period_units ==
            (params_.stratified ? pick(k / params_.period_units) : first_unit_);
 }
 
 uint64_t SampleDesign::first_unit() const {
+    if (params_.by_work) {
+        const auto it = std::find(measured_.begin(), measured_.end(), 1);
+        return it == measured_.end() ? 0 : uint64_t(it - measured_.begin());
+    }
     const uint64_t k = params_.stratified ? pick(0) : first_unit_;
     return rank_.empty() || k >= params_.unit_order.size() ? k : params_.unit_order[k];
 }
@@ -478,14 +541,26 @@ bool matches(const std::string& n, const std::string& prefix, const std::string&
 json estimate_json(const Estimate& e, double scale, double offset) {
     const double v = e.value * scale + offset;
     const double hw = e.half_width * scale;
-    return {{"value", v},
-            {"lo", v - hw},
-            {"hi", v + hw},
-            {"half_width_pct", v != 0 ? 100.0 * hw / std::abs(v) : 0.0}};
+    json out = {{"value", v}};
+    if (std::isfinite(hw)) {
+        out.update({{"lo", v - hw},
+                    {"hi", v + hw},
+                    {"half_width_pct", v != 0 ? 100.0 * hw / std::abs(v) : 0.0}});
+    } else {
+        // No interval the data support: null bounds, and why.
+        out.update({{"lo", nullptr}, {"hi", nullptr}, {"half_width_pct", nullptr}});
+    }
+    if (!e.caveat.empty()) out["caveat"] = e.caveat;
+    return out;
+}
+
+double half_width_pct_of(const json& estimate) {
+    const json& h = estimate.at("half_width_pct");
+    return h.is_number() ? h.get<double>() : std::numeric_limits<double>::infinity();
 }
 
 json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
-                                const Auxiliary& capacity, uint64_t units,
+                                const Auxiliary& capacity, uint64_t units, size_t drawn,
                                 JointEstimates& joint) const {
     // Counters that move by a known amount per first fill of a BVH line in the L2 (its
     // compulsory misses, the most of a frame's DRAM traffic). The frame's first fills are its
@@ -544,8 +619,7 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
         // Rare events (a capacity miss in a frame that nearly fits the L2) leave a sample that
         // saw none with no spread to show: the half-width is at least the rule of three's
         // bound (none in n units: up to 3 N / n in the frame's N, at 95%), each a line.
-        const double rule_of_three =
-            k * 3.0 * double(units) / double(std::max<size_t>(1, rest.size()));
+        const double rule_of_three = drawn == 0 ? 0.0 : k * 3.0 * double(units) / double(drawn);
         est.half_width = std::max(est.half_width, rule_of_three);
         const double frame_known = k * (frame_first_fills + (with_capacity ? frame_capacity : 0.0));
         est.value += frame_known;
@@ -564,7 +638,9 @@ json Sampler::report(Cycle end_cycle) {
         skip ? design_->units() : (index_ + params_.unit_rays - 1) / params_.unit_rays;
     if (skip) add_rayless_units(units);
     json out = {{"period_units", params_.period_units},
-                {"design", params_.stratified ? "stratified" : "systematic"},
+                {"design", params_.by_work      ? "work"
+                           : params_.stratified ? "stratified"
+                                                : "systematic"},
                 {"first_unit", design_->first_unit()},
                 {"units", units},
                 {"units_measured", cycles_.size()},
@@ -665,6 +741,43 @@ json Sampler::report(Cycle end_cycle) {
                                     {"capacity_misses", functional_l2_.capacity_misses}};
         }
     }
+    // Skip design: the share of the frame's work in units heavier than any measured one. The
+    // regression carries the measured units' cycles per work to them; a sample that missed
+    // the frame's heaviest units says little of them.
+    double work_beyond_share = 0;
+    if (skip) {
+        double heaviest = 0, beyond = 0;
+        for (size_t i = 0; i < cycles_.size(); ++i) heaviest = std::max(heaviest, aux[kWork].x[i]);
+        for (const Aux& u : profile_->units)
+            if (double(u[kWork]) > heaviest) beyond += double(u[kWork]);
+        work_beyond_share = aux[kWork].total > 0 ? beyond / aux[kWork].total : 0.0;
+        out["work_beyond_sample_share"] = work_beyond_share;
+    }
+    // Design `work`: the certainty units are measured, their figures known; the regression
+    // and its spread cover the units drawn, over the units that could be drawn (those with
+    // work that are not certainty units; units without work hold none of anything).
+    certain_pos_.clear();
+    drawn_pos_.clear();
+    uint64_t population = units;
+    if (params_.by_work) {
+        for (size_t i = 0; i < cycles_.size(); ++i)
+            (design_->certainty_unit(unit_index_[i]) ? certain_pos_ : drawn_pos_).push_back(i);
+        if (certain_pos_.size() != design_->certainty_units())
+            throw std::logic_error("Sampler: a certainty unit was not measured");
+        population = design_->drawn_population();
+        for (Auxiliary& a : aux) {
+            std::vector<double> drawn(drawn_pos_.size());
+            for (size_t j = 0; j < drawn_pos_.size(); ++j) drawn[j] = a.x[drawn_pos_[j]];
+            for (size_t i : certain_pos_) a.total -= a.x[i];
+            a.x = std::move(drawn);
+        }
+        out["certainty_units"] = certain_pos_.size();
+        out["drawn_units"] = drawn_pos_.size();
+        out["drawn_population"] = population;
+        out["drawn_stratum_units"] = design_->drawn_stratum_units();
+    } else {
+        for (size_t i = 0; i < cycles_.size(); ++i) drawn_pos_.push_back(i);
+    }
     // Totals by regression on the auxiliaries (sim/sampling.h says which it fits), the
     // reference design's figure in the same unit first where there is one.
     std::vector<Auxiliary> with_reference(aux.size() + 1);
@@ -675,11 +788,13 @@ json Sampler::report(Cycle end_cycle) {
     const std::vector<double>* ref_fills =
         reference_ ? reference_->column("l2.first_fills") : nullptr;
     // Every counter without a reference column is regressed on the same auxiliaries: one design.
-    const RegressionDesign plain(aux, units);
+    std::optional<RegressionDesign> plain_design;
+    if (!drawn_pos_.empty()) plain_design.emplace(aux, population);
+    const RegressionDesign& plain = *plain_design;
     // Paired: a design per reference column, which like blocks share (core[0] to core[7]'s
     // counters are regressed on the reference's core.* sum).
     std::map<std::pair<std::string, double>, std::optional<RegressionDesign>> paired;
-    auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
+    auto regressed = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
         const auto [entry, first] = paired.try_emplace({column, per_fill});
         std::optional<RegressionDesign>& design = entry->second;
         if (!first) return design ? design->total(y) : plain.total(y);
@@ -707,20 +822,50 @@ json Sampler::report(Cycle end_cycle) {
         }
         return plain.total(y);
     };
+    // The certainty units' sum is known; the drawn units' total is regressed.
+    auto total = [&](const std::vector<double>& y, const std::string& column, double per_fill) {
+        if (!params_.by_work) return regressed(y, column, per_fill);
+        double certain = 0;
+        for (size_t i : certain_pos_) certain += y[i];
+        Estimate e;
+        if (!drawn_pos_.empty()) {
+            std::vector<double> drawn(drawn_pos_.size());
+            for (size_t j = 0; j < drawn_pos_.size(); ++j) drawn[j] = y[drawn_pos_[j]];
+            e = regressed(drawn, column, per_fill);
+        }
+        e.value += certain;
+        for (double& r : e.replicates) r += certain;
+        return e;
+    };
     if (reference_) out["reference"] = reference_->summary;
     // The frame's cycles after its last hand-out: the run's own drain, corrected by the
     // reference's (sim/reference.h).
     const double drain =
         double(end_cycle - last_handout_) +
         (reference_ ? reference_->drain_full_cycles - reference_->drain_matched_cycles : 0.0);
-    JointEstimates joint(cycles_.size(), units);
+    JointEstimates joint(drawn_pos_.size(), population);
     Estimate cycles = total(cycles_, "cycles", 0.0);
+    // Above kMaxExtrapolatedWorkShare the interval is refused: the fit's spread over the units
+    // measured says nothing of units unlike them (1024x768 fandisk diffuse, 1 in 50: 53% of the
+    // work beyond the sample, -67% +-28%). A paired run regresses on its reference's cycles,
+    // known in every unit, first: the work the sample missed is not what it extrapolates in.
+    // Design `work` draws a unit in every stratum of like work, the heaviest included, by
+    // construction.
+    if (!reference_ && !params_.by_work && work_beyond_share > kMaxExtrapolatedWorkShare) {
+        cycles.half_width = std::numeric_limits<double>::infinity();
+        cycles.replicates.clear();
+        cycles.caveat = fmt::format(
+            "{:.0f}% of the frame's work is in units heavier than any measured unit: the estimate "
+            "extrapolates to them, no interval (sim.sample_design=work measures the heaviest)",
+            100 * work_beyond_share);
+    }
     out["total_cycles"] = estimate_json(cycles, 1.0, drain);
     cycles.value += drain;
     for (double& r : cycles.replicates) r += drain;
     joint.add("cycles", std::move(cycles));
-    out["counters"] = counter_estimates(
-        total, skip ? frame_new_lines : double(total_aux_[kNewLines]), capacity, units, joint);
+    out["counters"] =
+        counter_estimates(total, skip ? frame_new_lines : double(total_aux_[kNewLines]), capacity,
+                          population, drawn_pos_.size(), joint);
     std::array<double, kAuxiliaries> frame{};
     for (size_t k = 0; k < kAuxiliaries; ++k)
         frame[k] = skip ? aux[k].total : double(total_aux_[k]);
@@ -902,19 +1047,48 @@ std::vector<double> Sampler::unit_sums(const std::string& prefix, const std::str
     return out;
 }
 
+Estimate Sampler::ratio_of(const std::vector<double>& y, const std::vector<double>& x,
+                           uint64_t units) const {
+    if (!params_.by_work) return ratio_estimate(y, x, units);
+    // Two strata: the certainty units, all measured (no spread), and the drawn ones.
+    RatioStratum certain, drawn;
+    certain.population = certain_pos_.size();
+    for (size_t i : certain_pos_) {
+        certain.y.push_back(y[i]);
+        certain.x.push_back(x[i]);
+    }
+    drawn.population = design_->drawn_population();
+    for (size_t i : drawn_pos_) {
+        drawn.y.push_back(y[i]);
+        drawn.x.push_back(x[i]);
+    }
+    std::vector<RatioStratum> strata;
+    for (RatioStratum* s : {&certain, &drawn})
+        if (s->population > 0 && !s->y.empty()) strata.push_back(std::move(*s));
+    return combined_ratio_estimate(strata);
+}
+
 json Sampler::figures(uint64_t units) const {
     // Derived figures as ratios of two per-unit changes, each with its interval: a hit rate is
     // hits over accesses in the same units, a utilisation busy cycles over the cycles x blocks.
     json out = json::object();
+    // A share (a hit rate, a utilisation, a stall share) lies in [0, 1], and so does its
+    // interval; any ratio of counts is at least 0.
     auto ratio = [&](json& to, const std::string& name, const std::vector<double>& y,
-                     const std::vector<double>& x, double scale = 1.0) {
+                     const std::vector<double>& x, double scale = 1.0, bool share = true) {
         double sx = 0;
         for (double v : x) sx += v;
-        if (sx > 0) to[name] = estimate_json(ratio_estimate(y, x, units), scale);
+        if (sx <= 0) return;
+        json e = estimate_json(ratio_of(y, x, units), scale);
+        for (const char* bound : {"lo", "hi"})
+            if (e[bound].is_number())
+                e[bound] = std::clamp(e[bound].get<double>(), 0.0,
+                                      share ? 1.0 : std::numeric_limits<double>::infinity());
+        to[name] = std::move(e);
     };
     ratio(out, "l1_hit_rate", unit_sums("l1[", ".hits"), unit_sums("l1[", ".accesses"));
     ratio(out, "l2_hit_rate", unit_sums("l2.hits", ""), unit_sums("l2.accesses", ""));
-    ratio(out, "dram_bytes_per_cycle", unit_sums("dram.bytes", ""), cycles_);
+    ratio(out, "dram_bytes_per_cycle", unit_sums("dram.bytes", ""), cycles_, 1.0, false);
     for (const char* unit : {"box_unit", "triangle_unit"}) {
         size_t blocks = 0;
         const std::vector<double> busy =

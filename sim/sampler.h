@@ -54,6 +54,10 @@ class Cache;
 
 struct Reference;  // sim/reference.h
 
+// Above this share of a frame's work in units heavier than any measured unit, the cycles'
+// estimate extrapolates: it is given without an interval, and a caveat says why.
+constexpr double kMaxExtrapolatedWorkShare = 0.10;
+
 struct SamplingParams {
     uint64_t unit_rays = 1024;
     uint64_t period_units = 10;  // one unit measured in this many
@@ -78,11 +82,20 @@ struct SamplingParams {
     // like units in a stratum: docs/sampling.md.
     std::vector<uint32_t> unit_order;
     std::string unit_order_of;  // the run whose units' cycles gave unit_order (reported)
+    // Skip design, sim.sample_design = work: per unit, its work (steps + rays) from the frame's
+    // profile. The sample is then drawn where the work is (SampleDesign says how).
+    bool by_work = false;
+    std::vector<uint64_t> unit_work;
 };
 
 // An estimate as stats.json holds it ({value, lo, hi, half_width_pct}), scaled by `scale` and
 // moved by `offset`.
+// An infinite half-width (no interval the data support) is written as null lo, hi and
+// half_width_pct; a caveat, when there is one, beside them.
 nlohmann::json estimate_json(const Estimate& e, double scale = 1.0, double offset = 0.0);
+
+// An estimate's half_width_pct from its JSON: infinite where it is null.
+double half_width_pct_of(const nlohmann::json& estimate);
 
 // Which units a sample measures, and in the skip design what becomes of each tile; a value
 // type, so the work source's helper thread can ask it which tiles to generate.
@@ -94,6 +107,8 @@ class SampleDesign {
     uint64_t first_unit() const;
     // Stratified design: the unit measured in stratum k (a hash of the seed and k).
     uint64_t pick(uint64_t stratum) const;
+    // The unit drawn in stratum k of `size` units: a hash of the seed and k, below size.
+    uint64_t draw(uint64_t stratum, uint64_t size) const;
     // Skip design: what becomes of tile t.
     enum class TileRole { Skipped, Warming, Warmup, Measured, After };
     TileRole tile_role(uint64_t tile) const;
@@ -106,6 +121,16 @@ class SampleDesign {
                (params_.tile_rays.size() != params_.tiles || params_.tile_rays[tile] > 0);
     }
     const SamplingParams& params() const { return params_; }
+    // Design `work`: whether unit u is measured with certainty (one of the frame's heaviest),
+    // and the units the rest of the sample is drawn from (every unit with work that is not a
+    // certainty unit). Units without work are never measured: they take no cycles.
+    bool certainty_unit(uint64_t unit) const {
+        return unit < certainty_.size() && certainty_[unit];
+    }
+    uint64_t certainty_units() const { return certainty_count_; }
+    uint64_t drawn_population() const { return drawn_population_; }
+    // Design `work`: units in each stratum of the drawn part (units of like work).
+    uint64_t drawn_stratum_units() const { return drawn_stratum_units_; }
     // Skip design: units in the frame.
     uint64_t units() const {
         return (params_.tiles + params_.unit_tiles - 1) / std::max<uint64_t>(1, params_.unit_tiles);
@@ -114,8 +139,12 @@ class SampleDesign {
   private:
     SamplingParams params_;
     uint64_t first_unit_ = 0;
+    // Design `work`: the sample as a unit mask, the certainty units among it.
+    void draw_by_work();
     std::vector<uint32_t> rank_;   // per unit, its place in params_.unit_order (empty: itself)
     std::vector<TileRole> roles_;  // skip design: every tile's, worked out once
+    std::vector<uint8_t> measured_, certainty_;  // design `work`: per unit
+    uint64_t certainty_count_ = 0, drawn_population_ = 0, drawn_stratum_units_ = 0;
 };
 
 // Meets each line once per pass: a stamp per line and a new stamp per pass, so starting a pass
@@ -335,8 +364,9 @@ class Sampler {
     // sampled_units.csv's `column`, less per_fill times the unit's L2 first fills.
     using TotalFn = std::function<Estimate(const std::vector<double>&, const std::string&, double)>;
     // Each counter's estimate as stats.json holds it, also added to `joint`.
+    // `drawn`: the measured units the totals' spread comes from (of `units`).
     nlohmann::json counter_estimates(const TotalFn& total, double frame_first_fills,
-                                     const Auxiliary& capacity, uint64_t units,
+                                     const Auxiliary& capacity, uint64_t units, size_t drawn,
                                      JointEstimates& joint) const;
     // Counters the functional tracer knows the frame's total of (box and triangle operations,
     // L1 accesses and bytes requested), calibrated to it in `joint` and `counters` (stats.json's)
@@ -345,6 +375,12 @@ class Sampler {
                                            const std::array<double, kAuxiliaries>& frame) const;
     // Derived figures (hit rates, bandwidth, utilisations, stall shares) with their intervals.
     nlohmann::json figures(uint64_t units) const;
+    // The ratio sum(y) / sum(x) over the frame from the measured units' changes: in design
+    // `work`, combined over the certainty units (known) and the drawn ones.
+    Estimate ratio_of(const std::vector<double>& y, const std::vector<double>& x,
+                      uint64_t units) const;
+    // Design `work`: positions (in cycles_) of the measured certainty units and drawn units.
+    std::vector<size_t> certain_pos_, drawn_pos_;
     bool measured_unit(uint64_t unit) const { return design_->measured_unit(unit); }
     // Whether ray `i` runs in detail: in a measured unit, in the warm-up before one, or the
     // ray right after one.

@@ -35,6 +35,10 @@ struct Estimate {
     // The delete-one jackknife's replicates of `value` (unit i left out of the fit), when the
     // half-width came from them; empty otherwise.
     std::vector<double> replicates;
+    // Why the interval cannot be trusted as printed (empty when it can): a fit with no spread
+    // to show, an estimate that extrapolates. Reported beside the estimate in stats.json and
+    // the summary; where the data support no width at all the half-width is infinite too.
+    std::string caveat;
     double lo() const { return value - half_width; }
     double hi() const { return value + half_width; }
     // half_width / |value| (0 when the value is 0 and the interval empty; infinite when the
@@ -70,9 +74,14 @@ struct Auxiliary {
 // informative units (those where some auxiliary is not zero: a tile without rays informs no fit).
 // The first auxiliary is always fitted; auxiliary k (k >= 1) only with at least 4 k informative
 // units (fewer leave too few degrees of freedom per coefficient), and not when it is zero in every
-// unit or (nearly) a combination of those before it. With one auxiliary it is the ratio
-// estimator's total. `value` is the total; the interval is infinite with m <= p (and empty when
-// every unit was measured).
+// unit or (nearly) a combination of those before it. An auxiliary must also be non-zero in at
+// least 4 measured units, and none may leave a unit with a leverage of 1 (the fit's only unit in
+// some direction, whose residual is then 0 whatever its y): such an auxiliary is dropped, last
+// first, down to the ratio estimator. With one auxiliary it is the ratio estimator's total.
+// `value` is the total; the interval is infinite with m <= p, or with a caveat when y is not 0
+// everywhere yet every residual is, on a single residual degree of freedom (a fit that shows no
+// spread from so few units says nothing of the units not measured); it is empty when every unit
+// was measured.
 Estimate regression_total(const std::vector<double>& y, const std::vector<Auxiliary>& aux,
                           uint64_t population, double confidence = 0.95);
 
@@ -86,6 +95,9 @@ class RegressionDesign {
     Estimate total(const std::vector<double>& y, double confidence = 0.95) const;
 
   private:
+    // The design of the auxiliaries in fitted_: their values, totals, normal equations, each
+    // unit's leverage and pull on the total, the model's variance factor.
+    void design_fitted(const std::vector<Auxiliary>& aux);
     size_t n_ = 0;            // units measured
     size_t informative_ = 0;  // of them, where some auxiliary is not zero
     uint64_t population_ = 0;
