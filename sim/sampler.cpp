@@ -133,20 +133,33 @@ void SampleDesign::draw_by_work() {
         ++c;
     }
     certainty_count_ = c;
-    // The rest, lightest first, in strata of equal size: one unit drawn in each, so the sample
-    // spans the frame's range of work; every unit has the same chance, 1 in the stratum size.
+    // The rest, lightest first, cut into strata of equal work, one unit drawn in each: the
+    // sample spans the frame's range of work, and draws fall where the work (and so the
+    // spread of cycles) is rather than among the many light units. A unit stands for its
+    // stratum (its design weight is the stratum's size). Equal-count strata on the recorded
+    // fandisk frame, 1 in 10, gave 9.2% mean error offline against 5.1% for equal work.
     std::vector<uint32_t> rest(active.begin() + long(c), active.end());
     std::reverse(rest.begin(), rest.end());
     drawn_population_ = rest.size();
+    design_weight_.assign(units(), 0.0);
+    for (size_t k = 0; k < c; ++k) design_weight_[active[k]] = 1.0;
     if (rest.empty()) return;
     const uint64_t draws = std::max<uint64_t>(1, budget - c);
-    // Strata of ceil(rest / draws) units: as many strata as draws, or fewer (a last, shorter
-    // stratum draws among the units it has).
-    drawn_stratum_units_ = (rest.size() + draws - 1) / draws;
-    for (uint64_t s = 0; s * drawn_stratum_units_ < rest.size(); ++s) {
-        const uint64_t begin = s * drawn_stratum_units_;
-        const uint64_t size = std::min<uint64_t>(drawn_stratum_units_, rest.size() - begin);
+    uint64_t begin = 0, done_work = 0;
+    for (uint64_t s = 0; begin < rest.size(); ++s) {
+        // Up to the unit where the work so far reaches the next share of the rest's.
+        uint64_t end = begin;
+        const double target = double(remaining_work) * double(s + 1) / double(draws);
+        while (end < rest.size() &&
+               (end == begin || s + 1 == draws || double(done_work + work[rest[end]]) <= target)) {
+            done_work += work[rest[end]];
+            ++end;
+        }
+        const uint64_t size = end - begin;
+        for (uint64_t k = begin; k < end; ++k) design_weight_[rest[k]] = double(size);
         measured_[rest[begin + draw(s, size)]] = 1;
+        ++drawn_strata_;
+        begin = end;
     }
 }
 
@@ -774,7 +787,7 @@ json Sampler::report(Cycle end_cycle) {
         out["certainty_units"] = certain_pos_.size();
         out["drawn_units"] = drawn_pos_.size();
         out["drawn_population"] = population;
-        out["drawn_stratum_units"] = design_->drawn_stratum_units();
+        out["drawn_strata"] = design_->drawn_strata();
     } else {
         for (size_t i = 0; i < cycles_.size(); ++i) drawn_pos_.push_back(i);
     }
@@ -789,7 +802,11 @@ json Sampler::report(Cycle end_cycle) {
         reference_ ? reference_->column("l2.first_fills") : nullptr;
     // Every counter without a reference column is regressed on the same auxiliaries: one design.
     std::optional<RegressionDesign> plain_design;
-    if (!drawn_pos_.empty()) plain_design.emplace(aux, population);
+    std::vector<double> expansion;  // design `work`: the units each drawn unit stands for
+    for (size_t i : drawn_pos_)
+        if (params_.by_work) expansion.push_back(design_->design_weight(unit_index_[i]));
+    if (!drawn_pos_.empty())
+        plain_design.emplace(aux, population, params_.by_work ? &expansion : nullptr);
     const RegressionDesign& plain = *plain_design;
     // Paired: a design per reference column, which like blocks share (core[0] to core[7]'s
     // counters are regressed on the reference's core.* sum).
@@ -1050,22 +1067,46 @@ std::vector<double> Sampler::unit_sums(const std::string& prefix, const std::str
 Estimate Sampler::ratio_of(const std::vector<double>& y, const std::vector<double>& x,
                            uint64_t units) const {
     if (!params_.by_work) return ratio_estimate(y, x, units);
-    // Two strata: the certainty units, all measured (no spread), and the drawn ones.
-    RatioStratum certain, drawn;
-    certain.population = certain_pos_.size();
+    // Design `work`: the certainty units' sums are known; each drawn unit stands for its
+    // stratum. R = (Y_c + sum d y) / (X_c + sum d x), its variance by the delete-one
+    // jackknife (a unit left out, the others' weights scaled by n / (n - 1)).
+    double yc = 0, xc = 0, yd = 0, xd = 0;
     for (size_t i : certain_pos_) {
-        certain.y.push_back(y[i]);
-        certain.x.push_back(x[i]);
+        yc += y[i];
+        xc += x[i];
     }
-    drawn.population = design_->drawn_population();
-    for (size_t i : drawn_pos_) {
-        drawn.y.push_back(y[i]);
-        drawn.x.push_back(x[i]);
+    const size_t n = drawn_pos_.size();
+    std::vector<double> d(n);
+    for (size_t j = 0; j < n; ++j) {
+        d[j] = design_->design_weight(unit_index_[drawn_pos_[j]]);
+        yd += d[j] * y[drawn_pos_[j]];
+        xd += d[j] * x[drawn_pos_[j]];
     }
-    std::vector<RatioStratum> strata;
-    for (RatioStratum* s : {&certain, &drawn})
-        if (s->population > 0 && !s->y.empty()) strata.push_back(std::move(*s));
-    return combined_ratio_estimate(strata);
+    Estimate e;
+    e.confidence = 0.95;
+    e.units = n;
+    e.population = design_->drawn_population();
+    e.value = xc + xd > 0 ? (yc + yd) / (xc + xd) : 0.0;
+    if (n < 2) {
+        e.half_width = n == 0 ? 0.0 : std::numeric_limits<double>::infinity();
+        return e;
+    }
+    const double scale = double(n) / double(n - 1);
+    std::vector<double> r(n);
+    double mean = 0;
+    for (size_t j = 0; j < n; ++j) {
+        const double ys = yc + scale * (yd - d[j] * y[drawn_pos_[j]]),
+                     xs = xc + scale * (xd - d[j] * x[drawn_pos_[j]]);
+        r[j] = xs > 0 ? ys / xs : e.value;
+        mean += r[j];
+    }
+    mean /= double(n);
+    double variance = 0;
+    for (double v : r) variance += (v - mean) * (v - mean);
+    variance *= double(n - 1) / double(n);
+    e.t_quantile = student_t_quantile(0.975, double(n - 1));
+    e.half_width = e.t_quantile * std::sqrt(variance);
+    return e;
 }
 
 json Sampler::figures(uint64_t units) const {

@@ -129,8 +129,13 @@ class SampleDesign {
     }
     uint64_t certainty_units() const { return certainty_count_; }
     uint64_t drawn_population() const { return drawn_population_; }
-    // Design `work`: units in each stratum of the drawn part (units of like work).
-    uint64_t drawn_stratum_units() const { return drawn_stratum_units_; }
+    // Design `work`: strata of the drawn part (units of like work, equal work per stratum).
+    uint64_t drawn_strata() const { return drawn_strata_; }
+    // Design `work`: the units a measured unit stands for (its stratum's size; 1 for a
+    // certainty unit).
+    double design_weight(uint64_t unit) const {
+        return unit < design_weight_.size() ? design_weight_[unit] : 0.0;
+    }
     // Skip design: units in the frame.
     uint64_t units() const {
         return (params_.tiles + params_.unit_tiles - 1) / std::max<uint64_t>(1, params_.unit_tiles);
@@ -144,7 +149,8 @@ class SampleDesign {
     std::vector<uint32_t> rank_;   // per unit, its place in params_.unit_order (empty: itself)
     std::vector<TileRole> roles_;  // skip design: every tile's, worked out once
     std::vector<uint8_t> measured_, certainty_;  // design `work`: per unit
-    uint64_t certainty_count_ = 0, drawn_population_ = 0, drawn_stratum_units_ = 0;
+    std::vector<double> design_weight_;          // design `work`: per unit
+    uint64_t certainty_count_ = 0, drawn_population_ = 0, drawn_strata_ = 0;
 };
 
 // Meets each line once per pass: a stamp per line and a new stamp per pass, so starting a pass

@@ -220,7 +220,8 @@ Estimate ratio_estimate(const std::vector<double>& y, const std::vector<double>&
     return e;
 }
 
-RegressionDesign::RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t population)
+RegressionDesign::RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t population,
+                                   const std::vector<double>* expansion)
     : population_(population) {
     if (aux.empty()) throw std::invalid_argument("regression_total: no auxiliary");
     n_ = aux[0].x.size();
@@ -235,8 +236,18 @@ RegressionDesign::RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t p
     for (size_t i = 0; i < n_; ++i)
         informative_ +=
             std::any_of(aux.begin(), aux.end(), [&](const Auxiliary& a) { return a.x[i] != 0; });
-    weight_.resize(n_);
-    for (size_t i = 0; i < n_; ++i) weight_[i] = aux[0].x[i] > 0 ? 1.0 / aux[0].x[i] : 1.0;
+    if (expansion && expansion->size() != n_)
+        throw std::invalid_argument("regression_total: a design weight per unit");
+    unequal_ = expansion != nullptr;
+    model_weight_.resize(n_);
+    expansion_.assign(n_, n_ ? double(population_) / double(n_) : 1.0);
+    for (size_t i = 0; i < n_; ++i) model_weight_[i] = aux[0].x[i] > 0 ? 1.0 / aux[0].x[i] : 1.0;
+    weight_ = model_weight_;
+    if (unequal_)
+        for (size_t i = 0; i < n_; ++i) {
+            expansion_[i] = (*expansion)[i];
+            weight_[i] *= expansion_[i];
+        }
     // Weighted normal equations over every auxiliary (full, symmetric), unit by unit with each
     // unit's auxiliaries in hand (a sweep over the columns per entry reloaded each one).
     std::vector<double> m(k_all * k_all, 0.0), row(k_all);
@@ -296,7 +307,7 @@ RegressionDesign::RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t p
         for (size_t i = 0; i < n_ && !wild; ++i) {
             double h = 0;
             for (size_t a = 0; a < fitted_.size(); ++a) h += lambda[a] * aux[fitted_[a]].x[i];
-            const double g = h * weight_[i] * double(n_) / double(population_);
+            const double g = h * weight_[i] / expansion_[i];
             wild = !(std::fabs(g - 1.0) <= kMaxWeightShift);
         }
         if (!wild) break;
@@ -368,9 +379,23 @@ void RegressionDesign::design_fitted(const std::vector<Auxiliary>& aux) {
     std::vector<double> outside(totals_);  // X_out: the totals less the measured units' sums
     for (size_t i = 0; i < n_; ++i)
         for (size_t a = 0; a < p; ++a) outside[a] -= x_[i * p + a];
+    // The model's normal equations weigh units by the model's variance alone (the design
+    // weights are the design's, not the model's).
+    std::vector<double> model_inverse = inverse;
+    if (unequal_) {
+        std::vector<double> model_normal(p * p, 0.0);
+        for (size_t i = 0; i < n_; ++i)
+            add_outer_product(model_normal.data(), &x_[i * p], model_weight_[i], p);
+        for (size_t c = 0; c < p; ++c) {
+            std::fill(unit_vector.begin(), unit_vector.end(), 0.0);
+            unit_vector[c] = 1.0;
+            solve_small(model_normal, unit_vector, column);
+            for (size_t a = 0; a < p; ++a) model_inverse[a * p + c] = column[a];
+        }
+    }
     double spread = 0;
     for (size_t a = 0; a < p; ++a)
-        for (size_t c = 0; c < p; ++c) spread += outside[a] * inverse[a * p + c] * outside[c];
+        for (size_t c = 0; c < p; ++c) spread += outside[a] * model_inverse[a * p + c] * outside[c];
     // fitted_[0] is auxiliary 0, the variance model's x_0.
     model_factor_ = std::max(0.0, outside[0]) + std::max(0.0, spread);
 }
@@ -458,7 +483,7 @@ Estimate RegressionDesign::total(const std::vector<double>& y, double confidence
     // (a trend the fit through the origin misses): it stands alone there.
     if (informative_ - p < kModelFloorDegrees) {
         double residual_ss = 0;
-        for (size_t i = 0; i < n_; ++i) residual_ss += weight_[i] * residual[i] * residual[i];
+        for (size_t i = 0; i < n_; ++i) residual_ss += model_weight_[i] * residual[i] * residual[i];
         variance = std::max(variance, residual_ss / double(informative_ - p) * model_factor_);
     }
     e.t_quantile = student_t_quantile(0.5 + confidence / 2.0, double(informative_ - p));

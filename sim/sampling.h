@@ -91,7 +91,12 @@ Estimate regression_total(const std::vector<double>& y, const std::vector<Auxili
 // regression_total(y, aux, population, confidence), figure for figure.
 class RegressionDesign {
   public:
-    RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t population);
+    // `expansion`, when given: each measured unit's design weight, 1 / its chance of being
+    // drawn (a stratum's size when one unit is drawn per stratum of unequal sizes), so the fit
+    // weighs each unit by the units it stands for (the GREG estimator's design weights); the
+    // model's variance keeps the fit's own weights. Without it every unit stands for N / n.
+    RegressionDesign(const std::vector<Auxiliary>& aux, uint64_t population,
+                     const std::vector<double>* expansion = nullptr);
     Estimate total(const std::vector<double>& y, double confidence = 0.95) const;
 
   private:
@@ -102,7 +107,10 @@ class RegressionDesign {
     size_t informative_ = 0;  // of them, where some auxiliary is not zero
     uint64_t population_ = 0;
     std::vector<size_t> fitted_;             // the auxiliaries fitted, in order
-    std::vector<double> weight_;             // per unit: 1 / x_0 (1 where x_0 is 0)
+    std::vector<double> weight_;             // per unit: design weight / x_0 (x_0 = 0: 1)
+    std::vector<double> model_weight_;       // per unit: 1 / x_0 (1 where x_0 is 0)
+    std::vector<double> expansion_;          // per unit: its design weight (N / n: equal)
+    bool unequal_ = false;                   // design weights given
     std::vector<double> x_;                  // per unit, the fitted auxiliaries (row-major)
     std::vector<double> totals_;             // the fitted auxiliaries' population totals
     std::vector<double> normal_;             // their weighted normal equations, p x p

@@ -1111,7 +1111,13 @@ TEST(SampleDesignWork, CertaintyUnitsAreTheHeaviestAndTheRestSpansTheWork) {
         EXPECT_TRUE(d.certainty_unit(3) && d.certainty_unit(20));
         EXPECT_TRUE(d.measured_unit(3) && d.measured_unit(20));
         EXPECT_EQ(d.drawn_population(), 30u);
-        EXPECT_EQ(d.drawn_stratum_units(), 5u);
+        EXPECT_EQ(d.drawn_strata(), 6u);
+        for (uint32_t u = 5; u < 38; ++u) {
+            if (sp.unit_work[u] == 10) {
+                EXPECT_EQ(d.design_weight(u), 5.0) << u;
+            }
+        }
+        EXPECT_EQ(d.design_weight(3), 1.0);
         size_t measured = 0;
         for (uint64_t u = 0; u < 40; ++u) {
             if (sp.unit_work[u] == 0) {
@@ -1177,7 +1183,7 @@ TEST(SampleDesignWork, ASkewedRecordedFrameIsCoveredAtItsNominalRate) {
             sp.seed = 7000 + seed;
             const SampleDesign d(sp);
             double certain = 0;
-            std::vector<double> y;
+            std::vector<double> y, expansion;
             std::vector<Auxiliary> aux(names.size());
             for (size_t k = 0; k < names.size(); ++k) aux[k].total = total(column[k]);
             uint64_t population = N;
@@ -1189,10 +1195,11 @@ TEST(SampleDesignWork, ASkewedRecordedFrameIsCoveredAtItsNominalRate) {
                     continue;
                 }
                 y.push_back(cycles[u]);
+                expansion.push_back(d.design_weight(u));
                 for (size_t k = 0; k < names.size(); ++k) aux[k].x.push_back(column[k][u]);
             }
             if (by_work) population = d.drawn_population();
-            Estimate e = regression_total(y, aux, population);
+            Estimate e = RegressionDesign(aux, population, by_work ? &expansion : nullptr).total(y);
             e.value += certain;
             ++o.runs;
             o.abs_error += std::fabs(e.value / truth - 1);
