@@ -191,16 +191,20 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
 // by choosing its period (one unit in N / that many). The pilot covers the whole frame, so its
 // spread is the frame's, start-up transients included.
 constexpr double kMinTargetUnits = 30;
+// A plan that measures this share of the units it could draw from or more cannot beat the full
+// run (a sampled unit costs its warm-up and cache replay besides its rays): the frame runs in
+// full instead, exact.
+constexpr double kFullRunShare = 0.5;
 
 json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     const json pilot = run_child(opt, {}, "--target-error");
     const json& sm = pilot["sampling"];
     if (!sm.contains("total_cycles")) {
-        // Too short a frame to sample at this period: measure every unit.
-        sp.period_units = 1;
+        // Too short a frame to sample at this period: run it in full.
         return {{"pilot_period_units", sm.value("period_units", 0)},
-                {"note", "the pilot measured fewer than 2 units: every unit is measured"},
-                {"period_units", 1}};
+                {"in_full", true},
+                {"note", "the pilot measured fewer than 2 units: the frame ran in full, exact"},
+                {"pilot_host_s", pilot["host"]["run_time_s"]}};
     }
     double worst = half_width_pct_of(sm["total_cycles"]);
     if (sm["counters"].contains("dram.bytes"))
@@ -215,9 +219,24 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     // At least 30 units: with fewer, the regression on four auxiliaries has too few degrees of
     // freedom for its spread to be known (8 units, sized for 15% from a pilot's 6.2% at 36 units
     // of a 192x192 bunny frame, gave 36.8%).
+    // The units a plan draws from: the work design's are those with work, its period counts them.
+    const double drawable = sm.contains("drawn_population") ? sm["drawn_population"].get<double>() +
+                                                                  sm.value("certainty_units", 0.0)
+                                                            : units;
     const double needed =
-        std::min(units, std::max(kMinTargetUnits, std::ceil(1.25 * n_pilot * ratio * ratio)));
-    sp.period_units = std::max<uint64_t>(1, uint64_t(units / std::max(2.0, needed)));
+        std::min(drawable, std::max(kMinTargetUnits, std::ceil(1.25 * n_pilot * ratio * ratio)));
+    sp.period_units = std::max<uint64_t>(1, uint64_t(drawable / std::max(2.0, needed)));
+    if (needed >= kFullRunShare * drawable)
+        return {{"target_error_pct", opt.target_error_pct},
+                {"pilot_period_units", sm["period_units"]},
+                {"pilot_units_measured", n_pilot},
+                {"pilot_half_width_pct", worst},
+                {"units_needed", needed},
+                {"in_full", true},
+                {"note", fmt::format("the plan needed {:.0f} of {:.0f} units: sampling cannot beat "
+                                     "the full run, so the frame ran in full, exact",
+                                     needed, drawable)},
+                {"pilot_host_s", pilot["host"]["run_time_s"]}};
     return {{"target_error_pct", opt.target_error_pct},
             {"pilot_period_units", sm["period_units"]},
             {"pilot_units_measured", n_pilot},
@@ -296,7 +315,7 @@ int run_command(const RunOptions& opt) {
             cfg.typed.sim.fidelity));
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
-    const bool sampled = cfg.typed.sim.fidelity == "sampled";
+    bool sampled = cfg.typed.sim.fidelity == "sampled";
     if (!opt.reference_dir.empty() && (!sampled || cfg.typed.sim.sample_fast_forward != "skip"))
         throw InputError(fmt::format(
             "--reference {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (the "
@@ -319,6 +338,8 @@ int run_command(const RunOptions& opt) {
         sp = sampling_params(opt, cfg);
         // Before the workload: the skip design generates only the tiles the period wants.
         if (opt.target_error_pct > 0) plan = plan_for_target(opt, sp);
+        // Asking for a target never makes a run slower than the full one (beyond its pilot).
+        if (plan.is_object() && plan.value("in_full", false)) sampled = false;
     }
     const auto t_prepare = Clock::now();
     Workload w = prepare_workload(opt, cfg, progress, sampled ? &sp : nullptr);
@@ -401,6 +422,11 @@ int run_command(const RunOptions& opt) {
     if (sampler)
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);
+    else if (!plan.is_null()) {
+        // Run in full: every figure is the frame's own, exact; the plan says why.
+        plan["met"] = true;
+        out["sampling"] = {{"in_full", true}, {"target", std::move(plan)}};
+    }
     out["energy"] = energy_report(cfg.typed, out);
     if (sampler && !sampler->joint_estimates().empty())
         out["sampling"]["energy"] =

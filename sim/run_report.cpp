@@ -155,7 +155,12 @@ void print_run_summary(const json& out, const std::string& stats_path) {
     fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n",
                out["total_cycles"].get<uint64_t>(), out["simulated_seconds"].get<double>() * 1e3,
                out["clock_ghz"].get<double>(), out["rays_per_second"].get<double>() / 1e6);
-    if (out.contains("sampling")) {
+    if (out.contains("sampling") && out["sampling"].value("in_full", false)) {
+        const json& t = out["sampling"]["target"];
+        fmt::print("  sampled  no: {} (pilot at 1 unit in {}: {:.2f} s)\n",
+                   t.value("note", std::string()), t.value("pilot_period_units", 0),
+                   t.value("pilot_host_s", 0.0));
+    } else if (out.contains("sampling")) {
         // The figures above are the detailed part's; the frame's come from the sample.
         const json& sm = out["sampling"];
         fmt::print("  sampled  {:.1f}% of rays in detail ({} of {} units measured)",

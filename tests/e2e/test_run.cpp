@@ -433,10 +433,11 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
 }
 
 // --target-error: a pilot of the whole frame sizes the sample; the intervals of the frame's
-// cycles and DRAM bytes then come within the target, and a looser target measures less.
+// cycles and DRAM bytes then come within the target, and a looser target measures less. (A
+// 96x96 frame's 106 units are too few: its 10% plan needs most of them, and runs in full.)
 TEST(Sampled, TargetErrorIsHonoured) {
     const std::string common = "run --scene " RTSIM_BUNNY_OBJ
-                               " --rays primary,ao --res 96x96 --set sim.fidelity=sampled "
+                               " --rays primary,ao --res 192x192 --set sim.fidelity=sampled "
                                "--set sim.sample_unit_rays=128 --set sim.sample_period_units=8 ";
     const fs::path loose = work_dir() / "loose", tight = work_dir() / "tight";
     ASSERT_EQ(run_rtsim(common + "--target-error 40 -o '" + loose.string() + "'").status, 0);
@@ -795,12 +796,14 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
 }
 
 // --target-error in the skip design: the period is chosen before any tile is generated (the
-// source skips by it), and the intervals come within the target.
+// source skips by it), and the intervals come within the target. The work design: a small
+// stratified sample that misses the frame's heaviest units gives no interval at all.
 TEST(Sampled, SkipDesignHonoursTargetError) {
     const fs::path out = work_dir() / "k_target";
     const Result r = run_rtsim("run --scene " RTSIM_BUNNY_OBJ
-                               " --rays primary,ao --res 192x192 --set sim.fidelity=sampled "
+                               " --rays primary,ao --res 384x384 --set sim.fidelity=sampled "
                                "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
+                               "--set sim.sample_design=work "
                                "--set sim.sample_period_units=8 --bvh-cache '" +
                                (work_dir() / "k_target_cache").string() +
                                "' --target-error 15 -o '" + out.string() + "'");
@@ -812,6 +815,30 @@ TEST(Sampled, SkipDesignHonoursTargetError) {
     EXPECT_LE(s["counters"]["dram.bytes"]["half_width_pct"].get<double>(), 15.0);
     // The pilot (a child run) stored the profile; the run itself loaded it.
     EXPECT_EQ(s["profile"]["cache"], "hit");
+}
+
+// A target no sample can reach cheaper than the whole frame: the run says so and runs the frame
+// in full, its statistics the full fast run's, field for field (a skip run measuring half the
+// units or more costs more than the full run: each unit's warm-up and cache replay besides).
+TEST(Sampled, ATargetThatNeedsMostUnitsRunsTheFrameInFull) {
+    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 64x64 ";
+    const fs::path full = work_dir() / "infull_full", asked = work_dir() / "infull_asked";
+    ASSERT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
+    const Result r = run_rtsim(frame +
+                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --target-error 0.1 -o '" +
+                               asked.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_NE(r.out.find("sampling cannot beat the full run"), std::string::npos) << r.out;
+    json a = stats_of(asked), f = stats_of(full);
+    ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
+    a["counters"].erase("l2.first_fills");  // a counter sampled configs register
+    EXPECT_GE(a["sampling"]["target"]["units_needed"].get<double>(),
+              0.5 * a["sampling"]["target"]["pilot_units_measured"].get<double>());
+    EXPECT_FALSE(a["sampling"].contains("total_cycles"));  // nothing estimated
+    // Everything the blocks counted is the full run's; the config differs in sim.* only.
+    for (const char* k : {"total_cycles", "counters", "caches", "bandwidth", "units", "stalls"})
+        EXPECT_EQ(a[k], f[k]) << k;
 }
 
 TEST(Sampled, SkipDesignNeedsGeneratedRays) {
