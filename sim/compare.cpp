@@ -100,8 +100,31 @@ Comparison compare_runs(std::vector<ComparedRun> runs) {
         }
         if (any) c.rows.push_back(std::move(row));
     }
+    const json& first = c.runs[0].stats;
+    for (size_t r = 1; r < c.runs.size(); ++r) {
+        const json& s = c.runs[r].stats;
+        if (!first.contains("sampling") || !s.contains("sampling")) continue;
+        Comparison::Matched m;
+        m.run = r;
+        m.differences = matched_differences(first, fs::path(c.runs[0].path).parent_path(), s,
+                                            fs::path(c.runs[r].path).parent_path(), &m.why);
+        c.matched.push_back(std::move(m));
+    }
     return c;
 }
+
+namespace {
+
+// "+3.2% (+2.9% to +3.5%)": a difference relative to the first run's figure.
+std::string format_difference(const MatchedDifference& d) {
+    if (d.base == 0) return "-";
+    const double v = 100 * d.difference.value / d.base;
+    if (!std::isfinite(d.difference.half_width)) return fmt::format("{:+.2f}% (no interval)", v);
+    const double h = 100 * d.difference.half_width / std::fabs(d.base);
+    return fmt::format("{:+.2f}% ({:+.2f}% to {:+.2f}%)", v, v - h, v + h);
+}
+
+}  // namespace
 
 std::string format_comparison(const Comparison& c) {
     std::string out;
@@ -114,7 +137,7 @@ std::string format_comparison(const Comparison& c) {
     } else {
         out += "\nDiffering settings:\n";
         for (const auto& [key, values] : c.differences) {
-            std::string line = fmt::format("  {:<34}", key);
+            std::string line = fmt::format("  {:<34} ", key);
             for (size_t r = 0; r < values.size(); ++r)
                 line += fmt::format("{}{}", r ? " | " : "", values[r]);
             out += line + "\n";
@@ -141,6 +164,22 @@ std::string format_comparison(const Comparison& c) {
         table.push_back(std::move(cells));
     }
     out += "\n" + format_table(table, true);
+    if (!c.matched.empty()) {
+        out += fmt::format(
+            "\nMatched samples (the same units in both runs): difference from {}, with its 95% "
+            "interval\n",
+            c.runs[0].label);
+        for (const auto& m : c.matched) {
+            if (m.differences.empty()) {
+                out += fmt::format("  {:<{}}  not a matched pair: {}\n", c.runs[m.run].label,
+                                   label_width, m.why);
+                continue;
+            }
+            for (const auto& d : m.differences)
+                out += fmt::format("  {:<{}}  {:<11} {}\n", c.runs[m.run].label, label_width,
+                                   d.figure, format_difference(d));
+        }
+    }
     out +=
         "\nvs: ratio to the first run, or the difference in percentage points (pts).\n"
         "host: wall-clock timing of the machine that ran the run, not a simulated result.\n"
@@ -192,6 +231,22 @@ json comparison_json(const Comparison& c) {
              {"relative", relative},
              {"relative_kind",
               row.relative == Comparison::Relative::Points ? "difference" : "ratio"}});
+    }
+    if (!c.matched.empty()) {
+        out["matched"] = json::array();
+        for (const auto& m : c.matched) {
+            json j = {{"label", c.runs[m.run].label}};
+            if (m.differences.empty()) j["not_matched"] = m.why;
+            for (const auto& d : m.differences) {
+                const double h = d.difference.half_width;
+                j["differences"][d.figure] = {
+                    {"value", d.difference.value},
+                    {"lo", std::isfinite(h) ? json(d.difference.value - h) : json(nullptr)},
+                    {"hi", std::isfinite(h) ? json(d.difference.value + h) : json(nullptr)},
+                    {"base", d.base}};
+            }
+            out["matched"].push_back(std::move(j));
+        }
     }
     return out;
 }

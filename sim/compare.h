@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "sim/figures.h"
+#include "sim/matched.h"
 
 namespace rtsim {
 
@@ -38,6 +39,15 @@ struct Comparison {
     // Settings that differ between runs: "config: l1.size_kib" -> its value in each run.
     std::vector<std::pair<std::string, std::vector<std::string>>> differences;
     std::vector<Row> rows;
+    // Each later run that is a matched pair with the first (sampled runs of one frame that
+    // measured the same units): its differences from the first, each with an interval; or why
+    // it is not a pair, where both runs were sampled.
+    struct Matched {
+        size_t run = 0;
+        std::vector<MatchedDifference> differences;
+        std::string why;
+    };
+    std::vector<Matched> matched;
 };
 
 Comparison compare_runs(std::vector<ComparedRun> runs);

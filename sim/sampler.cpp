@@ -855,6 +855,17 @@ json Sampler::report(Cycle end_cycle) {
         return e;
     };
     if (reference_) out["reference"] = reference_->summary;
+    // What the regression ran over, for estimates made later from sampled_units.csv (rtsim
+    // compare's matched differences): its population and each auxiliary's total there, named as
+    // the table's columns.
+    {
+        json totals = json::object();
+        const char* const names[] = {"work", skip ? "new_line_rays" : "new_lines", "node_steps",
+                                     "rays", "functional_capacity_misses"};
+        for (size_t k = 0; k < aux.size() && k < std::size(names); ++k)
+            totals[names[k]] = aux[k].total;
+        out["regression"] = {{"population", population}, {"totals", totals}};
+    }
     // The frame's cycles after its last hand-out: the run's own drain, corrected by the
     // reference's (sim/reference.h).
     const double drain =
@@ -1000,6 +1011,8 @@ std::string Sampler::units_csv() const {
     std::string out = "unit,work,new_lines,node_steps,rays,cycles";
     if (new_line_rays) out += ",new_line_rays";
     if (capacity) out += ",functional_capacity_misses";
+    // Design `work`: which units were measured outright, and the units each stands for.
+    if (params_.by_work) out += ",certainty,design_weight";
     for (const auto& n : names) out += "," + n;
     out += "\n";
     for (size_t i = 0; i < cycles_.size(); ++i) {
@@ -1022,6 +1035,9 @@ std::string Sampler::units_csv() const {
                            unit_index_[i] < functional_l2_.unit_capacity_misses.size()
                                ? functional_l2_.unit_capacity_misses[unit_index_[i]]
                                : 0);
+        if (params_.by_work)
+            fmt::format_to(to, ",{},{}", design_->certainty_unit(unit_index_[i]) ? 1 : 0,
+                           design_->design_weight(unit_index_[i]));
         for (const auto& c : cols) append_csv_number(out, c[i]);
         out += "\n";
     }
