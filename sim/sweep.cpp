@@ -361,6 +361,10 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
         if (f.sweep_table) head.push_back(f.name);
     table.push_back(head);
     std::string csv;
+    // Sampled points carry each estimate's 95% half-width (relative, percent) beside it: in the
+    // table, in results.json's "intervals" and in results.csv's "<figure> +-%" columns. An
+    // estimate with no interval the data support shows as inf (null in JSON).
+    bool sampled_columns = false;
     for (size_t i = 0; i < plan.points.size(); ++i) {
         const SweepPoint& p = plan.points[i];
         const std::string stats_path = (fs::path(out_dir) / p.name / "stats.json").string();
@@ -372,16 +376,32 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
         for (const Figure& f : figures)
             figs[f.name] = std::isnan(f.value) ? json(nullptr) : json(f.value);
         row["figures"] = figs;
+        std::vector<double> interval(figures.size());
+        json intervals = json::object();
+        for (size_t k = 0; k < figures.size(); ++k) {
+            interval[k] = interval_pct(figure_list()[k], run.stats);
+            if (!std::isnan(interval[k]))
+                intervals[figures[k].name] =
+                    std::isfinite(interval[k]) ? json(interval[k]) : json(nullptr);
+        }
+        if (!intervals.empty()) row["intervals"] = intervals;
         results.push_back(row);
         std::vector<std::string> cells;
         for (const auto& kv : p.values) cells.push_back(kv.second);
         for (size_t k = 0; k < figures.size(); ++k)
             if (figure_list()[k].sweep_table)
-                cells.push_back(format_figure(figures[k].value, figures[k].percent));
+                cells.push_back(format_figure(figures[k].value, figures[k].percent) +
+                                (std::isnan(interval[k]) ? std::string()
+                                                         : fmt::format(" +-{:.1f}%", interval[k])));
         table.push_back(cells);
         if (i == 0) {
+            sampled_columns = run.stats.contains("sampling");
             std::vector<std::string> names = plan.keys;
             for (const Figure& f : figures) names.push_back(f.name);
+            if (sampled_columns)
+                for (size_t k = 0; k < figures.size(); ++k)
+                    if (!figure_list()[k].sampled.empty())
+                        names.push_back(figures[k].name + " +-%");
             for (size_t k = 0; k < names.size(); ++k) csv += (k ? "," : "") + names[k];
             csv += "\n";
         }
@@ -389,6 +409,11 @@ void write_results(const SweepOptions& opt, const SweepPlan& plan, const std::st
         for (const auto& kv : p.values) line += (line.empty() ? "" : ",") + kv.second;
         for (const Figure& f : figures)
             line += "," + (std::isnan(f.value) ? std::string() : fmt::format("{}", f.value));
+        if (sampled_columns)
+            for (size_t k = 0; k < figures.size(); ++k)
+                if (!figure_list()[k].sampled.empty())
+                    line += "," + (std::isnan(interval[k]) ? std::string()
+                                                           : fmt::format("{}", interval[k]));
         csv += line + "\n";
     }
     write_file_atomically(

@@ -1998,6 +1998,15 @@ TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
     EXPECT_EQ(ref["sampling"]["period_units"], 1);
     const json table = json::parse(std::ifstream(out / "results.json"));
     ASSERT_EQ(table["points"].size(), 2u);
+    // Each sampled point's estimates carry their intervals into the table, JSON and CSV: the
+    // cycles' half-width, as the point's own stats.json has it.
+    const std::string csv = slurp(out / "results.csv");
+    EXPECT_NE(csv.find(",cycles +-%"), std::string::npos) << csv.substr(0, 300);
+    for (const json& p : table["points"]) {
+        const json s = stats_of(out / p["point"].get<std::string>());
+        EXPECT_DOUBLE_EQ(p["intervals"]["cycles"].get<double>(),
+                         s["sampling"]["total_cycles"]["half_width_pct"].get<double>());
+    }
     // The two points, running at once with one plan, ran the reference's sample once.
     int ran = 0;
     for (size_t i = 0; i < 2; ++i) {
