@@ -611,6 +611,15 @@ TEST(Sampling, FewUnitsTakeTheLargerOfTheJackknifeAndTheModelsVariance) {
     EXPECT_NEAR(many.half_width, student_t_quantile(0.975, 24) * std::sqrt(jk), 1e-6);
 }
 
+// A recorded every-unit table in tests/data/sampling/ (empty, with a failure, when unreadable).
+UnitTable recorded_units(const std::string& name) {
+    const std::string path = std::string(RTSIM_SOURCE_DIR) + "/tests/data/sampling/" + name;
+    std::ifstream in(path);
+    EXPECT_TRUE(in) << path;
+    if (!in) return {};
+    return parse_units_csv(std::string(std::istreambuf_iterator<char>(in), {}), path);
+}
+
 // A recorded sparse frame: every 8-tile unit of a 1080p elephant frame of AO rays (4,050 units,
 // 378 with rays; tests/data/sampling/, written by two runs that measured every unit: the
 // design with box and triangle units twice as slow, and the default as its reference). Samples
@@ -621,12 +630,7 @@ TEST(Sampling, FewUnitsTakeTheLargerOfTheJackknifeAndTheModelsVariance) {
 // the nominal 95%. In the order paired runs now cut strata from (each run of 4 strata by work per
 // cycle, balance_unit_order), 95.2% and 96.0%.
 TEST(Sampling, AFewUnitsWithRaysCoverAtTheirNominalRate) {
-    const std::string path =
-        std::string(RTSIM_SOURCE_DIR) + "/tests/data/sampling/elephant_ao_1080p_u8_units.csv";
-    std::ifstream in(path);
-    ASSERT_TRUE(in) << path;
-    const UnitTable table =
-        parse_units_csv(std::string(std::istreambuf_iterator<char>(in), {}), path);
+    const UnitTable table = recorded_units("elephant_ao_1080p_u8_units.csv");
     ASSERT_EQ(table.rows, 378u);
     const size_t N = 4050;
     // The columns regressed on, in a paired run's order.
@@ -1147,12 +1151,7 @@ TEST(SampleDesignWork, CertaintyUnitsAreTheHeaviestAndTheRestSpansTheWork) {
 // coverage, without the simulation's. In frame order a 1-in-50 sample meets 1-2 units with node
 // steps; before degenerate fits were ruled out, it gave zero-width intervals.
 TEST(SampleDesignWork, ASkewedRecordedFrameIsCoveredAtItsNominalRate) {
-    const std::string path = std::string(RTSIM_SOURCE_DIR) +
-                             "/tests/data/sampling/fandisk_diffuse_1024x768_u4_units.csv";
-    std::ifstream in(path);
-    ASSERT_TRUE(in) << path;
-    const UnitTable table =
-        parse_units_csv(std::string(std::istreambuf_iterator<char>(in), {}), path);
+    const UnitTable table = recorded_units("fandisk_diffuse_1024x768_u4_units.csv");
     ASSERT_EQ(table.rows, 736u);
     const size_t N = 3072;
     const std::vector<std::string> names = {"work", "new_line_rays", "node_steps", "rays"};
