@@ -1120,9 +1120,16 @@ TEST(Sampled, SampleOrderMustBeAnEveryUnitRunOfTheSameUnits) {
 // --target-error with a reference: the pilot is paired too (its own matched sample), so the
 // period it picks is sized by the pair's spread, and the run meets the target.
 TEST(Sampled, ReferenceWithTargetError) {
-    const fs::path ref = make_reference("target_ref");
+    // 192x192: the 96x96 frame's 72 units are too few (its plan needs 30 units, two thirds of
+    // the rays, and runs in full).
+    std::string frame = kPairFrame;
+    frame.replace(frame.find("96x96"), 5, "192x192");
+    const fs::path ref = work_dir() / "target_ref";
+    fs::remove_all(ref);
+    ASSERT_EQ(run_rtsim(frame + "--set sim.sample_period_units=1 -o '" + ref.string() + "'").status,
+              0);
     const fs::path out = work_dir() / "target_paired";
-    const Result r = run_rtsim(kPairFrame +
+    const Result r = run_rtsim(frame +
                                "--set box_unit.latency_cycles=16 --set sim.sample_period_units=4 "
                                "--target-error 2 --reference '" +
                                ref.string() + "' -o '" + out.string() + "'");
