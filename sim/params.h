@@ -46,6 +46,8 @@ struct SimParams {
     // A paired run's (--reference) unit size and warm-up, in place of the three above.
     uint64_t sample_paired_unit_tiles = 8, sample_paired_warmup_tiles = 1,
              sample_paired_warmup_tile_rays = 0;
+    // The warm-up holds at least this many times the chip's ray slots (unpaired; paired).
+    uint64_t sample_warmup_slot_fills = 2, sample_paired_warmup_slot_fills = 0;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -446,7 +446,8 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     // The child is not paired: it is given this run's (paired) units and warm-up as its own.
     ref_cfg["sim"]["sample_unit_tiles"] = sp.unit_tiles;
     ref_cfg["sim"]["sample_warmup_tiles"] = sp.warmup_tiles;
-    ref_cfg["sim"]["sample_warmup_tile_rays"] = sp.warmup_tile_rays;
+    ref_cfg["sim"]["sample_warmup_tile_rays"] = sp.warmup_tile_rays;  // fills included
+    ref_cfg["sim"]["sample_warmup_slot_fills"] = 0;
     // The order the strata were cut from is the plan's too.
     const uint64_t order_hash =
         sp.unit_order.empty()

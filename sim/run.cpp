@@ -103,6 +103,12 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     sp.unit_tiles = paired ? s.sample_paired_unit_tiles : s.sample_unit_tiles;
     sp.warmup_tiles = paired ? s.sample_paired_warmup_tiles : s.sample_warmup_tiles;
     sp.warmup_tile_rays = paired ? s.sample_paired_warmup_tile_rays : s.sample_warmup_tile_rays;
+    // At least so many fills of the chip's ray slots (sim.sample_warmup_slot_fills), so that a
+    // large chip's slots are full when a unit starts.
+    const uint64_t fills = paired ? s.sample_paired_warmup_slot_fills : s.sample_warmup_slot_fills;
+    sp.warmup_tile_rays =
+        std::max<uint64_t>(sp.warmup_tile_rays, fills * uint64_t(cfg.typed.core_count) *
+                                                    uint64_t(cfg.typed.core.ray_slots));
     return sp;
 }
 

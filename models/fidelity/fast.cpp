@@ -26,7 +26,8 @@ RTSIM_REGISTER(FidelityEntry,
                 {"sample_unit_rays", "sample_period_units", "sample_warmup_rays",
                  "sample_fast_forward", "sample_unit_tiles", "sample_warm_tiles",
                  "sample_warmup_tiles", "sample_warmup_tile_rays", "sample_paired_unit_tiles",
-                 "sample_paired_warmup_tiles", "sample_paired_warmup_tile_rays"},
+                 "sample_paired_warmup_tiles", "sample_paired_warmup_tile_rays",
+                 "sample_warmup_slot_fills", "sample_paired_warmup_slot_fills"},
                 &make_fast})
 
 }  // namespace rtsim

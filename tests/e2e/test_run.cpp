@@ -649,7 +649,8 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
         "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
         "--set sim.sample_design=systematic --set sim.sample_period_units=4 "
         "--set sim.sample_unit_tiles=2 --set sim.sample_warm_tiles=2 "
-        "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_tile_rays=0 --bvh-cache '" +
+        "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_tile_rays=0 "
+        "--set sim.sample_warmup_slot_fills=0 --bvh-cache '" +
         cache.string() + "' ";
     const fs::path full = work_dir() / "kf", a = work_dir() / "ka", b = work_dir() / "kb";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
