@@ -238,26 +238,23 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     const double pilot_period = sm["period_units"].get<double>();
     const double detailed =
         std::min(1.0, sm.value("detailed_share", 0.0) * pilot_period / double(sp.period_units));
-    if (needed >= kFullRunShare * drawable || detailed >= kFullRunShare)
-        return {{"target_error_pct", opt.target_error_pct},
-                {"pilot_period_units", sm["period_units"]},
-                {"pilot_units_measured", n_pilot},
-                {"pilot_half_width_pct", worst},
-                {"units_needed", needed},
-                {"in_full", true},
-                {"detailed_share_planned", detailed},
-                {"note", fmt::format("the plan needed {:.0f} of {:.0f} units ({:.0f}% of the rays "
-                                     "in detail): sampling cannot beat the full run, so the frame "
-                                     "ran in full, exact",
-                                     needed, drawable, 100 * detailed)},
-                {"pilot_host_s", pilot["host"]["run_time_s"]}};
-    return {{"target_error_pct", opt.target_error_pct},
-            {"pilot_period_units", sm["period_units"]},
-            {"pilot_units_measured", n_pilot},
-            {"pilot_half_width_pct", worst},
-            {"units_needed", needed},
-            {"period_units", sp.period_units},
-            {"pilot_host_s", pilot["host"]["run_time_s"]}};
+    json plan = {{"target_error_pct", opt.target_error_pct},
+                 {"pilot_period_units", sm["period_units"]},
+                 {"pilot_units_measured", n_pilot},
+                 {"pilot_half_width_pct", worst},
+                 {"units_needed", needed},
+                 {"pilot_host_s", pilot["host"]["run_time_s"]}};
+    if (needed >= kFullRunShare * drawable || detailed >= kFullRunShare) {
+        plan.update({{"in_full", true},
+                     {"detailed_share_planned", detailed},
+                     {"note", fmt::format("the plan needed {:.0f} of {:.0f} units ({:.0f}% of the "
+                                          "rays in detail): sampling cannot beat the full run, so "
+                                          "the frame ran in full, exact",
+                                          needed, drawable, 100 * detailed)}});
+    } else {
+        plan["period_units"] = sp.period_units;
+    }
+    return plan;
 }
 
 // Whether the frame's cycles and DRAM bytes came within the target.
