@@ -526,4 +526,11 @@ nlohmann::json Core::packet_report(const std::vector<const Core*>& cores) {
             {"lane_utilization", ReportContext::ratio(double(active), double(slots))}};
 }
 
+std::vector<std::string> stall_causes() {
+    std::vector<std::string> causes;
+    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
+    causes.push_back("no_work");
+    return causes;
+}
+
 }  // namespace rtsim

@@ -372,4 +372,8 @@ class CoreScheduler : public ChipDriver {
     CycleKeys keys_;
 };
 
+// The stall causes of stats.json's "stalls" shares, in report order: the cores' causes
+// (Core::stall_name), then "no_work" (slot cycles without a ray).
+std::vector<std::string> stall_causes();
+
 }  // namespace rtsim

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Sampled simulation (sim.fidelity = sampled) against the full run of the same frame.
+"""Sampled simulation (sim.sampled = true) against the full run of the same frame.
 
 For each scene x workload (primary, AO, one diffuse bounce, a 2-bounce diffuse path) the frame
 runs once in full (the fast model, the truth here) and then sampled:
@@ -28,7 +28,7 @@ With --design-set (repeatable) the design simulated, full and sampled, is the de
 with those fields changed. With --reference-set (repeatable; --skip only) each sampled run is
 paired with a reference design, the default config with those fields changed (none: the default
 itself): the reference measures every unit of each frame once, untimed (its cost listed), and
-every sampled run passes --reference (sim/reference.h), which samples the reference design on
+every sampled run passes --reference (sim/sampling/reference.h), which samples the reference design on
 the same units (a child run, once per seed and period: in a sweep of designs with one seed it is
 paid once, so its seconds are listed apart and left out of the run's host time). Writes
 sampled.* (or --name).
@@ -273,7 +273,7 @@ def main(argv=None):
             scene, wl, mode, k = job
             extra = []
             if mode != "full":
-                extra = ["--set", "sim.fidelity=sampled",
+                extra = ["--set", "sim.sampled=true",
                          "--set", f"sim.sample_unit_rays={args.unit_rays}"] + sets
                 extra += ["--set", f"sim.sample_design={args.design}"]
                 # A systematic sample is fixed by its start; a stratified one by its seed.
@@ -307,7 +307,7 @@ def main(argv=None):
         if args.skip:
             for scene in scenes:
                 for wl in workloads:
-                    st = run_stats(args.rtsim, frame(scene, wl) + ["--set", "sim.fidelity=sampled"]
+                    st = run_stats(args.rtsim, frame(scene, wl) + ["--set", "sim.sampled=true"]
                                    + sets, os.path.join(tmp, f"profile-{scene}-{wl}"),
                                    "bench_sampled")
                     profiles[(scene, wl)] = st["sampling"]["profile"]["seconds"]
@@ -318,7 +318,7 @@ def main(argv=None):
                                      "--bvh-cache", os.path.join(tmp, "bvh")] + WORKLOADS[wl])
                         d = os.path.join(tmp, f"reference-{scene}-{wl}")
                         st = run_stats(args.rtsim, ref_args + reference + sets
-                                       + ["--set", "sim.fidelity=sampled",
+                                       + ["--set", "sim.sampled=true",
                                           "--set", "sim.sample_period_units=1"], d,
                                        "bench_sampled")
                         references[(scene, wl)] = (d, st["host"]["run_time_s"])
@@ -327,7 +327,7 @@ def main(argv=None):
                         # a paired run with a seed the timed runs do not use.
                         period = periods[0] if periods else 50
                         run_stats(args.rtsim, frame(scene, wl) + sets
-                                  + ["--set", "sim.fidelity=sampled",
+                                  + ["--set", "sim.sampled=true",
                                      "--set", f"sim.sample_period_units={period}",
                                      "--set", "sim.sample_seed=1000000", "--reference", d],
                                   os.path.join(tmp, f"profile-paired-{scene}-{wl}"),

@@ -117,7 +117,7 @@ def main(argv=None):
             full = run_stats(a.rtsim, base, os.path.join(tmp, f"f{fi}_full"), "eval_sampled")
             truth = {"cycles": float(full["total_cycles"]),
                      "dram": float(full["bandwidth"]["dram"]["bytes"])}
-            sampled = base + ["--set", "sim.fidelity=sampled",
+            sampled = base + ["--set", "sim.sampled=true",
                               "--set", "sim.sample_fast_forward=skip"]
             # The profile, once per frame, untimed (cached for the runs below).
             t0 = time.time()

@@ -9,7 +9,7 @@ truth; against it:
   resample TRUTH.csv [--periods 10,20,100] [--seeds 200]
       draws the sampled runs' own design (one unit at random in each run of P units) from the
       truth and estimates the frame's cycles with the same regression and jackknife interval as
-      sim/sampling.cpp (re-implemented here, independently), seed after seed: the sample's own
+      sim/sampling/estimators.cpp (re-implemented here, independently), seed after seed: the sample's own
       error, mean absolute and signed, and the intervals' coverage, with no simulation error.
       Also the residual of the regression fitted on every unit, over the mean unit's cycles.
       --reference REF.csv pairs it with a reference design's per-unit truth of the same frame
@@ -35,7 +35,7 @@ import statistics
 import sys
 
 # The regression's auxiliaries, in order: the skip design's units carry new_line_rays (the rays
-# that fetched their new lines), which sim/sampler.cpp fits in place of new_lines.
+# that fetched their new lines), which sim/sampling/sampler.cpp fits in place of new_lines.
 AUX = ["work", "new_lines", "node_steps", "rays"]
 
 
@@ -50,8 +50,8 @@ def aux_of(rows):
     return aux
 
 
-MIN_UNITS_WITH_CAPACITY_MISSES = 4  # sim/sampler.cpp, report
-MIN_UNITS_PER_AUX = 4  # sim/sampling.cpp: auxiliary k only with 4 k informative units
+MIN_UNITS_WITH_CAPACITY_MISSES = 4  # sim/sampling/sampler.cpp, report
+MIN_UNITS_PER_AUX = 4  # sim/sampling/estimators.cpp: auxiliary k only with 4 k informative units
 MAX_WEIGHT_SHIFT = 10.0
 
 
@@ -163,7 +163,7 @@ def regression_total(y, X, totals, N):
 
 
 def sample_design(sample, aux, totals):
-    """The measured units' auxiliaries and their totals, as sim/sampler.cpp fits them: the
+    """The measured units' auxiliaries and their totals, as sim/sampling/sampler.cpp fits them: the
     capacity misses only where at least 4 measured units had some."""
     keep = [k for k, a in enumerate(aux)
             if a != "functional_capacity_misses"

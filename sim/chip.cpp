@@ -59,9 +59,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
         l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
     l2 = std::make_unique<Cache>("l2", l2p, dram_regions.get(), kLevelL2);
-    // A sampled run regresses the DRAM traffic on the BVH's compulsory misses (sim/sampler.h).
-    if (P.sim.fidelity == "sampled")
-        l2->count_first_fills(layout.fetch_begin(), layout.fetch_end());
+    // A sampled run regresses the DRAM traffic on the BVH's compulsory misses
+    // (sim/sampling/sampler.h).
+    if (P.sim.sampled) l2->count_first_fills(layout.fetch_begin(), layout.fetch_end());
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();

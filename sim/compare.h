@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "sim/figures.h"
-#include "sim/matched.h"
+#include "sim/sampling/matched.h"
 
 namespace rtsim {
 

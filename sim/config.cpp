@@ -1,4 +1,5 @@
 #include "sim/config.h"
+#include "sim/sampling/sampler.h"
 
 #include "models/dram_device.h"
 
@@ -133,6 +134,20 @@ const char* removed_key(const std::string& path) {
     return nullptr;
 }
 
+// Values that configs once had, read as what they meant. sim.fidelity = sampled was the fast
+// engine sampled, before sampling became a layer over either engine (sim.sampled).
+bool is_legacy_sampled(const json& fidelity) {
+    return fidelity.is_string() && fidelity.get<std::string>() == "sampled";
+}
+void upgrade_legacy_values(json& j) {
+    if (!j.is_object() || !j.contains("sim") || !j["sim"].is_object()) return;
+    json& sim = j["sim"];
+    if (sim.contains("fidelity") && is_legacy_sampled(sim["fidelity"])) {
+        sim["fidelity"] = "fast";
+        if (!sim.contains("sampled")) sim["sampled"] = true;
+    }
+}
+
 // Validates a (partial) config object against the schema node; `where` names the source.
 void validate(const json& schema_node, const json& v, const std::string& path,
               const std::string& where) {
@@ -180,6 +195,7 @@ void load_chain(const std::string& path, json& out, std::vector<std::string>& fi
     if (chain.size() > 32)
         throw InputError(fmt::format("{}: extends: chain deeper than 32 files", path));
     json j = read_json_file(path, "config file");
+    upgrade_legacy_values(j);
     validate(config_schema(), j, "", path);
     if (j.contains("extends")) {
         if (!j["extends"].is_string())
@@ -272,11 +288,12 @@ void validate_cross(const json& c, const std::string& where) {
             "sim.sample_design=systematic (a stratified sample draws one unit per period; "
             "sim.sample_seed picks another draw)",
             where));
-    if (c["sim"]["sample_design"] == "work" && c["sim"]["sample_fast_forward"] != "skip")
+    if (SampleDesignRegistry::at(c["sim"]["sample_design"]).needs_profile &&
+        !FastForwardRegistry::at(c["sim"]["sample_fast_forward"]).needs_profile)
         throw InputError(fmt::format(
-            "{}: sim.sample_design=work: needs sim.sample_fast_forward=skip (the units' work comes "
+            "{}: sim.sample_design={}: needs sim.sample_fast_forward=skip (the units' work comes "
             "from the frame's profile)",
-            where));
+            where, c["sim"]["sample_design"].get<std::string>()));
     if (c["sim"]["sample_first_unit"].get<int64_t>() >=
         c["sim"]["sample_period_units"].get<int64_t>())
         throw InputError(fmt::format(
@@ -322,6 +339,10 @@ Config load_config(const std::string& path, const std::vector<std::string>& sets
                 fmt::format("{}: {}: is a section; set one of its fields", where, key));
         json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
         if (value.is_discarded()) value = text;  // bare words are strings: --set bvh.builder=sah
+        if (key == "sim.fidelity" && is_legacy_sampled(value)) {
+            value = "fast";
+            cfg.values["sim"]["sampled"] = true;
+        }
         const std::string why = check_leaf(*field, value);
         if (!why.empty())
             throw InputError(

@@ -8,7 +8,7 @@
 #include <utility>
 #include <vector>
 
-#include "sim/sampler.h"
+#include "sim/sampling/sampler.h"
 #include "workloads/reduced_box.h"
 
 namespace rtsim {

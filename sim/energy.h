@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sim/params.h"
-#include "sim/sampling.h"
+#include "sim/sampling/estimators.h"
 
 namespace rtsim {
 

@@ -46,12 +46,12 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
         ->check(CLI::Range(1, 256));
     run_cmd
         ->add_option("--target-error", run.target_error_pct,
-                     "With sim.fidelity=sampled: the 95% interval wanted on the frame's cycles "
+                     "With sim.sampled=true: the 95% interval wanted on the frame's cycles "
                      "and DRAM bytes, in percent; a pilot sample sizes the rest")
         ->check(CLI::Range(0.01, 100.0));
     run_cmd->add_option(
         "--reference", run.reference_dir,
-        "With sim.fidelity=sampled and sim.sample_fast_forward=skip: the output folder of a run "
+        "With sim.sampled=true and sim.sample_fast_forward=skip: the output folder of a run "
         "of a reference design on the same frame that measured every unit "
         "(sim.sample_period_units=1); the reference design is sampled on the same units and "
         "each figure is estimated from the pair, with a far narrower interval for designs near "
@@ -60,7 +60,7 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
         "merged to them (its units must divide them)");
     run_cmd->add_option(
         "--sample-order", run.sample_order_dir,
-        "With sim.fidelity=sampled and sim.sample_fast_forward=skip: cut the strata (one "
+        "With sim.sampled=true and sim.sample_fast_forward=skip: cut the strata (one "
         "measured unit in each sim.sample_period_units) from the frame's units in order of their "
         "cycles in DIR, the output folder of a run that measured every unit of the frame "
         "(sim.sample_period_units=1) in units that divide this run's (merged to them), instead "

@@ -182,6 +182,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.ideal_units", M(sim.ideal_units), 1, kNotMirrored),
         field("sim.window_cycles", M(sim.window_cycles), 1, kNotMirrored),
         field("sim.fidelity", M(sim.fidelity), 1, kNotMirrored),
+        field("sim.sampled", M(sim.sampled)),
         field("sim.sample_unit_rays", M(sim.sample_unit_rays)),
         field("sim.sample_period_units", M(sim.sample_period_units)),
         field("sim.sample_warmup_rays", M(sim.sample_warmup_rays)),

@@ -32,8 +32,8 @@ struct SimParams {
     bool ideal_memory = false;
     bool ideal_units = false;
     uint64_t window_cycles = 0;  // time series windows; 0: none
-    std::string fidelity;        // a registered fidelity level
-    // sim.fidelity = sampled (sim/sampler.h)
+    std::string fidelity;        // a registered fidelity level: the engine that times the rays
+    bool sampled = false;        // sample the frame on that engine (sim/sampling/sampler.h)
     uint64_t sample_unit_rays = 1024, sample_period_units = 10, sample_warmup_rays = 512;
     int64_t sample_first_unit = -1;  // -1: drawn from the seed
     std::string sample_design = "stratified";

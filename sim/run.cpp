@@ -21,9 +21,10 @@
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/mem_trace.h"
-#include "sim/reference.h"
+#include "sim/paired_run.h"
 #include "sim/run_report.h"
-#include "sim/sampler.h"
+#include "sim/sampling/reference.h"
+#include "sim/sampling/sampler.h"
 #include "sim/work_sources.h"
 #include "workloads/bvh_cache.h"
 #include "workloads/error.h"
@@ -92,9 +93,8 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     sp.warmup_rays = s.sample_warmup_rays;
     sp.seed = s.sample_seed ? s.sample_seed : opt.workload.gen.seed;
     sp.first_unit = s.sample_first_unit;
-    sp.stratified = s.sample_design != "systematic";
-    sp.by_work = s.sample_design == "work";
-    sp.skip = s.sample_fast_forward == "skip";
+    SampleDesignRegistry::at(s.sample_design).configure(sp);
+    sp.skip = FastForwardRegistry::at(s.sample_fast_forward).needs_profile;
     sp.warm_tiles = s.sample_warm_tiles;
     // A paired run's regression on its reference's same units takes up most of what a short
     // warm-up leaves (sim.sample_paired_warmup_tiles), and its units can be larger
@@ -319,25 +319,26 @@ int run_command(const RunOptions& opt) {
     const double cpu_start = process_cpu_seconds();
     const Config cfg = load_config(opt.config_path, opt.sets);
     check_config_combination(cfg, opt.trace_path);
-    if (opt.target_error_pct > 0 && cfg.typed.sim.fidelity != "sampled")
-        throw InputError(fmt::format(
-            "--target-error: needs sim.fidelity=sampled (this config runs {}); add --set "
-            "sim.fidelity=sampled",
-            cfg.typed.sim.fidelity));
+    if (opt.target_error_pct > 0 && !cfg.typed.sim.sampled)
+        throw InputError(
+            "--target-error: needs a sampled run (this config runs the whole frame); add --set "
+            "sim.sampled=true");
     const bool progress = !opt.quiet && isatty(STDERR_FILENO);
 
-    bool sampled = cfg.typed.sim.fidelity == "sampled";
-    if (!opt.reference_dir.empty() && (!sampled || cfg.typed.sim.sample_fast_forward != "skip"))
+    bool sampled = cfg.typed.sim.sampled;
+    const bool skip_layer =
+        FastForwardRegistry::at(cfg.typed.sim.sample_fast_forward).needs_profile;
+    if (!opt.reference_dir.empty() && (!sampled || !skip_layer))
         throw InputError(fmt::format(
-            "--reference {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (the "
+            "--reference {}: needs sim.sampled=true and sim.sample_fast_forward=skip (the "
             "reference's units are groups of tiles)",
             opt.reference_dir));
-    if (!opt.sample_order_dir.empty() && (!sampled || cfg.typed.sim.sample_fast_forward != "skip"))
+    if (!opt.sample_order_dir.empty() && (!sampled || !skip_layer))
         throw InputError(fmt::format(
-            "--sample-order {}: needs sim.fidelity=sampled and sim.sample_fast_forward=skip (it "
+            "--sample-order {}: needs sim.sampled=true and sim.sample_fast_forward=skip (it "
             "orders units of tiles)",
             opt.sample_order_dir));
-    if (sampled && cfg.typed.sim.sample_design == "work" &&
+    if (sampled && SampleDesignRegistry::at(cfg.typed.sim.sample_design).needs_profile &&
         (!opt.reference_dir.empty() || !opt.sample_order_dir.empty()))
         throw InputError(fmt::format(
             "{}: cannot be combined with sim.sample_design=work (which orders the units by their "
@@ -373,23 +374,21 @@ int run_command(const RunOptions& opt) {
     Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
     if (sampled) {
-        sampler = std::make_unique<Sampler>(sp, chip.core_memories, chip.stats, w.design);
-        std::vector<const Core*> cores;
-        for (const auto& core : chip.cores) cores.push_back(core.get());
-        sampler->set_write_warming(std::move(cores));
-        const BvhLayout& L = w.layout();
-        if (reference) sampler->set_reference(reference.get());
-        sampler->set_cache_sizes(
-            uint32_t(cfg.typed.l2.line_bytes),
-            chip.dram->bytes_moved(uint32_t(cfg.typed.l2.line_bytes)),
-            cfg.typed.l1.size_bytes / cfg.typed.l1.line_bytes, cfg.typed.l1.replacement == "lru",
-            cfg.typed.l2.replacement == "lru", uint32_t(cfg.typed.l1.line_bytes),
-            cfg.typed.l2.sets(), uint32_t(cfg.typed.l2.ways));
-        if (w.profile)  // the skip design: the frame's lines are the profile's
-            sampler->set_profile(w.profile.get(), chip.l2.get(), w.cache_dir);
-        else
-            sampler->set_line_range(L.fetch_begin(), L.fetch_end(),
-                                    uint32_t(cfg.typed.l2.line_bytes));
+        SampledChip view;
+        view.ports = chip.core_memories;
+        view.counters = &chip.stats;
+        for (const auto& core : chip.cores) view.cores.push_back(core.get());
+        view.l1 = chip.l1.front().get();
+        view.l2 = chip.l2.get();
+        view.dram_bytes_per_l2_fill = chip.dram->bytes_moved(chip.l2->params().line_bytes);
+        SampledFrame frame;
+        frame.design = w.design;
+        frame.profile = w.profile.get();
+        frame.reference = reference.get();
+        frame.cache_dir = w.cache_dir;
+        frame.fetch_begin = w.layout().fetch_begin();
+        frame.fetch_end = w.layout().fetch_end();
+        sampler = make_sampler(cfg.typed.sim.sample_fast_forward, sp, view, frame);
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

@@ -22,8 +22,8 @@ struct RunOptions {
     std::string trace_path;        // replay this trace instead of generating rays
     std::string out_dir;           // empty: a fresh folder under out/
     std::string bvh_cache;         // --bvh-cache: "off", a folder, or empty for the default
-    double target_error_pct = 0;   // --target-error (sim.fidelity = sampled)
-    std::string reference_dir;     // --reference: matched-pair sampling (sim/reference.h)
+    double target_error_pct = 0;   // --target-error (sim.sampled = true)
+    std::string reference_dir;     // --reference: matched-pair sampling (sim/sampling/reference.h)
     std::string sample_order_dir;  // --sample-order: strata cut from units ordered by its cycles
     bool quiet = false;
     int tracer_threads = 1;      // --tracer-threads: threads generating and tracing rays

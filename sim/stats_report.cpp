@@ -11,13 +11,6 @@ namespace rtsim {
 
 using nlohmann::json;
 
-std::vector<std::string> stall_causes() {
-    std::vector<std::string> causes;
-    for (int k = 0; k < Core::kStallKinds; ++k) causes.push_back(Core::stall_name(k));
-    causes.push_back("no_work");
-    return causes;
-}
-
 std::string stall_cause_label(const std::string& cause) {
     if (cause == "l1" || cause == "l2" || cause == "dram") {
         std::string upper = cause;

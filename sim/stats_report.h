@@ -12,9 +12,6 @@
 
 namespace rtsim {
 
-// The stall causes of stats.json's "stalls" shares, in report order: the cores' causes
-// (Core::stall_name), then "no_work" (slot cycles without a ray).
-std::vector<std::string> stall_causes();
 // A cause as people read it: "L1", "DRAM", "box unit".
 std::string stall_cause_label(const std::string& cause);
 

@@ -1,5 +1,7 @@
 #include "sim/sweep.h"
 
+#include "sim/sampling/sampler.h"
+
 #include <cerrno>
 #include <csignal>
 
@@ -209,10 +211,10 @@ SweepPlan plan_sweep(const std::string& path) {
                     "reference: needs a workload (a reference's units are tiles of a generated "
                     "frame)");
             const Config base = load_config(base_config, fixed_sets);
-            if (base.typed.sim.fidelity != "sampled" ||
-                base.typed.sim.sample_fast_forward != "skip")
+            if (!base.typed.sim.sampled ||
+                !FastForwardRegistry::at(base.typed.sim.sample_fast_forward).needs_profile)
                 fail(
-                    "reference: the base design must set sim.fidelity=sampled and "
+                    "reference: the base design must set sim.sampled=true and "
                     "sim.sample_fast_forward=skip");
             SweepPoint r;
             r.name = "reference";

@@ -14,13 +14,14 @@
 //     "reference": true                      sampled sweeps: pair every point with the base
 //   }                                        design (optional; below)
 // With "reference", the base design (config and set, nothing varied; it must set
-// sim.fidelity=sampled and sim.sample_fast_forward=skip) first measures every unit of the frame
-// into OUT/reference/, and every point runs with --reference OUT/reference (sim/reference.h):
-// each point's figures come from the pair, with far narrower intervals for points near the
-// base. The reference's sample with a point's plan is run by the first point with that plan and
-// kept for the others (points starting together wait for it: sim/reference.cpp locks the plan).
-// Besides the table, OUT/plots/ gets a figure per varied axis (each figure of merit against
-// it, a line per value of the other axes) as SVG, and PNG where rsvg-convert is installed.
+// sim.sampled=true and sim.sample_fast_forward=skip) first measures every unit of the frame
+// into OUT/reference/, and every point runs with --reference OUT/reference
+// (sim/sampling/reference.h): each point's figures come from the pair, with far narrower intervals
+// for points near the base. The reference's sample with a point's plan is run by the first point
+// with that plan and kept for the others (points starting together wait for it: sim/paired_run.cpp
+// locks the plan). Besides the table, OUT/plots/ gets a figure per varied axis (each figure of
+// merit against it, a line per value of the other axes) as SVG, and PNG where rsvg-convert is
+// installed.
 #pragma once
 
 #include <nlohmann/json.hpp>

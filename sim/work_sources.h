@@ -19,7 +19,7 @@
 #include "sim/errors.h"
 #include "sim/interrupt.h"
 #include "sim/progress.h"
-#include "sim/sampler.h"
+#include "sim/sampling/sampler.h"
 #include "workloads/bvh.h"
 #include "workloads/error.h"
 #include "workloads/packet.h"
@@ -59,8 +59,8 @@ class CountingSource : public RayWorkSource {
         return true;
     }
 
-    // Sampled simulation: rays pass through `sampler` (sim/sampler.h), which keeps most of them
-    // from the cores.
+    // Sampled simulation: rays pass through `sampler` (sim/sampling/sampler.h), which keeps most of
+    // them from the cores.
     void set_sampler(Sampler* sampler) { sampler_ = sampler; }
 
     void finish_progress() {

@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "models/traversal_mode.h"
+#include "sim/sampling/sampler.h"
 #include "workloads/error.h"
 #include "workloads/reduced_box.h"
 #include "workloads/trace_file.h"
@@ -123,12 +124,13 @@ json open_trace_metadata(TraceReader& reader, const std::string& path) {
 
 void check_config_combination(const Config& cfg, const std::string& trace_path) {
     const TraversalModeEntry& mode = TraversalModeRegistry::at(cfg.typed.traversal.mode);
-    if (cfg.typed.sim.fidelity == "sampled" && (mode.needs_treelets || mode.packets))
-        throw InputError(fmt::format(
-            "sim.fidelity=sampled: not yet with traversal.mode={} (a treelet ray buffer admits "
-            "rays ahead of the cores, a packet spans unit boundaries)",
-            mode.name));
-    if (cfg.typed.sim.fidelity == "sampled" && cfg.typed.sim.sample_fast_forward == "skip" &&
+    if (cfg.typed.sim.sampled && (mode.needs_treelets || mode.packets))
+        throw InputError(
+            fmt::format("sim.sampled: not yet with traversal.mode={} (a treelet ray buffer admits "
+                        "rays ahead of the cores, a packet spans unit boundaries)",
+                        mode.name));
+    if (cfg.typed.sim.sampled &&
+        FastForwardRegistry::at(cfg.typed.sim.sample_fast_forward).needs_profile &&
         !trace_path.empty())
         throw InputError(fmt::format(
             "{}: sim.sample_fast_forward=skip skips tiles before they are traced and needs rays "

@@ -1,8 +1,8 @@
-// What the on-disk caches (built BVHs, workloads/bvh_cache.h; frame profiles, sim/frame_profile.h)
-// share: an entry framed by its format's 8-byte magic and an XXH3-64 checksum of everything before
-// it (CRC-32 at 1-2 GB/s was 8% of a 1-in-100 sampled run that reads 20 MB of entries),
-// its bytes written and read back field by field, a read past the end refused, and an entry
-// stored through a temporary file and a rename.
+// What the on-disk caches (built BVHs, workloads/bvh_cache.h; frame profiles,
+// sim/sampling/frame_profile.h) share: an entry framed by its format's 8-byte magic and an XXH3-64
+// checksum of everything before it (CRC-32 at 1-2 GB/s was 8% of a 1-in-100 sampled run that reads
+// 20 MB of entries), its bytes written and read back field by field, a read past the end refused,
+// and an entry stored through a temporary file and a rename.
 #pragma once
 
 #include <cstdint>
@@ -143,7 +143,7 @@ void store_cache_entry(const std::string& path, const std::string& bytes, const 
 // nothing, and a hit's arrays may stay views of the mapping (MappableArray). Entries are replaced
 // through a rename, never rewritten in place, so the mapped file cannot change under it. Other
 // files read once are mapped through it too: a mesh file hashed for its cache key, and an
-// every-unit run's stats.json and table (sim/reference.cpp).
+// every-unit run's stats.json and table (sim/sampling/reference.cpp).
 class CacheEntryBytes {
   public:
     CacheEntryBytes() = default;

@@ -1,7 +1,7 @@
 // Tiles of a frame generated several at a time on `threads` threads and handed on in frame order,
 // their ray ids numbered through the frame (the tile's first ray follows the last tile's): the ray
 // stream is the same for any thread count. A tile `want` refuses is never generated (a sampled run
-// that skips most of the frame, sim/sampler.h).
+// that skips most of the frame, sim/sampling/sampler.h).
 #pragma once
 
 #include <algorithm>

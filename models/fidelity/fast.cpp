@@ -17,17 +17,4 @@ RTSIM_REGISTER(FidelityEntry,
                 {},
                 &make_fast})
 
-// The same cores, fed a systematic sample of the rays (sim/sampler.h, attached by the run).
-RTSIM_REGISTER(FidelityEntry,
-               {"sampled",
-                "the fast model on one unit of rays in sim.sample_period_units, the rest "
-                "fast-forwarded with functional cache warming; totals estimated with 95% "
-                "confidence intervals (stats.json sampling)",
-                {"sample_unit_rays", "sample_period_units", "sample_warmup_rays",
-                 "sample_fast_forward", "sample_unit_tiles", "sample_warm_tiles",
-                 "sample_warmup_tiles", "sample_warmup_tile_rays", "sample_paired_unit_tiles",
-                 "sample_paired_warmup_tiles", "sample_paired_warmup_tile_rays",
-                 "sample_warmup_slot_fills", "sample_paired_warmup_slot_fills"},
-                &make_fast})
-
 }  // namespace rtsim

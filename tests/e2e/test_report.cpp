@@ -91,7 +91,7 @@ TEST(Report, AComparisonShowsRatiosDifferencesAndIntervals) {
     const fs::path b = run_to("rep_b", "--rays primary --res 32x32 --set l1.size_kib=8");
     const fs::path sampled =
         run_to("rep_s",
-               "--rays ao --res 96x96 --set sim.fidelity=sampled "
+               "--rays ao --res 96x96 --set sim.sampled=true "
                "--set sim.sample_period_units=4 --set sim.sample_unit_rays=128");
     const fs::path out = work_dir() / "cmp.html";
     const Result r = run_rtsim(fmt::format("report '{}' '{}' '{}' --labels base,small,samp -o '{}'",

@@ -125,7 +125,7 @@ TEST(Run, SameInputsGiveIdenticalSimulatedStats) {
 // auxiliaries and hit records) and in packet mode (whose packets end at batch edges).
 TEST(Run, AnyTracerThreadCountGivesIdenticalStats) {
     const std::string common = "run -q --rays primary,ao,diffuse --diffuse-depth 2 --res 96x64 ";
-    for (const std::string extra : {"--set sim.fidelity=sampled --set sim.sample_unit_rays=128 "
+    for (const std::string extra : {"--set sim.sampled=true --set sim.sample_unit_rays=128 "
                                     "--set core.hit_record_bytes=16",
                                     "--set traversal.mode=packet"}) {
         const fs::path a = work_dir() / "one", b = work_dir() / "three";
@@ -297,7 +297,7 @@ TEST(Sampled, MeasuringEveryUnitIsTheFullRun) {
     const fs::path full = work_dir() / "s_full", all = work_dir() / "s_all";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
     ASSERT_EQ(run_rtsim(common +
-                        "--set sim.fidelity=sampled --set sim.sample_period_units=1 "
+                        "--set sim.sampled=true --set sim.sample_period_units=1 "
                         "--set sim.sample_unit_rays=256 -o '" +
                         all.string() + "'")
                   .status,
@@ -345,7 +345,7 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
     const std::string common =
         "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao,diffuse --res 96x96 ";
     const std::string sampled =
-        "--set sim.fidelity=sampled --set sim.sample_design=systematic "
+        "--set sim.sampled=true --set sim.sample_design=systematic "
         "--set sim.sample_period_units=5 --set sim.sample_unit_rays=256 "
         "--set sim.sample_warmup_rays=128 ";
     const fs::path full = work_dir() / "f", a = work_dir() / "a", b = work_dir() / "b",
@@ -437,7 +437,7 @@ TEST(Sampled, SampleOfTheFrameEstimatesItsTotals) {
 // 96x96 frame's 106 units are too few: its 10% plan needs most of them, and runs in full.)
 TEST(Sampled, TargetErrorIsHonoured) {
     const std::string common = "run --scene " RTSIM_BUNNY_OBJ
-                               " --rays primary,ao --res 192x192 --set sim.fidelity=sampled "
+                               " --rays primary,ao --res 192x192 --set sim.sampled=true "
                                "--set sim.sample_unit_rays=128 --set sim.sample_period_units=8 ";
     const fs::path loose = work_dir() / "loose", tight = work_dir() / "tight";
     ASSERT_EQ(run_rtsim(common + "--target-error 40 -o '" + loose.string() + "'").status, 0);
@@ -452,7 +452,7 @@ TEST(Sampled, TargetErrorIsHonoured) {
     EXPECT_GT(l["target"]["period_units"].get<int>(), t["target"]["period_units"].get<int>());
     EXPECT_LT(l["detailed_share"].get<double>(), t["detailed_share"].get<double>());
     expect_one_line_error(run_rtsim("run --res 16x16 --target-error 5"),
-                          "--target-error: needs sim.fidelity=sampled");
+                          "--target-error: needs a sampled run");
 }
 
 // sim.sample_first_unit fixes the systematic sample: the period's starts measure disjoint units
@@ -460,7 +460,7 @@ TEST(Sampled, TargetErrorIsHonoured) {
 // design can draw, which bench_sampled.py uses for the intervals' exact coverage).
 TEST(Sampled, EveryStartTogetherMeasuresTheFrameOnce) {
     const std::string common =
-        "run --scene builtin:sphere --rays primary --res 48x48 --set sim.fidelity=sampled "
+        "run --scene builtin:sphere --rays primary --res 48x48 --set sim.sampled=true "
         "--set sim.sample_design=systematic --set sim.sample_unit_rays=256 "
         "--set sim.sample_period_units=3 ";
     uint64_t measured = 0, units = 0;
@@ -487,7 +487,7 @@ TEST(Sampled, EveryStartTogetherMeasuresTheFrameOnce) {
 // same frame (sim.sample_seed leaves the rays alone).
 TEST(Sampled, StratifiedDesignDrawsOneUnitPerPeriod) {
     const std::string common =
-        "run --scene builtin:sphere --rays primary,ao --res 48x48 --set sim.fidelity=sampled "
+        "run --scene builtin:sphere --rays primary,ao --res 48x48 --set sim.sampled=true "
         "--set sim.sample_unit_rays=256 --set sim.sample_period_units=3 ";
     std::set<int> firsts;
     json first_run;
@@ -518,8 +518,8 @@ TEST(Sampled, StratifiedDesignDrawsOneUnitPerPeriod) {
 
 TEST(Sampled, TreeletModeIsRefusedForNow) {
     expect_one_line_error(run_rtsim("run --config '" + std::string(RTSIM_SOURCE_DIR) +
-                                    "/configs/treelet.json' --set sim.fidelity=sampled"),
-                          "sim.fidelity=sampled: not yet with traversal.mode=treelet");
+                                    "/configs/treelet.json' --set sim.sampled=true"),
+                          "sim.sampled: not yet with traversal.mode=treelet");
 }
 
 namespace {
@@ -554,7 +554,7 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
     const fs::path full = work_dir() / "k_full", all = work_dir() / "k_all";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
     const Result r = run_rtsim(common +
-                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                                "--set sim.sample_period_units=1 --set sim.sample_unit_tiles=2 "
                                "--bvh-cache off -o '" +
                                all.string() + "'");
@@ -604,6 +604,54 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
             << block;
 }
 
+// Sampling is a layer over either engine: on the time-ordered engine a skip run that measures every
+// unit is that engine's full run, counter for counter, and a 1-in-4 sample of a 96x96 frame
+// estimates the full run's cycles within its interval (the truth: the accurate engine's own full
+// run).
+TEST(Sampled, TheAccurateEngineSamplesAsTheFastOneDoes) {
+    // One MSHR per L1: here the fast engine's cycles differ from the accurate engine's, so a
+    // sample run on the wrong engine would show.
+    const std::string chip =
+        "run --scene builtin:sphere --rays primary,ao --res 48x48 --set "
+        "l1.mshrs=1 --set l2.mshrs=2 ";
+    const std::string common = chip + "--set sim.fidelity=accurate ";
+    const fs::path full = work_dir() / "acc_full", all = work_dir() / "acc_all";
+    ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
+    const Result r = run_rtsim(common +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_period_units=1 --set sim.sample_unit_tiles=2 "
+                               "--bvh-cache off -o '" +
+                               all.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json f = stats_of(full), a = stats_of(all);
+    EXPECT_EQ(a["config"]["sim"]["fidelity"], "accurate");
+    EXPECT_EQ(a["sampling"]["units_measured"], 18);
+    EXPECT_EQ(a["sampling"]["simulated_cycles"], f["total_cycles"]);
+    EXPECT_EQ(counters_less_first_fills(a), f["counters"]);
+    const fs::path fast = work_dir() / "acc_fast";
+    ASSERT_EQ(run_rtsim(chip + "-o '" + fast.string() + "'").status, 0);
+    EXPECT_NE(stats_of(fast)["total_cycles"], f["total_cycles"]);
+
+    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ
+                              " --rays primary,ao --res 96x96 --set sim.fidelity=accurate ";
+    const fs::path truth_dir = work_dir() / "acc96_full", sample_dir = work_dir() / "acc96_s";
+    ASSERT_EQ(run_rtsim(frame + "-o '" + truth_dir.string() + "'").status, 0);
+    const Result s = run_rtsim(frame +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --set sim.sample_period_units=4 "
+                               "--set sim.sample_unit_tiles=1 -o '" +
+                               sample_dir.string() + "'");
+    ASSERT_EQ(s.status, 0) << s.err;
+    const json sampled = stats_of(sample_dir);
+    const json& est = sampled["sampling"]["total_cycles"];
+    const double truth = stats_of(truth_dir)["total_cycles"].get<double>();
+    ASSERT_TRUE(est["lo"].is_number()) << est.dump();
+    EXPECT_LT(sampled["sampling"]["units_measured"].get<double>(),
+              sampled["sampling"]["units"].get<double>());
+    EXPECT_LE(est["lo"].get<double>(), truth) << est.dump();
+    EXPECT_GE(est["hi"].get<double>(), truth) << est.dump();
+}
+
 // The units a skip run measures take what the same units took in the full run (the run that
 // measures every unit): the caches hold what they held there. Elephant primary rays at 960x544,
 // where many tiles between measured units are background: when the L1 window of the replay
@@ -612,7 +660,7 @@ TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
 TEST(Sampled, SkipDesignMeasuredUnitsTakeWhatTheyTookInTheFullRun) {
     const std::string common = "run --scene " RTSIM_CGAL_MESH_DIR
                                "/elephant.off --rays primary --res 960x544 "
-                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                                "--set sim.sample_unit_tiles=16 --set sim.sample_warmup_tiles=8 "
                                "--set sim.sample_warmup_tile_rays=512 ";
     const fs::path all = work_dir() / "mu_all", part = work_dir() / "mu_part";
@@ -646,7 +694,7 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
         "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao,diffuse --res 96x96 ";
     const fs::path cache = work_dir() / "k_cache";
     const std::string sampled =
-        "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+        "--set sim.sampled=true --set sim.sample_fast_forward=skip "
         "--set sim.sample_design=systematic --set sim.sample_period_units=4 "
         "--set sim.sample_unit_tiles=2 --set sim.sample_warm_tiles=2 "
         "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_tile_rays=0 "
@@ -697,16 +745,16 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
 
 // A frame whose lines outgrow the L2 (Cornell 2-bounce paths through a 128 KiB L2: most misses
 // are capacity misses). The skip design counts the frame's L2 misses functionally over its
-// profile (sim/functional_l2.h); checked here against the detailed model's in the full run, and
-// what the estimates make of them: exact with every unit measured, and at 1 in 4 an interval on
-// DRAM bytes that holds the full run's and is far narrower than a regression on work alone made
-// it (+-23% on this frame and seed before; +-3.4% now).
+// profile (sim/sampling/functional_l2.h); checked here against the detailed model's in the full
+// run, and what the estimates make of them: exact with every unit measured, and at 1 in 4 an
+// interval on DRAM bytes that holds the full run's and is far narrower than a regression on work
+// alone made it (+-23% on this frame and seed before; +-3.4% now).
 TEST(Sampled, SkipDesignCountsCapacityMissesFunctionally) {
     const std::string common =
         "run --scene builtin:cornell --rays diffuse --diffuse-depth 2 --res 128x128 "
         "--set l2.size_kib=128 --bvh-cache off ";
     const std::string sampled =
-        "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+        "--set sim.sampled=true --set sim.sample_fast_forward=skip "
         "--set sim.sample_unit_tiles=2 --set sim.sample_seed=1 ";
     const fs::path full = work_dir() / "cm_full", all = work_dir() / "cm_all",
                    part = work_dir() / "cm_part", fifo = work_dir() / "cm_fifo";
@@ -779,7 +827,7 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
     const fs::path full = work_dir() / "nf_full", part = work_dir() / "nf_part";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
     ASSERT_EQ(run_rtsim(common +
-                        "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                        "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                         "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=48 "
                         "--set sim.sample_seed=6 -o '" +
                         part.string() + "'")
@@ -802,7 +850,7 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
 TEST(Sampled, SkipDesignHonoursTargetError) {
     const fs::path out = work_dir() / "k_target";
     const Result r = run_rtsim("run --scene " RTSIM_BUNNY_OBJ
-                               " --rays primary,ao --res 384x384 --set sim.fidelity=sampled "
+                               " --rays primary,ao --res 384x384 --set sim.sampled=true "
                                "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
                                "--set sim.sample_design=work "
                                "--set sim.sample_period_units=8 --bvh-cache '" +
@@ -826,7 +874,7 @@ TEST(Sampled, ATargetThatNeedsMostUnitsRunsTheFrameInFull) {
     const fs::path full = work_dir() / "infull_full", asked = work_dir() / "infull_asked";
     ASSERT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
     const Result r = run_rtsim(frame +
-                               "--set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                                "--set sim.sample_design=work --target-error 0.1 -o '" +
                                asked.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
@@ -846,15 +894,15 @@ TEST(Sampled, SkipDesignNeedsGeneratedRays) {
     const fs::path rtt = work_dir() / "skip.rtt";
     ASSERT_EQ(run_rtsim("trace -q --res 16x16 -o '" + rtt.string() + "'").status, 0);
     expect_one_line_error(run_rtsim("run --trace '" + rtt.string() +
-                                    "' --set sim.fidelity=sampled "
+                                    "' --set sim.sampled=true "
                                     "--set sim.sample_fast_forward=skip"),
                           "sim.sample_fast_forward=skip skips tiles before they are traced");
 }
 
-// Matched-pair sampling (--reference, sim/reference.h) on a 96x96 bunny frame in units of 2
-// tiles (72 units), paired runs' too.
+// Matched-pair sampling (--reference, sim/sampling/reference.h) on a 96x96 bunny frame in units of
+// 2 tiles (72 units), paired runs' too.
 const std::string kPairFrame = "run --scene " RTSIM_BUNNY_OBJ
-                               " --rays primary,ao --res 96x96 --set sim.fidelity=sampled "
+                               " --rays primary,ao --res 96x96 --set sim.sampled=true "
                                "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
                                "--set sim.sample_paired_unit_tiles=2 ";
 
@@ -1094,15 +1142,14 @@ TEST(Sampled, SampleOrderMustBeAnEveryUnitRunOfTheSameUnits) {
     const std::string order = "--sample-order '" + ref.string() + "' -o '" + out.string() + "'";
     // Not a skip run.
     expect_one_line_error(
-        run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 --set sim.fidelity=sampled " +
-                  order),
-        "needs sim.fidelity=sampled and sim.sample_fast_forward=skip");
+        run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 --set sim.sampled=true " + order),
+        "needs sim.sampled=true and sim.sample_fast_forward=skip");
     // Units that are not whole units of the run's (units of 4 would be two of them), or a frame
     // of other units.
     expect_one_line_error(run_rtsim(kPairFrame + "--set sim.sample_unit_tiles=3 " + order),
                           "its units are 2 tiles, this run's 3");
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ
-                                    " --rays primary --res 64x64 --set sim.fidelity=sampled "
+                                    " --rays primary --res 64x64 --set sim.sampled=true "
                                     "--set sim.sample_fast_forward=skip "
                                     "--set sim.sample_unit_tiles=2 " +
                                     order),
@@ -1166,7 +1213,7 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     // Another frame: the same scene at another resolution, or other rays.
     expect_one_line_error(
         run_rtsim("run --scene " RTSIM_BUNNY_OBJ
-                  " --rays primary,ao --res 64x64 --set sim.fidelity=sampled "
+                  " --rays primary,ao --res 64x64 --set sim.sampled=true "
                   "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=2 "
                   "--set sim.sample_period_units=4 --reference '" +
                   ref.string() + "' -o '" + out.string() + "'"),
@@ -1213,12 +1260,12 @@ TEST(Sampled, ReferenceMustBeTheSameFrameMeasuredInFull) {
     std::ofstream(no_run / "stats.json") << stats.dump();
     expect_one_line_error(run_rtsim(sampled + "'" + no_run.string() + "'"),
                           "bad_ref_no_run: the reference design's sample of this run's units: "
-                          "the run failed: sim.fidelity=sampled: not yet with "
+                          "the run failed: sim.sampled: not yet with "
                           "traversal.mode=treelet");
     // Not a sampled run.
     expect_one_line_error(run_rtsim("run --scene " RTSIM_BUNNY_OBJ " --res 96x96 -o '" +
                                     out.string() + "' --reference '" + ref.string() + "'"),
-                          "needs sim.fidelity=sampled and sim.sample_fast_forward=skip");
+                          "needs sim.sampled=true and sim.sample_fast_forward=skip");
     EXPECT_FALSE(fs::exists(out));
 }
 
@@ -1910,7 +1957,7 @@ TEST(Compare, TwoRunsSideBySide) {
 TEST(Compare, MatchedSamplesGiveTheDifferenceAnInterval) {
     const std::string frame =
         "run -q --scene " RTSIM_BUNNY_OBJ
-        " --rays ao --res 512x512 --set sim.fidelity=sampled --set sim.sample_fast_forward=skip "
+        " --rays ao --res 512x512 --set sim.sampled=true --set sim.sample_fast_forward=skip "
         "--set sim.sample_design=work --set sim.sample_period_units=10 ";
     const fs::path a = work_dir() / "match_a", b = work_dir() / "match_b",
                    other = work_dir() / "match_other", cmp = work_dir() / "match.json";
@@ -1995,7 +2042,7 @@ TEST(Sweep, APairedSweepRunsItsReferenceFirst) {
     const fs::path file = work_dir() / "sweep_paired.json";
     std::ofstream(file) << R"({"workload": {"scene": ")" RTSIM_BUNNY_OBJ R"(",
                                              "rays": "primary,ao", "res": "96x96"},
-                               "set": {"sim.fidelity": "sampled", "sim.sample_fast_forward": "skip",
+                               "set": {"sim.sampled": true, "sim.sample_fast_forward": "skip",
                                        "sim.sample_unit_tiles": 2, "sim.sample_period_units": 4},
                                "vary": {"triangle_unit.latency_cycles": [18, 36]},
                                "reference": true})";

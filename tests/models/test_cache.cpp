@@ -371,8 +371,8 @@ TEST(Cache, WarmingLeavesTheStateTimedAccessesLeave) {
     }
 }
 
-// The sampler's replay (sim/sampler.cpp) warms an LRU L1 with only the last touch of each line
-// of its window, in their order: the cache must end as the whole stream leaves it, its lines
+// The sampler's replay (sim/sampling/sampler.cpp) warms an LRU L1 with only the last touch of each
+// line of its window, in their order: the cache must end as the whole stream leaves it, its lines
 // held before included, down to the recency order (which the next lines' evictions show).
 TEST(Cache, LastTouchesLeaveAnLruCacheAsTheWholeStream) {
     CacheParams p;

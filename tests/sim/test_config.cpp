@@ -156,6 +156,35 @@ TEST(Config, SetOverridesOnTop) {
     expect_error(kBaseline, {"l1.ways=3"}, {"power-of-two number of sets"});
 }
 
+// Engine and sampling are two choices; a config written when "sampled" was a fidelity level
+// still means what it meant: the fast engine, sampled.
+TEST(Config, LegacySampledFidelityReadsAsTheFastEngineSampled) {
+    const Config plain = load_config("", {});
+    EXPECT_EQ(plain.typed.sim.fidelity, "fast");
+    EXPECT_FALSE(plain.typed.sim.sampled);
+
+    const auto old = write_cfg("old_sampled.json", R"({"sim": {"fidelity": "sampled"}})");
+    const Config from_file = load_config(old, {});
+    EXPECT_EQ(from_file.typed.sim.fidelity, "fast");
+    EXPECT_TRUE(from_file.typed.sim.sampled);
+
+    const Config from_set = load_config("", {"sim.fidelity=sampled"});
+    EXPECT_EQ(from_set.typed.sim.fidelity, "fast");
+    EXPECT_TRUE(from_set.typed.sim.sampled);
+    EXPECT_EQ(from_set.hash(), load_config("", {"sim.sampled=true"}).hash());
+
+    // An explicit sim.sampled beside the old value wins.
+    const auto both =
+        write_cfg("old_both.json", R"({"sim": {"fidelity": "sampled", "sampled": false}})");
+    EXPECT_FALSE(load_config(both, {}).typed.sim.sampled);
+
+    // The new spelling samples either engine.
+    const Config accurate = load_config("", {"sim.fidelity=accurate", "sim.sampled=true"});
+    EXPECT_EQ(accurate.typed.sim.fidelity, "accurate");
+    EXPECT_TRUE(accurate.typed.sim.sampled);
+    expect_error("", {"sim.fidelity=sampledd"}, {"sim.fidelity", "accurate", "fast"});
+}
+
 TEST(Config, CommittedReferenceMatchesSchema) {
     // docs/config.md is generated; regenerate with: build/rtsim config --doc > docs/config.md
     std::ifstream in(std::string(RTSIM_SOURCE_DIR) + "/docs/config.md");

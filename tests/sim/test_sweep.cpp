@@ -109,7 +109,7 @@ TEST(Sweep, BadFilesAreRefusedBeforeAnythingRuns) {
 TEST(Sweep, AReferencePairsEveryPointWithTheBaseDesign) {
     const std::string path = write_sweep("paired.json", R"({
         "workload": {"scene": "builtin:cornell", "rays": "primary", "res": "32x32"},
-        "set": {"sim.fidelity": "sampled", "sim.sample_fast_forward": "skip",
+        "set": {"sim.sampled": true, "sim.sample_fast_forward": "skip",
                 "sim.sample_period_units": 4},
         "vary": {"l1.size_kib": [8, 16]}, "reference": true})");
     SweepPlan plan = plan_sweep(path);
@@ -128,7 +128,7 @@ TEST(Sweep, AReferencePairsEveryPointWithTheBaseDesign) {
               "reference: expected true or false");
     EXPECT_EQ(refusal(R"({"workload": {"res": "8x8"}, "vary": {"l1.ways": [2]},
                           "reference": true})"),
-              "reference: the base design must set sim.fidelity=sampled and "
+              "reference: the base design must set sim.sampled=true and "
               "sim.sample_fast_forward=skip");
     // Without "reference" nothing is paired.
     SweepPlan alone = plan_sweep(write_sweep("alone.json", R"({

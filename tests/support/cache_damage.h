@@ -1,5 +1,6 @@
-// The protocol the keyed caches' tests share (sim/frame_profile.h, sim/functional_l2.h): an entry
-// damaged on disk is refused, rebuilt and stored over, never used.
+// The protocol the keyed caches' tests share (sim/sampling/frame_profile.h,
+// sim/sampling/functional_l2.h): an entry damaged on disk is refused, rebuilt and stored over,
+// never used.
 #pragma once
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
-#include "sim/matched.h"
+#include "sim/sampling/matched.h"
 
 #include <fmt/format.h>
 
 #include <optional>
 
-#include "sim/reference.h"
+#include "sim/sampling/reference.h"
 #include "workloads/error.h"
 #include "workloads/output_file.h"
 

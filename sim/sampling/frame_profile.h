@@ -1,11 +1,11 @@
 // A frame's functional profile for sampled runs that skip tiles (sim.sample_fast_forward = skip,
-// sim/sampler.h): per unit of tiles, what the functional tracer knows of its rays before timing
-// (the regression's auxiliaries: work, first-touched lines, node steps, rays), and per tile the
-// distinct lines its rays fetch, with how many of its rays fetched each. A skip run regresses on
-// the units' auxiliaries as a run that traces every ray does, and loads the caches with the lines
-// of each tile it skips, in tile order, without tracing it (sim/sampler.h): an LRU L2 then holds
-// at each traced tile what it held in the full run, to the order of lines within a tile (the
-// first fetches alone, without the reuses that keep a line recent, left bunny and Cornell
+// sim/sampling/sampler.h): per unit of tiles, what the functional tracer knows of its rays before
+// timing (the regression's auxiliaries: work, first-touched lines, node steps, rays), and per tile
+// the distinct lines its rays fetch, with how many of its rays fetched each. A skip run regresses
+// on the units' auxiliaries as a run that traces every ray does, and loads the caches with the
+// lines of each tile it skips, in tile order, without tracing it (sim/sampling/sampler.h): an LRU
+// L2 then holds at each traced tile what it held in the full run, to the order of lines within a
+// tile (the first fetches alone, without the reuses that keep a line recent, left bunny and Cornell
 // diffuse frames' DRAM bytes 21-31% high). The profile
 // depends on the frame and the BVH layout, not on the chip, so a sweep computes it once per frame
 // (profile_frame_cached) and every design point reuses it.
@@ -65,7 +65,7 @@ class LineTracker {
 };
 
 // What a run knows of every ray before timing, summed over a unit: the sampled regression's
-// auxiliaries, in the order they are fitted (sim/sampling.h).
+// auxiliaries, in the order they are fitted (sim/sampling/estimators.h).
 enum AuxIndex { kAuxWork, kAuxNewLines, kAuxNodeSteps, kAuxRays, kAuxiliaries };
 using AuxFigures = std::array<uint64_t, kAuxiliaries>;
 

@@ -1,7 +1,7 @@
-// The interval machinery of sampled simulation (sim/sampling.h): Student's t against printed
-// tables, and the intervals' coverage on synthetic populations whose true figures are known.
-// The sampler's replay of skipped tiles into the caches (sim/sampler.h) against the warm() chain
-// and a plain model of its L1 window.
+// The interval machinery of sampled simulation (sim/sampling/estimators.h): Student's t against
+// printed tables, and the intervals' coverage on synthetic populations whose true figures are
+// known. The sampler's replay of skipped tiles into the caches (sim/sampling/sampler.h) against the
+// warm() chain and a plain model of its L1 window.
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
@@ -17,9 +17,9 @@
 
 #include "models/cache.h"
 #include "models/crossbar.h"
-#include "sim/reference.h"
-#include "sim/sampler.h"
-#include "sim/sampling.h"
+#include "sim/sampling/estimators.h"
+#include "sim/sampling/reference.h"
+#include "sim/sampling/sampler.h"
 
 using namespace rtsim;
 
@@ -350,6 +350,7 @@ TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
     profile.tile_lines = MappableArray<uint32_t>(lines);
     profile.tile_line_info = MappableArray<uint8_t>(info);
     profile.tile_rays = MappableArray<uint32_t>(std::vector<uint32_t>(kTiles, 64));
+    profile.units.resize(kTiles);  // a unit per tile
 
     StatsRegistry reg;
     SamplingParams sp;
@@ -389,10 +390,9 @@ TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
                 model_replayed = tile + 1;
             };
             Sampler a(sp, direct.ports, reg), b(sp, chain.ports, reg);
-            for (Sampler* s : {&a, &b}) {
-                // 16 lines per L1; the L2's sets 0: no functional count of its misses.
-                s->set_cache_sizes(64, 64, 16, true, true, 64, 0, 8);
-            }
+            // 16 lines per L1, asked of the caches themselves.
+            a.set_caches(*direct.l1.front(), *direct.l2, 64);
+            b.set_caches(*chain.l1.front(), *chain.l2, 64);
             a.set_profile(&profile, direct.l2.get());
             b.set_profile(&profile, chain.l2.get());
             ASSERT_TRUE(a.replays_directly());
@@ -1005,7 +1005,7 @@ TEST(Sampling, AnExactFitOnOneDegreeOfFreedomHasNoInterval) {
     EXPECT_EQ(still.half_width, 0.0);
 }
 
-// A sample's counters share one design (sim/sampler.cpp regresses every counter without a
+// A sample's counters share one design (sim/sampling/sampler.cpp regresses every counter without a
 // reference column on the same auxiliaries): a series exactly linear in the auxiliaries gets its
 // known total, the ratio estimator's total is sum(y) / sum(x) X, and a design used for other
 // series in between gives each the same estimate as a design of its own.

@@ -1,4 +1,4 @@
-#include "sim/frame_profile.h"
+#include "sim/sampling/frame_profile.h"
 
 #include <fmt/format.h>
 #include <algorithm>

@@ -1,4 +1,4 @@
-#include "sim/functional_l2.h"
+#include "sim/sampling/functional_l2.h"
 
 #include <fmt/format.h>
 
@@ -92,6 +92,9 @@ FunctionalL2 functional_l2_misses(const FrameProfile& p, uint64_t sets, uint32_t
     std::vector<uint8_t> fetched(distinct, 0);
     LruTags cache(sets, ways);
     const size_t tiles = p.tile_line_start.size() - 1;
+    if (p.unit_tiles == 0 || (tiles + p.unit_tiles - 1) / p.unit_tiles > p.units.size())
+        throw std::invalid_argument(
+            "functional_l2_misses: the profile's units do not cover its tiles");
     for (size_t t = 0; t < tiles; ++t) {
         uint32_t& unit = out.unit_capacity_misses[t / p.unit_tiles];
         for (uint32_t i = p.tile_line_start[t]; i < p.tile_line_start[t + 1]; ++i) {

@@ -1,4 +1,4 @@
-// Sampled simulation (sim.fidelity = sampled): systematic sampling of the ray stream
+// Sampled simulation (sim.sampled = true): systematic sampling of the ray stream
 // with functional warming, as SMARTS (Wunderlich et al., ISCA 2003) samples instruction streams.
 //
 // The stream of rays, in the order the work source hands them out, is cut into units of
@@ -9,10 +9,10 @@
 // (MemoryPort::warm: tags and replacement order, no time, no counts) and it never reaches a
 // core. A measured unit contributes, between the hand-out of its first ray and of the ray after
 // it, the cycles that passed and the change of every registered counter. Each total is then
-// estimated with a 95% confidence interval (sim/sampling.h) by regression on what the functional
-// tracer knows of every ray before timing (the auxiliaries below: work, first-touched lines,
-// node steps, rays), and the cycles also get the drain the sampled run measured after its last
-// hand-out. Units of background pixels and units of dense geometry differ in cycles many times
+// estimated with a 95% confidence interval (sim/sampling/estimators.h) by regression on what the
+// functional tracer knows of every ray before timing (the auxiliaries below: work, first-touched
+// lines, node steps, rays), and the cycles also get the drain the sampled run measured after its
+// last hand-out. Units of background pixels and units of dense geometry differ in cycles many times
 // over, far less in cycles per step: a ratio to work alone has a far narrower interval than a
 // ratio to rays (on a 96x96 bunny frame, 13 measured units: +-42% over rays).
 //
@@ -22,13 +22,13 @@
 // is never generated or traced: only the warm_tiles before each measured unit warm the caches
 // functionally, and the warmup_tiles right before it run in detail unmeasured (more, going back,
 // until they hold warmup_tile_rays rays). What the skipped
-// tiles would have told comes from the frame's profile (sim/frame_profile.h), computed once per
-// frame and cached: the units' auxiliaries for the same regression, and the lines each skipped
-// tile fetched, which are loaded into the caches where the tile would have run.
-// Without the profile the totals could only be expanded from the measured units (+-20-50% on
-// 1080p frames at 1 in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10). The
-// profile's tile lines, run through an LRU of the L2's geometry, also count the frame's capacity
-// misses unit by unit (sim/functional_l2.h), known then like its first fills.
+// tiles would have told comes from the frame's profile (sim/sampling/frame_profile.h), computed
+// once per frame and cached: the units' auxiliaries for the same regression, and the lines each
+// skipped tile fetched, which are loaded into the caches where the tile would have run. Without the
+// profile the totals could only be expanded from the measured units (+-20-50% on 1080p frames at 1
+// in 10), and a cold L2 biased DRAM bytes by +144% (bunny AO, 1 in 10). The profile's tile lines,
+// run through an LRU of the L2's geometry, also count the frame's capacity misses unit by unit
+// (sim/sampling/functional_l2.h), known then like its first fills.
 #pragma once
 
 #include <algorithm>
@@ -36,23 +36,25 @@
 #include <cstdint>
 #include <functional>
 #include <future>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "models/core.h"
+#include "models/registry.h"
 #include "models/stats.h"
 #include "models/timing.h"
-#include "sim/frame_profile.h"
-#include "sim/functional_l2.h"
-#include "sim/sampling.h"
+#include "sim/sampling/estimators.h"
+#include "sim/sampling/frame_profile.h"
+#include "sim/sampling/functional_l2.h"
 #include "workloads/step.h"
 
 namespace rtsim {
 
 class Cache;
 
-struct Reference;  // sim/reference.h
+struct Reference;  // sim/sampling/reference.h
 
 // Above this share of a frame's work in units heavier than any measured unit, the cycles'
 // estimate extrapolates: it is given without an interval, and a caveat says why.
@@ -275,30 +277,21 @@ class Sampler {
     // L2, loaded with the lines of the tiles it skips where no core's memories are known (they
     // go through the cores' L1s otherwise). The run's own line counting (set_line_range) is
     // then not needed. Without a reference design and with an LRU L2, the frame's L2 misses are
-    // counted functionally here, unit by unit (sim/functional_l2.h), through the cache in
+    // counted functionally here, unit by unit (sim/sampling/functional_l2.h), through the cache in
     // `cache_dir` (the profile's folder; empty: none).
     void set_profile(const FrameProfile* profile, MemoryPort* l2,
                      const std::string& cache_dir = std::string());
     // Skip design: matched-pair estimates against a reference design's figures in the same
-    // units (sim/reference.h); each figure is regressed on the reference's first. Before
+    // units (sim/sampling/reference.h); each figure is regressed on the reference's first. Before
     // set_profile (a paired run does not count capacity misses).
     void set_reference(const Reference* reference) { reference_ = reference; }
-    // What an L2 first fill adds to l2.fill_bytes and dram.bytes (counter_estimates), how many
-    // lines an L1 holds and whether the L1s and the L2 replace the least recently used line
-    // (replay_skipped_tiles), and the L2's sets and ways (its misses counted functionally over
-    // the whole frame: sim/functional_l2.h). Before set_profile, as set_reference is.
-    void set_cache_sizes(uint32_t l2_line_bytes, uint64_t dram_bytes_per_fill, uint64_t l1_lines,
-                         bool l1_lru, bool l2_lru, uint32_t l1_line_bytes, uint64_t l2_sets,
-                         uint32_t l2_ways) {
-        l2_line_bytes_ = l2_line_bytes;
-        dram_bytes_per_fill_ = dram_bytes_per_fill;
-        l1_lines_ = l1_lines;
-        l1_lru_ = l1_lru;
-        l2_lru_ = l2_lru;
-        l1_fetch_lines_ = LineTracker(0, 0, l1_line_bytes);
-        l2_sets_ = l2_sets;
-        l2_ways_ = l2_ways;
-    }
+    // The caches a fast-forward warms, asked for their geometry: how many lines an L1 holds and
+    // whether the L1s and the L2 replace the least recently used line (replay_skipped_tiles),
+    // the L2's line, sets and ways (its misses counted functionally over the whole frame:
+    // sim/sampling/functional_l2.h), and what an L2 first fill adds to l2.fill_bytes and
+    // dram.bytes (`dram_bytes_per_fill`, counter_estimates). Before set_profile, as
+    // set_reference is.
+    void set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_per_fill);
 
     // Waits for the functional count of the frame's L2 misses (set_profile starts it on a thread
     // of its own) and returns its host seconds (0: none), so that a run's host time includes it.
@@ -335,9 +328,9 @@ class Sampler {
     std::vector<double> unit_sums(const std::string& prefix, const std::string& suffix,
                                   size_t* blocks = nullptr) const;
     // What is known of every ray before timing, the auxiliaries the totals are regressed on, in
-    // the order they are fitted (sim/sampling.h): its work (steps plus one, its setup: units of
-    // background pixels and of dense geometry differ in cycles many times over, far less in
-    // cycles per step), the lines it touched first in the frame (DRAM traffic follows them:
+    // the order they are fitted (sim/sampling/estimators.h): its work (steps plus one, its setup:
+    // units of background pixels and of dense geometry differ in cycles many times over, far less
+    // in cycles per step), the lines it touched first in the frame (DRAM traffic follows them:
     // compulsory misses), its node steps (node and triangle steps cost differently) and its
     // rays (an intercept per ray). On 1080p bunny frames, fitting all four rather than the
     // first two narrows a unit's residual from 27% to 20% of its cycles (primary rays) and from
@@ -403,9 +396,9 @@ class Sampler {
     uint64_t l2_sets_ = 0;
     uint32_t l2_ways_ = 0;
     // Skip design without a reference design, LRU L2: the frame's L2 misses counted
-    // functionally, per unit (sim/functional_l2.h); unit_capacity_misses empty otherwise. Counted
-    // on a thread of its own while the run simulates (45-75 ms for the 5.2 million tile lines of
-    // a 1080p Cornell 2-bounce path frame), taken in report.
+    // functionally, per unit (sim/sampling/functional_l2.h); unit_capacity_misses empty otherwise.
+    // Counted on a thread of its own while the run simulates (45-75 ms for the 5.2 million tile
+    // lines of a 1080p Cornell 2-bounce path frame), taken in report.
     std::future<FunctionalL2> functional_l2_pending_;
     FunctionalL2 functional_l2_;
     const StatsRegistry& counters_;
@@ -463,5 +456,55 @@ class Sampler {
     std::vector<double> cycles_;
     std::vector<std::vector<double>> deltas_;  // [counter][unit]
 };
+
+// What a sampler reaches of the chip it samples: the blocks a fast-forward warms and the
+// counters a measured unit reads. A model knows nothing of sampling; the run assembles this.
+struct SampledChip {
+    // Per core, per StepKind, where its fetches enter the memory hierarchy.
+    std::vector<std::array<MemoryPort*, kStepKinds>> ports;
+    const StatsRegistry* counters = nullptr;
+    std::vector<const Core*> cores;  // their traversal writes (spills, hit records) are warmed
+    const Cache* l1 = nullptr;       // one core's L1: every core's has its geometry
+    Cache* l2 = nullptr;
+    uint64_t dram_bytes_per_l2_fill = 0;
+};
+
+// What a sampler knows of the frame before timing it.
+struct SampledFrame {
+    std::shared_ptr<const SampleDesign> design;  // made already (the ray source asks it)
+    const FrameProfile* profile = nullptr;       // the skip layer's
+    const Reference* reference = nullptr;        // a paired run's
+    std::string cache_dir;                       // where profiles and their counts are kept
+    uint64_t fetch_begin = 0, fetch_end = 0;     // the addresses rays fetch from (BVH layout)
+};
+
+// Sampling layers, registered by what becomes of the work between measured units
+// (sim.sample_fast_forward; `rtsim list fast_forward`): each builds its sampler over a chip.
+struct FastForwardEntry {
+    static constexpr const char* kKind = "fast_forward";
+    std::string name, description;
+    std::vector<std::string> params;
+    // True when the layer needs the frame's profile (units of tiles, generated on the fly).
+    bool needs_profile = false;
+    std::unique_ptr<Sampler> (*make)(const SamplingParams&, const SampledChip&,
+                                     const SampledFrame&) = nullptr;
+};
+using FastForwardRegistry = Registry<FastForwardEntry>;
+
+// Sample designs, registered by name (sim.sample_design; `rtsim list sample_design`): which
+// units are measured. `configure` sets the plan's choice of units.
+struct SampleDesignEntry {
+    static constexpr const char* kKind = "sample_design";
+    std::string name, description;
+    std::vector<std::string> params;
+    void (*configure)(SamplingParams&) = nullptr;
+    // True when the design draws from the frame's profile (sim.sample_fast_forward = skip).
+    bool needs_profile = false;
+};
+using SampleDesignRegistry = Registry<SampleDesignEntry>;
+
+// The sampler sim.sample_fast_forward names, over `chip`, for `frame`.
+std::unique_ptr<Sampler> make_sampler(const std::string& fast_forward, const SamplingParams& params,
+                                      const SampledChip& chip, const SampledFrame& frame);
 
 }  // namespace rtsim

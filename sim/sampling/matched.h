@@ -1,8 +1,8 @@
 // Matched differences between two sampled runs of one frame that measured the same units (the
 // same sample seed and design: Ekman and Stenstrom's matched pairs). The difference of a figure
 // between the two designs is estimated from each unit's difference, with the runs' own
-// estimator (sim/sampling.h) over the same auxiliaries: units where both designs are slow
-// cancel, so a small difference gets a narrow interval that the two runs' separate intervals
+// estimator (sim/sampling/estimators.h) over the same auxiliaries: units where both designs are
+// slow cancel, so a small difference gets a narrow interval that the two runs' separate intervals
 // would hide.
 #pragma once
 
@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "sim/sampling.h"
+#include "sim/sampling/estimators.h"
 
 namespace rtsim {
 

@@ -1,6 +1,6 @@
 // A frame's L2 misses counted functionally, unit by unit, for the skip design's estimates
-// (sim/sampler.h): the profile's tile lines (each tile's distinct lines, in the order its rays
-// first fetched them, tile after tile in frame order) run through an LRU cache of the L2's
+// (sim/sampling/sampler.h): the profile's tile lines (each tile's distinct lines, in the order its
+// rays first fetched them, tile after tile in frame order) run through an LRU cache of the L2's
 // geometry, counting each miss in the unit of the tile that made it.
 //
 // Why: a frame whose lines outgrow the L2 (Cornell diffuse and 2-bounce path frames, 1080p)
@@ -9,14 +9,14 @@
 // within 0.14% of the detailed model's L2 misses on four such frames (Cornell diffuse 112,420
 // against 112,314; bunny 2-bounce path 63,575 against 63,559), so the sampled run takes the
 // capacity misses as known and estimates only their small difference from the detailed model's
-// (sim/sampler.cpp, counter_estimates).
+// (sim/sampling/sampler.cpp, counter_estimates).
 #pragma once
 
 #include <cstdint>
 #include <string>
 #include <vector>
 
-#include "sim/frame_profile.h"
+#include "sim/sampling/frame_profile.h"
 
 namespace rtsim {
 

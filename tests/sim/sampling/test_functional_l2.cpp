@@ -1,5 +1,5 @@
-// The frame's L2 misses counted functionally over its profile (sim/functional_l2.h): by hand on
-// tiny caches, and against the cache model itself on random streams.
+// The frame's L2 misses counted functionally over its profile (sim/sampling/functional_l2.h): by
+// hand on tiny caches, and against the cache model itself on random streams.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -7,9 +7,9 @@
 #include <random>
 #include <set>
 
-#include "../models/fixed_memory.h"
+#include "../../models/fixed_memory.h"
 #include "models/cache.h"
-#include "sim/functional_l2.h"
+#include "sim/sampling/functional_l2.h"
 #include "support/cache_damage.h"
 #include "support/file_bytes.h"
 

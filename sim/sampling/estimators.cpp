@@ -1,4 +1,4 @@
-#include "sim/sampling.h"
+#include "sim/sampling/estimators.h"
 
 #include <algorithm>
 #include <cmath>

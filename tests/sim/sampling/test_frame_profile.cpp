@@ -8,8 +8,8 @@
 #include <set>
 #include <string>
 
-#include "sim/frame_profile.h"
-#include "sim/sampler.h"
+#include "sim/sampling/frame_profile.h"
+#include "sim/sampling/sampler.h"
 #include "support/cache_damage.h"
 #include "support/file_bytes.h"
 #include "workloads/tile_queue.h"

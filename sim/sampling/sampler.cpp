@@ -1,4 +1,4 @@
-#include "sim/sampler.h"
+#include "sim/sampling/sampler.h"
 
 #include <fmt/format.h>
 
@@ -13,9 +13,8 @@
 #include <random>
 
 #include "models/cache.h"
-#include "sim/reference.h"
-#include "sim/sampling.h"
-#include "sim/stats_report.h"
+#include "sim/sampling/estimators.h"
+#include "sim/sampling/reference.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -210,6 +209,23 @@ bool Sampler::detailed_ray(uint64_t i) const {
     // The warm-up before the next measured unit.
     const uint64_t next_start = (i / params_.unit_rays + 1) * params_.unit_rays;
     return measured_unit(unit + 1) && next_start - i <= params_.warmup_rays;
+}
+
+void Sampler::set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_per_fill) {
+    const CacheParams &p1 = l1.params(), &p2 = l2.params();
+    l2_line_bytes_ = p2.line_bytes;
+    dram_bytes_per_fill_ = dram_bytes_per_fill;
+    l1_lines_ = p1.size_bytes / p1.line_bytes;
+    l1_lru_ = p1.replacement == "lru";
+    l2_lru_ = p2.replacement == "lru";
+    l1_fetch_lines_ = LineTracker(0, 0, p1.line_bytes);
+    l2_sets_ = p2.sets();
+    l2_ways_ = uint32_t(p2.ways);
+}
+
+std::unique_ptr<Sampler> make_sampler(const std::string& fast_forward, const SamplingParams& params,
+                                      const SampledChip& chip, const SampledFrame& frame) {
+    return FastForwardRegistry::at(fast_forward).make(params, chip, frame);
 }
 
 void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
@@ -595,9 +611,9 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
                                            {"l2.misses", 1.0, true},
                                            {"l2.fill_bytes", double(l2_line_bytes_), true},
                                            {"dram.bytes", double(dram_bytes_per_fill_), true}};
-    // With the frame's capacity misses counted functionally (sim/functional_l2.h), those too are
-    // known, and only the difference of the detailed model's from the functional count is left
-    // to estimate: the known part is then per_fill * (first fills + capacity misses), the
+    // With the frame's capacity misses counted functionally (sim/sampling/functional_l2.h), those
+    // too are known, and only the difference of the detailed model's from the functional count is
+    // left to estimate: the known part is then per_fill * (first fills + capacity misses), the
     // measured units' functional capacity misses taken off their change with their first fills.
     // The regression on work alone left Cornell diffuse frames' DRAM bytes 5.7% off at 1 in 20
     // (docs/sampling.md).
@@ -735,12 +751,11 @@ json Sampler::report(Cycle end_cycle) {
             a.x[i] = double(profile_->unit_new_line_rays[unit_index_[i]]);
         for (uint64_t r : profile_->unit_new_line_rays) a.total += double(r);
         // A fifth auxiliary where the frame outgrows the L2: the units' capacity misses as
-        // counted functionally (sim/functional_l2.h). Cornell 2-bounce path frames, 1080p: the
-        // residual over every unit fell from 28.2% to 15.6% of the mean unit's cycles, a 1-in-20
-        // sample's error from 0.88% to 0.54% (docs/sampling.md). Fitted only
-        // where at least 4 measured units had some: a unit alone in having them has a leverage
-        // of 1 (a 96x96 bunny frame with 23 capacity misses left the jackknife without
-        // replicates).
+        // counted functionally (sim/sampling/functional_l2.h). Cornell 2-bounce path frames, 1080p:
+        // the residual over every unit fell from 28.2% to 15.6% of the mean unit's cycles, a
+        // 1-in-20 sample's error from 0.88% to 0.54% (docs/sampling.md). Fitted only where at least
+        // 4 measured units had some: a unit alone in having them has a leverage of 1 (a 96x96 bunny
+        // frame with 23 capacity misses left the jackknife without replicates).
         if (!functional_l2_.unit_capacity_misses.empty()) {
             capacity.x.resize(cycles_.size());
             for (size_t i = 0; i < cycles_.size(); ++i)
@@ -791,7 +806,7 @@ json Sampler::report(Cycle end_cycle) {
     } else {
         for (size_t i = 0; i < cycles_.size(); ++i) drawn_pos_.push_back(i);
     }
-    // Totals by regression on the auxiliaries (sim/sampling.h says which it fits), the
+    // Totals by regression on the auxiliaries (sim/sampling/estimators.h says which it fits), the
     // reference design's figure in the same unit first where there is one.
     std::vector<Auxiliary> with_reference(aux.size() + 1);
     std::copy(aux.begin(), aux.end(), with_reference.begin() + 1);
@@ -867,7 +882,7 @@ json Sampler::report(Cycle end_cycle) {
         out["regression"] = {{"population", population}, {"totals", totals}};
     }
     // The frame's cycles after its last hand-out: the run's own drain, corrected by the
-    // reference's (sim/reference.h).
+    // reference's (sim/sampling/reference.h).
     const double drain =
         double(end_cycle - last_handout_) +
         (reference_ ? reference_->drain_full_cycles - reference_->drain_matched_cycles : 0.0);

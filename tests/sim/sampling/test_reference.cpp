@@ -1,11 +1,11 @@
-// sim/reference.h: reading sampled_units.csv, and the columns counters are summed into.
+// sim/sampling/reference.h: reading sampled_units.csv, and the columns counters are summed into.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 
-#include "sim/reference.h"
+#include "sim/sampling/reference.h"
 #include "workloads/error.h"
 
 namespace rtsim {

@@ -8,9 +8,9 @@
 // runs the reference design with its own sampling plan, same seed, same units (a child process,
 // once per plan: the result is kept in DIR for the sweep's other points), and regresses each of
 // its units' figures on the reference's figure in the same unit, whose frame total DIR knows,
-// before the four functional auxiliaries (sim/sampler.h). Two designs' units differ far less from
-// each other than units differ from what the functional tracer can say of them: box and triangle
-// units twice as slow, paired with the default design, on the 24 1080p frames of
+// before the four functional auxiliaries (sim/sampling/sampler.h). Two designs' units differ far
+// less from each other than units differ from what the functional tracer can say of them: box and
+// triangle units twice as slow, paired with the default design, on the 24 1080p frames of
 // bench_sampled.py at 1 in 20, took the cycles' mean error from 1.26% to 0.31% (worst frame 2.67%
 // to 0.54%); offline, slower DRAM gave 2.3% -> 0.8% and L1 and L2 eight and sixteen times smaller
 // 2.8% -> 2.0% (docs/sampling.md). The reference's measured units
@@ -24,10 +24,8 @@
 #include <string>
 #include <vector>
 
-#include "sim/config.h"
-#include "sim/frame_profile.h"
-#include "sim/run.h"
-#include "sim/sampler.h"
+#include "sim/sampling/frame_profile.h"
+#include "sim/sampling/sampler.h"
 
 namespace rtsim {
 
@@ -90,14 +88,27 @@ struct Reference {
     std::vector<size_t> rows_of(const std::vector<uint64_t>& units) const;
 };
 
-// Loads --reference `opt.reference_dir` for this run (config `cfg`, its workload's stats.json
-// sections `meta`, its frame `profile`, its plan `sp`), running the reference design's matched
-// sample if DIR does not hold it yet. Throws InputError, naming DIR, if it is not a reference
-// for this frame in units that divide the run's (they are merged to the run's units). Without an
-// order of its own (--sample-order), `sp`'s strata are cut from the units in order of the
-// reference's cycles (read_unit_order), balanced on work per cycle (balance_unit_order), before
-// the plan is.
-Reference load_reference(const RunOptions& opt, const Config& cfg, const nlohmann::json& meta,
-                         const FrameProfile& profile, SamplingParams& sp);
+// What a paired run (or --sample-order) reads of an every-unit run: its stats.json's fields
+// that a paired run uses, and its units' cycles. Parsing the whole 55 KB
+// stats.json and scanning the 1.5 MB sampled_units.csv of a 1080p frame took 16 million
+// instructions, a tenth of a 1-in-50 paired run of a small frame; the first run keeps both in a
+// digest beside them, keyed by the two files' XXH3 (a rerun into the folder changes them, and
+// its digest is then made again). A folder that cannot take it only costs the next run a parse.
+struct EveryUnitRun {
+    nlohmann::json stats;
+    std::vector<double> cycles;  // per unit
+    uint64_t merge = 1;          // its units per unit of the reading run
+    // Its units, merged to the reading run's, in order of their cycles (for
+    // SamplingParams::unit_order).
+    std::vector<uint32_t> order() const;
+    // That order balanced on the frame's work per cycle (balance_unit_order): the strata's.
+    std::vector<uint32_t> strata_order(const std::vector<AuxFigures>& units,
+                                       uint64_t period_units) const;
+};
+
+// The every-unit run in folder `dir`, in units of `unit_tiles` tiles; `where` names it in errors
+// (InputError: not such a run, units that do not divide the reader's, a damaged table).
+EveryUnitRun read_every_unit_run(const std::string& dir, const std::string& where,
+                                 uint64_t unit_tiles);
 
 }  // namespace rtsim
