@@ -177,6 +177,17 @@ void Cache::charge_wait(AccessBreakdown* bd, uint64_t line, Cycle from, Cycle un
     bd->cycles[kLevelCrossbar] += overlap(fill->dram_end, fill->ready);
 }
 
+uint32_t Cache::free_mshrs_at(Cycle t) const {
+    if (params_.mshrs <= 0) return UINT32_MAX;
+    uint32_t n = 0;
+    if (few_mshrs_) {
+        for (const uint64_t key : mshr_keys_) n += key != ~uint64_t(0) && (key >> kMshrBits) <= t;
+    } else {
+        for (const Cycle free : mshr_free_) n += free <= t;
+    }
+    return n;
+}
+
 // The earliest-free MSHR (the ring's front) now frees at `ready`, which is never earlier: it
 // leaves the front and `ready` goes in order from the back. A miss mostly completes after the
 // ones in flight, so it usually stays at the back: one compare where a heap sifts log2(n) levels.

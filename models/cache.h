@@ -157,6 +157,8 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // another of the same level (a treelet cache before its L1) leaves through that one's.
     // The fast model's cores hold such a miss back until then: the shared levels below see it
     // in time order.
+    // MSHRs free at `t`, for misses from then on (UINT32_MAX when they are unlimited).
+    uint32_t free_mshrs_at(Cycle t) const;
     Cycle miss_leaves_at(Cycle now) {
         if (few_mshrs_ || !mshr_free_.empty()) return std::max(now, earliest_mshr());
         return same_level_next_ ? same_level_next_->miss_leaves_at(now) : now;

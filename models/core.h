@@ -249,6 +249,11 @@ class Core : public sc_core::sc_module {
         Cycle start = 0;
         bool busy = false;
         bool fetch_is_shared = false;  // the next step's fetch was found to leave the L1
+        // A fetch of several lines sent line by line (Core::advance): the lines sent so far, and
+        // the slowest one's data cycle and breakdown.
+        uint8_t fetch_lines_sent = 0;
+        Cycle fetch_ready = 0;
+        AccessBreakdown fetch_bd;
         // The step's data is there (at the slot's ready cycle): its unit operations wait for
         // their turn (see advance).
         bool unit_pending = false;

@@ -15,6 +15,16 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
     scripts/bench_fidelity.py [--rtsim build/rtsim] [--res 64x64]
                               [--scenes a,b] [--kinds primary,ao,diffuse] [--configs a,b] [-j 2]
                               [--out bench/results]
+    scripts/bench_fidelity.py --random N [--seed S] [-j 2] [--out bench/results]
+
+--random N draws N cells at random, each a config drawn from the schema's ranges (MSHRs 1-32,
+banks, channels, cores x slots up to 64 x 32, cache sizes and replacement policies, crossbar
+widths, unit sharing, treelets with and without loads, packets, write traffic, command DRAM) on
+a mesh (TUNED_SCENES, which the fixed matrix uses, and HELD_OUT_SCENES, which it never used)
+with a ray kind, from a seed it prints (drawn at run time unless --seed). It reports the cells
+within 1%, the worst, the distribution, and how the fast run judged itself (stats.json
+fidelity_check): every cell should be within 1% or flagged. Writes
+bench/results/fidelity_random.md.
 
 The sampled mode's run time against its error is the other half of this benchmark:
     scripts/bench_fidelity.py --sampled [ARGS...]
@@ -26,8 +36,10 @@ against error; --skip for the skip design, --reference-set for matched pairs).
 import argparse
 import concurrent.futures
 import json
+import math
 import os
 import statistics
+import subprocess
 import sys
 import tempfile
 
@@ -59,6 +71,207 @@ CONFIGS = {
 }
 
 TARGET_PERCENT = 1.0
+
+# --random: meshes the fixed matrix uses, and meshes it never used.
+TUNED_SCENES = ["cornell", "sphere", "bunny", "armadillo"]
+HELD_OUT_SCENES = ["turbine", "camel", "fandisk_large", "cow", "dino", "elk"]
+RANDOM_KINDS = {"primary": ["--rays", "primary"], "ao": ["--rays", "ao"],
+                "shadow": ["--rays", "primary,shadow"],
+                "diffuse": ["--rays", "diffuse", "--diffuse-depth", "1"]}
+
+
+def draw_config(rng):
+    """One config drawn from the schema's ranges: its fields, --set arguments and a label."""
+    c = {}
+    cores = rng.choice([1, 2, 4, 8, 16, 32, 64])
+    slots = rng.choice([1, 2, 4, 8, 16, 32])
+    c["core.count"] = cores
+    c["core.ray_slots"] = slots
+    c["l1.mshrs"] = rng.choice([1, 2, 4, 8, 16, 32])
+    c["l2.mshrs"] = rng.choice([1, 2, 4, 8, 16, 32, 64])
+    c["l1.banks"] = rng.choice([1, 1, 2, 4])
+    c["l2.banks"] = rng.choice([1, 2, 4, 8, 16])
+    c["l1.size_kib"] = rng.choice([4, 8, 16, 32, 64])
+    c["l1.ways"] = rng.choice([1, 2, 4, 8])
+    c["l2.size_kib"] = rng.choice([64, 128, 256, 512, 1024, 4096])
+    c["l2.ways"] = rng.choice([4, 8, 16])
+    c["l1.replacement"] = rng.choice(["lru", "lru", "fifo", "random", "tree_plru", "srrip"])
+    c["l2.replacement"] = rng.choice(["lru", "lru", "fifo", "random", "tree_plru", "srrip"])
+    c["crossbar.bytes_per_cycle"] = rng.choice([0, 16, 32, 64, 128])
+    c["dram.channels"] = rng.choice([1, 2, 4, 8])
+    c["box_unit.shared_by"] = rng.choice([1, 1, 2, 4])
+    c["triangle_unit.shared_by"] = rng.choice([1, 1, 2, 4])
+    if rng.random() < 0.3:
+        c["dram.model"] = "command"
+    if rng.random() < 0.25:  # write traffic: a short stack that spills, hit records
+        c["core.short_stack_entries"] = rng.choice([4, 8])
+        c["core.hit_record_bytes"] = 16
+        c["l2.write_policy"] = rng.choice(["write_back", "write_through"])
+    mode = rng.choices(["independent", "treelet", "packet"], weights=[6, 2, 2])[0]
+    if mode == "treelet":
+        c["traversal.mode"] = "treelet"
+        c["bvh.width"] = 4
+        c["bvh.treelet_bytes"] = 8192
+        c["traversal.treelet_prefetch"] = rng.choice([True, False])
+        c.pop("core.short_stack_entries", None)
+    elif mode == "packet":
+        c["traversal.mode"] = "packet"
+        c["bvh.width"] = 4
+        c["traversal.packet_size"] = rng.choice([4, 8, 16])
+    else:
+        c["bvh.width"] = rng.choice([2, 4, 8])
+    sets = []
+    for k, v in c.items():
+        sets += ["--set", f"{k}={json.dumps(v) if isinstance(v, bool) else v}"]
+    label = (f"{cores}x{slots} l1m{c['l1.mshrs']} l2m{c['l2.mshrs']} "
+             f"xb{c['crossbar.bytes_per_cycle']} w{c['bvh.width']} {mode}"
+             f"{'+load' if c.get('traversal.treelet_prefetch') else ''}"
+             f"{' cmd' if 'dram.model' in c else ''}{' wr' if 'core.hit_record_bytes' in c else ''}")
+    return sets, label, c
+
+
+def config_loads(rtsim, sets):
+    return subprocess.run([rtsim, "config"] + sets, capture_output=True, text=True).returncode == 0
+
+
+def fast_check(stats):
+    """The fast run's judgement of itself (stats.json fidelity_check), if it made one."""
+    fc = stats.get("fidelity_check")
+    if not fc:
+        return {"flagged": False, "expected_error_pct": None}
+    return {"flagged": bool(fc.get("flagged")), "expected_error_pct": fc.get("expected_error_pct")}
+
+
+def predictors(s):
+    """What the fast run sees of itself: shares of requests served out of time order, queueing
+    and stall shares (kept with every cell, for studying what predicts the error)."""
+    c = s["counters"]
+    ooo = s.get("out_of_order", {})
+
+    def ratio(a, b):
+        return a / b if b else 0.0
+    p = {"l2_lookup_ooo": ratio(ooo.get("l2_lookups", 0), c.get("l2.accesses", 0)),
+         "l2_mshr_ooo": ratio(ooo.get("l2_mshr_requests", 0), c.get("l2.misses", 0)),
+         "dram_ooo": ratio(ooo.get("dram_requests", 0),
+                           c.get("dram.reads", 0) + c.get("dram.writes", 0)),
+         "crossbar_busy": ratio(c.get("crossbar.busy_cycles", 0), s["total_cycles"]),
+         "l1_mshr_wait_per_miss": ratio(sum(v for k, v in c.items() if k.startswith("l1[")
+                                            and k.endswith(".mshr_wait_cycles")),
+                                        sum(v for k, v in c.items() if k.startswith("l1[")
+                                            and k.endswith(".misses"))),
+         "l2_mshr_wait_per_miss": ratio(c.get("l2.mshr_wait_cycles", 0), c.get("l2.misses", 0))}
+    for cause, share in s["stalls"]["total"]["share"].items():
+        p["stall_" + cause] = share
+    return p
+
+
+def random_main(a):
+    import random
+    seed = a.seed if a.seed is not None else random.SystemRandom().randrange(1, 10**6)
+    rng = random.Random(seed)
+    print(f"bench_fidelity: --random {a.random} --seed {seed}", file=sys.stderr)
+    scenes = TUNED_SCENES + HELD_OUT_SCENES
+    for n in scenes:
+        if not SCENES[n].startswith("builtin:") and not os.path.exists(SCENES[n]):
+            sys.exit(f"bench_fidelity: {SCENES[n]}: scene file not found (scripts/setup.sh fetches it)")
+    tmp = tempfile.mkdtemp(prefix="bench_fidelity_random_")
+    cells = []
+    while len(cells) < a.random:
+        sets, label, c = draw_config(rng)
+        scene = rng.choice(scenes)
+        kind = rng.choice(list(RANDOM_KINDS))
+        if not config_loads(a.rtsim, sets):
+            continue
+        # Enough rays to fill the chip's slots many times: about 24 per slot, 48 to 256 a side.
+        side = max(48, min(256, int(math.sqrt(24 * c["core.count"] * c["core.ray_slots"]))))
+        side = (side + 7) // 8 * 8
+        base = ["--scene", SCENES[scene], "--res", f"{side}x{side}"] + RANDOM_KINDS[kind] + sets
+        cells.append({"scene": scene, "held_out": scene in HELD_OUT_SCENES, "kind": kind,
+                      "label": label, "config": c, "res": side, "args": base})
+    jobs = {}
+    for i, cell in enumerate(cells):
+        jobs[(i, "accurate")] = cell["args"] + ["--set", "sim.fidelity=accurate"]
+        jobs[(i, "fast")] = cell["args"]
+    results = {}
+    with concurrent.futures.ThreadPoolExecutor(max_workers=a.j) as pool:
+        futures = {pool.submit(run_stats, a.rtsim, args, os.path.join(tmp, f"{i}_{f}"),
+                               "bench_fidelity"): (i, f) for (i, f), args in jobs.items()}
+        for done, fut in enumerate(concurrent.futures.as_completed(futures), 1):
+            results[futures[fut]] = fut.result()
+            if done % 100 == 0:
+                print(f"bench_fidelity: {done}/{len(jobs)} runs", file=sys.stderr)
+    for i, cell in enumerate(cells):
+        ref, fast = results[(i, "accurate")], results[(i, "fast")]
+        cell["accurate"] = figures(ref)
+        cell["fast"] = figures(fast)
+        cell["error"] = compare(cell["fast"], cell["accurate"])
+        cell["predictors"] = predictors(fast)
+        cell["check"] = fast_check(fast)
+        del cell["args"]
+    text = random_report(seed, cells)
+    print(text)
+    write_results(a.out, "fidelity_random", text, {"seed": seed, "cells": cells})
+
+
+def within_target(x):
+    return (abs(x["error"]["cycles_pct"]) <= TARGET_PERCENT
+            and abs(x["error"]["dram_bytes_pct"]) <= TARGET_PERCENT)
+
+
+def random_report(seed, cells):
+    errs = [abs(x["error"]["cycles_pct"]) for x in cells]
+
+    def q(v, p):
+        v = sorted(v)
+        return v[min(len(v) - 1, int(p * len(v)))]
+    n = len(cells)
+    ok = sum(1 for x in cells if within_target(x))
+    flagged = sum(1 for x in cells if x["check"]["flagged"])
+    missed = sum(1 for x in cells if not within_target(x) and not x["check"]["flagged"])
+    flagged_ok = sum(1 for x in cells if within_target(x) and x["check"]["flagged"])
+    lines = ["# Fast engine against the accurate one on random configs", "",
+             f"`scripts/bench_fidelity.py --random {n} --seed {seed}`: each cell a config drawn "
+             f"from the schema's ranges, a mesh ({', '.join(TUNED_SCENES)}; never used by the "
+             f"fixed matrix: {', '.join(HELD_OUT_SCENES)}) and a ray kind; square frames of about "
+             f"24 rays per ray slot (48 to 256 pixels a side). Error: the fast engine's cycles "
+             f"and DRAM bytes against the accurate engine's on the same config and rays.", "",
+             "| cells | within 1% (cycles and DRAM) | flagged by the run | over 1%, not flagged "
+             "| flagged, within 1% | mean abs cycles % | median | 90th pct | worst |",
+             "|" + "---|" * 9,
+             f"| {n} | {ok} ({100 * ok / n:.0f}%) | {flagged} ({100 * flagged / n:.0f}%) | "
+             f"{missed} | {flagged_ok} | {statistics.mean(errs):.2f} | {q(errs, 0.5):.2f} | "
+             f"{q(errs, 0.9):.2f} | {max(errs):.2f} |", ""]
+    for name, sel in (("tuned meshes", [x for x in cells if not x["held_out"]]),
+                      ("held-out meshes", [x for x in cells if x["held_out"]])):
+        if sel:
+            e = [abs(x["error"]["cycles_pct"]) for x in sel]
+            lines.append(f"- {name}: {len(sel)} cells, {sum(1 for x in sel if within_target(x))} "
+                         f"within 1%, mean abs cycles error {statistics.mean(e):.2f}%, worst "
+                         f"{max(e):.2f}%")
+    lines += ["", "| abs cycles error | cells |", "|---|---|"]
+    edges = [0, 0.25, 0.5, 1, 2, 5, 10, float("inf")]
+    for lo, hi in zip(edges, edges[1:]):
+        lines.append(f"| {lo:g}-{hi:g}% | {sum(1 for v in errs if lo <= v < hi)} |")
+    lines += ["", "Mean abs cycles error by one field of the config (cells; mean; worst):", ""]
+    for key in ("core.count", "l1.mshrs", "bvh.width", "dram.model", "traversal.mode"):
+        groups = {}
+        for x in cells:
+            groups.setdefault(str(x["config"].get(key, "default")), []).append(
+                abs(x["error"]["cycles_pct"]))
+        parts = [f"{k}: {len(v)}; {statistics.mean(v):.1f}%; {max(v):.1f}%"
+                 for k, v in sorted(groups.items())]
+        lines.append(f"- `{key}`: " + " | ".join(parts))
+    lines += ["", f"## Cells over 1% ({n - ok})", "",
+              "| scene | kind | config | cycles % | DRAM % | flagged | expected % |",
+              "|" + "---|" * 7]
+    for x in sorted([x for x in cells if not within_target(x)],
+                    key=lambda x: -abs(x["error"]["cycles_pct"])):
+        ex = x["check"]["expected_error_pct"]
+        lines.append(f"| {x['scene']} | {x['kind']} | {x['label']} | "
+                     f"{x['error']['cycles_pct']:+.2f} | {x['error']['dram_bytes_pct']:+.2f} | "
+                     f"{'yes' if x['check']['flagged'] else 'no'} | "
+                     f"{'' if ex is None else f'{ex:.1f}'} |")
+    return "\n".join(lines) + "\n"
 
 
 def scaled(res, scale):
@@ -109,7 +322,11 @@ def main():
     ap.add_argument("--configs", default=",".join(CONFIGS))
     ap.add_argument("-j", type=int, default=2, help="runs at once")
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
+    ap.add_argument("--random", type=int, default=0, help="N cells drawn at random (see above)")
+    ap.add_argument("--seed", type=int, default=None, help="--random's seed (default: drawn)")
     a = ap.parse_args()
+    if a.random:
+        return random_main(a)
     scenes = a.scenes.split(",")
     for n in scenes:
         if n not in SCENES:

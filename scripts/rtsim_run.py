@@ -11,7 +11,8 @@ CGAL = os.path.join(ROOT, ".cache", "meshes", "cgal")  # scripts/setup.sh unpack
 SCENES = {"cornell": "builtin:cornell", "sphere": "builtin:sphere",
           "bunny": "/usr/share/glmark2/models/bunny.obj"}
 SCENES.update({m: os.path.join(CGAL, m + ".off")
-               for m in ("armadillo", "camel", "elephant", "homer", "turbine")})
+               for m in ("armadillo", "camel", "elephant", "homer", "turbine", "fandisk_large", "cow",
+                         "dino", "elk")})
 
 
 def run_stats(rtsim, args, out, who, prefix=()):
