@@ -1,5 +1,7 @@
 #include "sim/run_report.h"
 
+#include "sim/fidelity_check.h"
+
 #include <sys/resource.h>
 
 #include <fmt/format.h>
@@ -106,6 +108,7 @@ json run_report(const Config& cfg, const Chip& chip, const json& meta, const Cou
     out["rays_per_second"] = sim_s > 0 ? double(total_rays) / sim_s : 0.0;
     out["traversal_mode"] = cfg.typed.traversal.mode;
     if (chip.series.rays) out["time_series"] = time_series_report(chip, ctx);
+    out["fidelity_check"] = fidelity_check(cfg.typed, out);
     // Host timings live apart: everything outside "host" is identical for identical inputs.
     const double sim_seconds = host.simulation_s;
     out["host"] = {{"run_time_s", host.run_time_s},
@@ -155,6 +158,9 @@ void print_run_summary(const json& out, const std::string& stats_path) {
     fmt::print("  cycles   {} = {:.3f} ms at {} GHz -> {:.2f} Mrays/s\n",
                out["total_cycles"].get<uint64_t>(), out["simulated_seconds"].get<double>() * 1e3,
                out["clock_ghz"].get<double>(), out["rays_per_second"].get<double>() / 1e6);
+    if (out.contains("fidelity_check") && out["fidelity_check"].value("flagged", false))
+        fmt::print("  caution  fast engine: {}\n",
+                   out["fidelity_check"].value("note", std::string()));
     if (out.contains("sampling") && out["sampling"].value("in_full", false)) {
         const json& t = out["sampling"]["target"];
         fmt::print("  sampled  no: {} (pilot at 1 unit in {}: {:.2f} s)\n",

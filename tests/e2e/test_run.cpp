@@ -158,13 +158,16 @@ TEST(Run, LargeWorkingSetDramBytesEqualL2MissesTimesLine) {
               s["caches"]["l1_total"]["misses"].get<uint64_t>() * 64);
 }
 
-// Shared state served out of simulated-time order is counted, not hidden: L2 MSHRs
-// starved to 8 with 2 per L1, and one DRAM bank, see requests from many cores out of order.
+// Shared state served out of simulated-time order is counted, not hidden: on 64 cores x 32 slots
+// (transfers booked when issued) with L2 MSHRs starved to 8, stack spills and hit records
+// written back from a 64 KiB L2, and one DRAM bank, requests from many cores reach the L2's
+// lookups and MSHRs and the DRAM out of order.
 TEST(Run, OutOfOrderServiceIsCountedWhereItHappens) {
     const fs::path out = work_dir() / "ooo";
     const Result r = run_rtsim(fmt::format(
-        "run -q --config {}/configs/small_caches.json --scene {} --rays primary,ao --res 48x48 "
-        "--set l1.mshrs=2 --set l2.mshrs=8 --set dram.channels=1 --set dram.banks=1 --out '{}'",
+        "run -q --config {}/configs/write_traffic.json --scene {} --rays primary,ao --res 48x48 "
+        "--set l1.size_kib=4 --set l2.size_kib=64 --set core.count=64 --set core.ray_slots=32 "
+        "--set l2.mshrs=8 --set dram.channels=1 --set dram.banks=1 --out '{}'",
         RTSIM_SOURCE_DIR, RTSIM_BUNNY_OBJ, out.string()));
     ASSERT_EQ(r.status, 0) << r.err;
     const json s = stats_of(out);

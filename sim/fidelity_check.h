@@ -1,0 +1,28 @@
+// The fast engine's judgement of its own run: which regimes the run sits in where the fast engine
+// is known to stray from the time-ordered reference, and how far runs there strayed.
+//
+// The regimes and their bounds were measured with `scripts/bench_fidelity.py --random 300 --seed
+// 1001` (random configs on 10 meshes against sim.fidelity = accurate; the tuning set) and are
+// checked on configs drawn fresh (bench/results/fidelity_random.md):
+//   treelet_loads   treelet mode with treelet loads (traversal.treelet_prefetch): the loader
+//                   and a slot waiting on an MSHR hold each other back differently (29 runs,
+//                   28 over 1%, 95th percentile 29%).
+//   l1_bound        L1 stalls above 40% of slot cycles: slots waiting on few MSHRs (106 runs,
+//                   95th percentile 14%).
+//   crossbar_bound  the crossbar busy above 30% of cycles: transfers booked when issued, not in
+//                   time order (55 runs, 95th percentile 16%).
+// Runs in none of them: 139 of 146 within 1%, 95th percentile 0.97%.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "sim/params.h"
+
+namespace rtsim {
+
+// stats.json's "fidelity_check" for a run of `params` whose report is `out` (its stalls,
+// counters and total_cycles): {engine, regimes: [{name, measure, threshold, expected_error_pct}],
+// expected_error_pct, flagged, note}. For the accurate engine: {engine, reference: true}.
+nlohmann::json fidelity_check(const Params& params, const nlohmann::json& out);
+
+}  // namespace rtsim

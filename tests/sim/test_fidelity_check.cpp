@@ -1,0 +1,62 @@
+// The fast engine's self-check on hand-built reports: each regime is named exactly when its
+// measure crosses its threshold, and the run's expected error is the largest of its regimes'.
+#include <gtest/gtest.h>
+
+#include "sim/config.h"
+#include "sim/fidelity_check.h"
+
+namespace rtsim {
+namespace {
+
+using nlohmann::json;
+
+json report(double l1_share, double crossbar_busy_cycles, double cycles) {
+    return {{"total_cycles", cycles},
+            {"stalls", {{"total", {{"share", {{"l1", l1_share}}}}}}},
+            {"counters", {{"crossbar.busy_cycles", crossbar_busy_cycles}}}};
+}
+
+std::vector<std::string> names(const json& check) {
+    std::vector<std::string> out;
+    for (const json& r : check["regimes"]) out.push_back(r["name"]);
+    return out;
+}
+
+TEST(FidelityCheck, RegimesFollowTheirMeasures) {
+    const Params plain = load_config("", {}).typed;
+    const json none = fidelity_check(plain, report(0.30, 200, 1000));
+    EXPECT_FALSE(none["flagged"].get<bool>());
+    EXPECT_TRUE(names(none).empty());
+    EXPECT_EQ(none["expected_error_pct"].get<double>(), 1.0);
+    EXPECT_FALSE(none.contains("note"));
+
+    // L1 stalls of 41% of slot cycles cross 40%; a crossbar busy 31% of cycles crosses 30%.
+    const json l1 = fidelity_check(plain, report(0.41, 200, 1000));
+    EXPECT_TRUE(l1["flagged"].get<bool>());
+    EXPECT_EQ(names(l1), std::vector<std::string>{"l1_bound"});
+    EXPECT_EQ(l1["expected_error_pct"].get<double>(), 14.0);
+    EXPECT_NE(l1["note"].get<std::string>().find("sim.fidelity=accurate"), std::string::npos);
+    const json both = fidelity_check(plain, report(0.41, 310, 1000));
+    EXPECT_EQ(names(both), (std::vector<std::string>{"l1_bound", "crossbar_bound"}));
+    EXPECT_EQ(both["expected_error_pct"].get<double>(), 16.0);  // the larger
+
+    // Treelet loads are a regime by config; treelets without loads are not.
+    const Params loads =
+        load_config("", {"traversal.mode=treelet", "bvh.width=4", "bvh.treelet_bytes=4096"}).typed;
+    EXPECT_EQ(names(fidelity_check(loads, report(0.1, 0, 1000))),
+              std::vector<std::string>{"treelet_loads"});
+    const Params no_loads =
+        load_config("", {"traversal.mode=treelet", "bvh.width=4", "bvh.treelet_bytes=4096",
+                         "traversal.treelet_prefetch=false"})
+            .typed;
+    EXPECT_TRUE(names(fidelity_check(no_loads, report(0.1, 0, 1000))).empty());
+
+    // The accurate engine is the reference: it makes no claim about itself.
+    const json acc =
+        fidelity_check(load_config("", {"sim.fidelity=accurate"}).typed, report(0.9, 900, 1000));
+    EXPECT_TRUE(acc["reference"].get<bool>());
+    EXPECT_FALSE(acc.contains("flagged"));
+}
+
+}  // namespace
+}  // namespace rtsim
