@@ -63,71 +63,109 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
                                          path, line_no, line));
         kv[section + "." + trim(line.substr(0, eq))] = trim(line.substr(eq + 1));
     }
-    auto has = [&](const std::string& k) { return kv.count(k) > 0; };
-    auto number = [&](const std::string& k) {
+    // DRAMsim3's reading rules (its Config class over inih): a key that is missing or empty
+    // takes DRAMsim3's default; a number is its leading numeric text, the rest ignored
+    // ("0.666 (1/1.5)" reads 0.666); a file that names no protocol is DDR3.
+    auto has = [&](const std::string& k) {
         const auto it = kv.find(k);
-        if (it == kv.end()) throw InputError(fmt::format("{}: missing {}", path, k));
+        return it != kv.end() && !it->second.empty();
+    };
+    auto number_or = [&](const std::string& k, double fallback) {
+        if (!has(k)) return fallback;
+        const std::string& text = kv.at(k);
         char* end = nullptr;
-        const double v = std::strtod(it->second.c_str(), &end);
-        if (end == it->second.c_str() || *end != '\0' || !std::isfinite(v))
-            throw InputError(
-                fmt::format("{}: {}: expected a number, got '{}'", path, k, it->second));
+        const double v = std::strtod(text.c_str(), &end);
+        if (end == text.c_str() || !std::isfinite(v))
+            throw InputError(fmt::format("{}: {}: expected a number, got '{}'", path, k, text));
         return v;
     };
-    auto integer = [&](const std::string& k) { return int(std::llround(number(k))); };
     auto integer_or = [&](const std::string& k, int fallback) {
-        return has(k) ? integer(k) : fallback;
+        if (!has(k)) return fallback;
+        const std::string& text = kv.at(k);
+        char* end = nullptr;
+        const long long v = std::strtoll(text.c_str(), &end, 0);
+        if (end == text.c_str() || v < INT32_MIN || v > INT32_MAX)
+            throw InputError(
+                fmt::format("{}: {}: expected a whole number, got '{}'", path, k, text));
+        return int(v);
+    };
+    auto text_or = [&](const std::string& k, const std::string& fallback) {
+        return has(k) ? kv.at(k) : fallback;
+    };
+    auto boolean_or = [&](const std::string& k, bool fallback) {
+        if (!has(k)) return fallback;
+        std::string v = kv.at(k);
+        for (char& c : v) c = char(std::tolower(static_cast<unsigned char>(c)));
+        if (v == "true" || v == "yes" || v == "on" || v == "1") return true;
+        if (v == "false" || v == "no" || v == "off" || v == "0") return false;
+        return fallback;
     };
 
     DramDeviceSpec s;
     s.name = fs::path(path).stem().string();
-    s.protocol = has("dram_structure.protocol") ? kv["dram_structure.protocol"] : "DDR4";
-    s.bankgroups = integer("dram_structure.bankgroups");
-    s.banks_per_group = integer("dram_structure.banks_per_group");
-    s.rows = integer("dram_structure.rows");
-    s.columns = integer("dram_structure.columns");
-    s.device_width_bits = integer("dram_structure.device_width");
-    s.burst_length = integer("dram_structure.BL");
+    s.protocol = text_or("dram_structure.protocol", "DDR3");
+    const std::string& p = s.protocol;
+    if (p == "HMC")
+        throw InputError(fmt::format(
+            "{}: protocol HMC: a hybrid memory cube (packetized links, vaults) is not modelled",
+            path));
+    static const char* const kKnown[] = {"DDR3",  "DDR4",   "GDDR5",  "GDDR5X", "GDDR6",
+                                         "LPDDR", "LPDDR3", "LPDDR4", "HBM",    "HBM2"};
+    if (std::find(std::begin(kKnown), std::end(kKnown), p) == std::end(kKnown))
+        throw InputError(
+            fmt::format("{}: protocol {}: not a protocol DRAMsim3 or RTSim knows", path, p));
+    const bool gddr = p.rfind("GDDR", 0) == 0, hbm = p.rfind("HBM", 0) == 0;
+    s.bankgroups = integer_or("dram_structure.bankgroups", 2);
+    s.banks_per_group = integer_or("dram_structure.banks_per_group", 2);
+    s.rows = integer_or("dram_structure.rows", 1 << 16);
+    s.columns = integer_or("dram_structure.columns", 1 << 10);
+    s.device_width_bits = integer_or("dram_structure.device_width", 8);
+    s.burst_length = integer_or("dram_structure.BL", 8);
+    if (s.burst_length == 0)
+        throw InputError(fmt::format(
+            "{}: dram_structure.BL = 0 (DRAMsim3's ideal bandwidth, no data bus time) is not "
+            "modelled",
+            path));
     s.channels = integer_or("system.channels", 1);
     s.bus_width_bits = integer_or("system.bus_width", 64);
-    if (has("system.address_mapping")) s.address_mapping = kv["system.address_mapping"];
-    if (has("system.row_buf_policy")) s.open_page = kv["system.row_buf_policy"] != "CLOSE_PAGE";
+    s.address_mapping = text_or("system.address_mapping", "chrobabgraco");
+    s.open_page = text_or("system.row_buf_policy", "OPEN_PAGE") != "CLOSE_PAGE";
     // DRAMsim3's rule for the data bus cycles of a burst.
-    const std::string& p = s.protocol;
     s.burst_cycles = p == "GDDR5"    ? s.burst_length / 4
                      : p == "GDDR5X" ? s.burst_length / 8
                      : p == "GDDR6"  ? s.burst_length / 16
                                      : s.burst_length / 2;
     s.burst_cycles = std::max(1, s.burst_cycles);
-    s.tck_ns = number("timing.tCK");
-    s.cl = integer("timing.CL");
-    s.cwl = integer("timing.CWL");
-    s.t_rcd = has("timing.tRCD") ? integer("timing.tRCD") : integer("timing.tRCDRD");
-    s.t_rp = integer("timing.tRP");
-    s.t_ras = integer("timing.tRAS");
-    s.t_rtp = has("timing.tRTP") ? integer("timing.tRTP") : integer_or("timing.tRTP_L", 0);
-    s.t_wr = integer("timing.tWR");
-    s.t_wtr_s = integer("timing.tWTR_S");
-    s.t_wtr_l = integer("timing.tWTR_L");
-    s.t_ccd_s = integer("timing.tCCD_S");
-    s.t_ccd_l = integer("timing.tCCD_L");
-    s.t_rrd_s = integer("timing.tRRD_S");
-    s.t_rrd_l = integer("timing.tRRD_L");
-    s.t_faw = integer("timing.tFAW");
-    s.t_rtrs = integer_or("timing.tRTRS", 2);  // DRAMsim3's default
-    s.t_refi = integer("timing.tREFI");
-    s.t_rfc = integer("timing.tRFC");
-    s.vdd = number("power.VDD");
-    s.idd0 = number("power.IDD0");
-    s.idd2n = number("power.IDD2N");
-    s.idd3n = number("power.IDD3N");
-    s.idd4r = number("power.IDD4R");
-    s.idd4w = number("power.IDD4W");
-    s.idd5ab = number("power.IDD5AB");
+    s.tck_ns = number_or("timing.tCK", 1.0);
+    // Read and write latencies count the additive latency, as DRAMsim3's RL and WL do.
+    const int al = integer_or("timing.AL", 0);
+    s.cl = integer_or("timing.CL", 12) + al;
+    s.cwl = integer_or("timing.CWL", 12) + al;
+    // Graphics and HBM memories time an activate to a read by tRCDRD, the others by tRCD.
+    s.t_rcd = gddr || hbm ? integer_or("timing.tRCDRD", 24) : integer_or("timing.tRCD", 10);
+    s.t_rp = integer_or("timing.tRP", 10);
+    s.t_ras = integer_or("timing.tRAS", 24);
+    s.t_rtp = integer_or("timing.tRTP", 5);
+    s.t_wr = integer_or("timing.tWR", 10);
+    s.t_wtr_s = integer_or("timing.tWTR_S", 5);
+    s.t_wtr_l = integer_or("timing.tWTR_L", 5);
+    s.t_ccd_s = integer_or("timing.tCCD_S", 4);
+    s.t_ccd_l = integer_or("timing.tCCD_L", 6);
+    s.t_rrd_s = integer_or("timing.tRRD_S", 4);
+    s.t_rrd_l = integer_or("timing.tRRD_L", 4);
+    s.t_faw = integer_or("timing.tFAW", 50);
+    s.t_rtrs = integer_or("timing.tRTRS", 2);
+    s.t_refi = integer_or("timing.tREFI", 7800);
+    s.t_rfc = integer_or("timing.tRFC", 74);
+    s.vdd = number_or("power.VDD", 1.2);
+    s.idd0 = number_or("power.IDD0", 48);
+    s.idd2n = number_or("power.IDD2N", 34);
+    s.idd3n = number_or("power.IDD3N", 43);
+    s.idd4r = number_or("power.IDD4R", 135);
+    s.idd4w = number_or("power.IDD4W", 123);
+    s.idd5ab = number_or("power.IDD5AB", 250);
     // Bank groups switched off: one group of all the banks, and the _S timings throughout.
-    if (has("dram_structure.bankgroup_enable") &&
-        (kv["dram_structure.bankgroup_enable"] == "false" ||
-         kv["dram_structure.bankgroup_enable"] == "False")) {
+    if (!boolean_or("dram_structure.bankgroup_enable", true)) {
         s.banks_per_group *= s.bankgroups;
         s.bankgroups = 1;
     }
@@ -137,13 +175,12 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
         s.t_rrd_l = s.t_rrd_s;
     }
     // Ranks: the channel's size (MB) over a rank's (its devices' capacity).
-    if (s.device_width_bits > 0 && s.bus_width_bits % s.device_width_bits == 0 &&
-        has("system.channel_size")) {
+    if (s.device_width_bits > 0 && s.bus_width_bits % s.device_width_bits == 0) {
         const double device_bytes = double(s.rows) * s.columns * s.device_width_bits / 8.0 *
                                     s.bankgroups * s.banks_per_group;
         const double rank_bytes = device_bytes * (s.bus_width_bits / s.device_width_bits);
-        s.ranks =
-            std::max(1, int(std::llround(number("system.channel_size") * 1048576.0 / rank_bytes)));
+        s.ranks = std::max(
+            1, int(std::llround(number_or("system.channel_size", 1024) * 1048576.0 / rank_bytes)));
     }
     const std::string why = s.check();
     if (!why.empty()) throw InputError(fmt::format("{}: {}", path, why));

@@ -133,7 +133,98 @@ row_buf_policy = OPEN_PAGE
     const fs::path broken = write("broken.ini", "[timing]\ntCK = fast\n");
     expect_one_line_error(
         run_rtsim("dram '" + trace.string() + "' --device '" + broken.string() + "'"),
-        "broken.ini: missing dram_structure.bankgroups");
+        "broken.ini: timing.tCK: expected a number, got 'fast'");
+}
+
+// DRAMsim3's configs folder reads as DRAMsim3 reads it (its Config class): a key that is missing
+// or empty takes DRAMsim3's default (tREFI 7800, tRFC 74, tRTP 5, tRCDRD 24, ...), a number is
+// its leading numeric text ("0.666 (1/1.5)", GDDR5X's tCK), graphics and HBM memories time an
+// activate to a read by tRCDRD, and what is not modelled is refused in one line naming it.
+TEST(DramTrace, Dramsim3IniFilesReadAsDramsim3ReadsThem) {
+    const fs::path trace = write("one_read.trace", "0x1000 READ 5\n");
+    auto device = [&](const std::string& name, const std::string& text) {
+        const fs::path ini = write(name, text), out = work_dir() / (name + "_out");
+        const Result r = run_rtsim("dram -q '" + trace.string() + "' --device '" + ini.string() +
+                                   "' -o '" + out.string() + "'");
+        EXPECT_EQ(r.status, 0) << r.err;
+        return json::parse(slurp(out / "stats.json"))["device"];
+    };
+    // A DDR3 file with no tREFI, tWTR_L, tRTP or power section (as DRAMsim3's DDR3 files).
+    const json ddr3 = device("ddr3_defaults.ini", R"([dram_structure]
+protocol = DDR3
+bankgroups = 1
+banks_per_group = 8
+rows = 65536
+columns = 2048
+device_width = 8
+BL = 8
+[timing]
+tCK = 1.25
+CL = 11
+CWL = 8
+tRCD = 11
+tRP = 11
+tRAS = 28
+tRFC = 280
+tWTR_S = 6
+)");
+    EXPECT_EQ(ddr3["t_refi"].get<int>(), 7800);
+    EXPECT_EQ(ddr3["t_rtp"].get<int>(), 5);
+    EXPECT_EQ(ddr3["t_wtr_l"].get<int>(), 6);  // one bank group: the _S timing
+    EXPECT_EQ(ddr3["t_rfc"].get<int>(), 280);
+    EXPECT_DOUBLE_EQ(ddr3["idd5ab"].get<double>(), 250.0);
+    EXPECT_EQ(ddr3["address_mapping"].get<std::string>(), "chrobabgraco");
+    // HBM with an empty tRFC; GDDR5X's tCK with its derivation beside it; tRCDRD over tRCD.
+    const json hbm = device("hbm_empty.ini", R"([dram_structure]
+protocol = HBM
+bankgroups = 4
+banks_per_group = 2
+rows = 16384
+columns = 64
+device_width = 128
+BL = 4
+[system]
+bus_width = 128
+[timing]
+tCK = 2
+tRCD = 9
+tRCDRD = 7
+tRFC =
+)");
+    EXPECT_EQ(hbm["t_rfc"].get<int>(), 74);
+    EXPECT_EQ(hbm["t_rcd"].get<int>(), 7);
+    const json gddr5x = device("gddr5x_tck.ini", R"([dram_structure]
+protocol = GDDR5X
+bankgroups = 4
+banks_per_group = 4
+rows = 16384
+columns = 64
+device_width = 32
+BL = 16
+bankgroup_enable = false
+[system]
+bus_width = 32
+[timing]
+tCK = 0.666 (1/1.5)
+)");
+    EXPECT_DOUBLE_EQ(gddr5x["tck_ns"].get<double>(), 0.666);
+    EXPECT_EQ(gddr5x["t_rcd"].get<int>(), 24);        // DRAMsim3's tRCDRD default
+    EXPECT_EQ(gddr5x["burst_cycles"].get<int>(), 2);  // BL / 8
+    EXPECT_EQ(gddr5x["bankgroups"].get<int>(), 1);
+    EXPECT_EQ(gddr5x["banks_per_group"].get<int>(), 16);
+
+    const fs::path hmc = write("hmc.ini", "[dram_structure]\nprotocol = HMC\n");
+    expect_one_line_error(
+        run_rtsim("dram '" + trace.string() + "' --device '" + hmc.string() + "'"),
+        "protocol HMC: a hybrid memory cube");
+    const fs::path ideal = write("ideal.ini", "[dram_structure]\nprotocol = DDR4\nBL = 0\n");
+    expect_one_line_error(
+        run_rtsim("dram '" + trace.string() + "' --device '" + ideal.string() + "'"),
+        "dram_structure.BL = 0");
+    const fs::path odd = write("odd.ini", "[dram_structure]\nprotocol = RDRAM\n");
+    expect_one_line_error(
+        run_rtsim("dram '" + trace.string() + "' --device '" + odd.string() + "'"),
+        "protocol RDRAM: not a protocol");
 }
 
 TEST(DramTrace, EveryPresetLoadsAndRuns) {
