@@ -65,6 +65,33 @@ def finish_cycles(binary, ini, trace, n, tmp):
     return hi, dramsim3(binary, ini, trace, hi, os.path.join(tmp, "d3"))
 
 
+def compare_trace(rtsim, binary, ini, trace, tmp):
+    """One trace through `rtsim dram` and DRAMsim3 with the same device file: each one's cycles
+    until the last request completed, read latency, row hit rate, ACT and REF counts, energy."""
+    with open(trace) as f:
+        n = sum(1 for line in f if line.strip())
+    out = os.path.join(tmp, "rt-" + os.path.basename(trace))
+    subprocess.run([rtsim, "dram", "-q", trace, "--device", ini, "-o", out], check=True)
+    with open(os.path.join(out, "stats.json")) as f:
+        r = json.load(f)
+    cycles, d = finish_cycles(binary, ini, trace, n, tmp)
+    d_hits = d["num_read_row_hits"] + d["num_write_row_hits"]
+    d_cols = d["num_read_cmds"] + d["num_write_cmds"]
+    return {
+        "requests": n,
+        "rtsim": {"cycles": r["cycles"], "read_latency": r["read_latency_cycles"]["mean"],
+                  "row_hit_rate": r["row_hit_rate"], "act": r["commands"]["act"],
+                  "ref": r["commands"]["ref"], "energy_nj": r["energy_pj"]["total"] / 1e3},
+        # DRAMsim3 sums VDD x IDD x cycles and calls it pJ (its comment: "if we convert cycles
+        # to ns then it's exactly pJ"), never multiplying by tCK: in pJ its figures are tCK
+        # times what it prints.
+        "dramsim3": {"cycles": cycles, "read_latency": d["average_read_latency"],
+                     "row_hit_rate": d_hits / d_cols if d_cols else 0.0,
+                     "act": d["num_act_cmds"], "ref": d["num_ref_cmds"],
+                     "energy_printed": d["total_energy"] / 1e3,
+                     "energy_nj": d["total_energy"] * r["device"]["tck_ns"] / 1e3}}
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--dramsim3", required=True, help="DRAMsim3's dramsim3main binary")
@@ -103,30 +130,8 @@ def main():
                                + extra, check=True)
                 traces["rtsim-" + scene + tag] = p
         for name, trace in traces.items():
-            with open(trace) as f:
-                n = sum(1 for line in f if line.strip())
-            out = os.path.join(tmp, "rt-" + name)
-            subprocess.run([args.rtsim, "dram", "-q", trace, "--device", args.ini, "-o", out],
-                           check=True)
-            with open(os.path.join(out, "stats.json")) as f:
-                r = json.load(f)
-            cycles, d = finish_cycles(args.dramsim3, args.ini, trace, n, tmp)
-            d_hits = d["num_read_row_hits"] + d["num_write_row_hits"]
-            d_cols = d["num_read_cmds"] + d["num_write_cmds"]
-            rows.append({
-                "trace": name, "requests": n,
-                "rtsim": {"cycles": r["cycles"], "read_latency": r["read_latency_cycles"]["mean"],
-                          "row_hit_rate": r["row_hit_rate"], "act": r["commands"]["act"],
-                          "ref": r["commands"]["ref"],
-                          "energy_nj": r["energy_pj"]["total"] / 1e3},
-                # DRAMsim3 sums VDD x IDD x cycles and calls it pJ (its comment: "if we convert
-                # cycles to ns then it's exactly pJ"), never multiplying by tCK: in pJ its
-                # figures are tCK times what it prints.
-                "dramsim3": {"cycles": cycles, "read_latency": d["average_read_latency"],
-                             "row_hit_rate": d_hits / d_cols if d_cols else 0.0,
-                             "act": d["num_act_cmds"], "ref": d["num_ref_cmds"],
-                             "energy_printed": d["total_energy"] / 1e3,
-                             "energy_nj": d["total_energy"] * r["device"]["tck_ns"] / 1e3}})
+            rows.append(dict(trace=name, **compare_trace(args.rtsim, args.dramsim3, args.ini,
+                                                         trace, tmp)))
 
     def pct(a, b):
         return f"{100.0 * (a - b) / b:+.1f}%" if b else "n/a"

@@ -126,6 +126,12 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
             "{}: dram_structure.BL = 0 (DRAMsim3's ideal bandwidth, no data bus time) is not "
             "modelled",
             path));
+    // DRAMsim3 counts a GDDR column as BL device-width words and an HBM column as two (its
+    // prefetch), and turns both into device-width columns before sizing rows and ranks and
+    // mapping addresses: a row of GDDR5X_8Gb_x32 holds 64 bursts, not 4 (read as 4, a sequential
+    // stream opened 15 times the rows DRAMsim3 opens, and 16 times the ranks refreshed).
+    if (gddr) s.columns *= s.burst_length;
+    if (hbm) s.columns *= 2;
     s.channels = integer_or("system.channels", 1);
     s.bus_width_bits = integer_or("system.bus_width", 64);
     s.address_mapping = text_or("system.address_mapping", "chrobabgraco");

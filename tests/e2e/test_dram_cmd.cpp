@@ -139,7 +139,8 @@ row_buf_policy = OPEN_PAGE
 // DRAMsim3's configs folder reads as DRAMsim3 reads it (its Config class): a key that is missing
 // or empty takes DRAMsim3's default (tREFI 7800, tRFC 74, tRTP 5, tRCDRD 24, ...), a number is
 // its leading numeric text ("0.666 (1/1.5)", GDDR5X's tCK), graphics and HBM memories time an
-// activate to a read by tRCDRD, and what is not modelled is refused in one line naming it.
+// activate to a read by tRCDRD and count columns as DRAMsim3 does (BL words for GDDR, two for
+// HBM), and what is not modelled is refused in one line naming it.
 TEST(DramTrace, Dramsim3IniFilesReadAsDramsim3ReadsThem) {
     const fs::path trace = write("one_read.trace", "0x1000 READ 5\n");
     auto device = [&](const std::string& name, const std::string& text) {
@@ -193,6 +194,7 @@ tRFC =
 )");
     EXPECT_EQ(hbm["t_rfc"].get<int>(), 74);
     EXPECT_EQ(hbm["t_rcd"].get<int>(), 7);
+    EXPECT_EQ(hbm["columns"].get<int>(), 128);  // DRAMsim3: an HBM column is two words
     const json gddr5x = device("gddr5x_tck.ini", R"([dram_structure]
 protocol = GDDR5X
 bankgroups = 4
@@ -208,8 +210,9 @@ bus_width = 32
 tCK = 0.666 (1/1.5)
 )");
     EXPECT_DOUBLE_EQ(gddr5x["tck_ns"].get<double>(), 0.666);
-    EXPECT_EQ(gddr5x["t_rcd"].get<int>(), 24);        // DRAMsim3's tRCDRD default
-    EXPECT_EQ(gddr5x["burst_cycles"].get<int>(), 2);  // BL / 8
+    EXPECT_EQ(gddr5x["t_rcd"].get<int>(), 24);         // DRAMsim3's tRCDRD default
+    EXPECT_EQ(gddr5x["burst_cycles"].get<int>(), 2);   // BL / 8
+    EXPECT_EQ(gddr5x["columns"].get<int>(), 64 * 16);  // DRAMsim3: a GDDR column is BL words
     EXPECT_EQ(gddr5x["bankgroups"].get<int>(), 1);
     EXPECT_EQ(gddr5x["banks_per_group"].get<int>(), 16);
 
