@@ -174,38 +174,35 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         if (h.write) {
             result = std::max(h.chip, to_chip(entered));
         } else {
-            uint64_t last = 0, seen = 0;
-            const uint64_t count = id - first;
-            while (seen < count && copy.pending() > 0) {
-                copy.run_until(copy.now());
-                for (const auto& c : copy.completions())
-                    if (c.id >= first && c.id < first + count) {
-                        last = std::max(last, c.cycle);
-                        ++seen;
-                    }
-                copy.completions().clear();
-            }
+            const uint64_t last = run_until_back(copy, first, id - first, 0, 0);
             result = std::max(h.chip + 1, to_chip(last) + params_.latency_cycles);
         }
         if (!floor_) release(kNoFloorCycle);  // no floor to wait for: it enters now
         return result;
     }
 
-    // Puts a held request's bursts in `c` from its cycle on (waiting for room in a full queue),
-    // numbering them from `id`; returns the device cycle the last one entered.
-    uint64_t put(DramController& c, uint64_t& id, const Held& h) const {
-        const uint64_t t = to_device(h.chip);
+    // Puts a request's bursts in `c` from device cycle `t` on (waiting for room in a full queue,
+    // each cycle counted in `full_waits` if given), numbering them from `id`; returns the device
+    // cycle the last one entered.
+    uint64_t put(DramController& c, uint64_t& id, uint64_t addr, uint32_t size_bytes, bool write,
+                 uint64_t t, uint64_t* full_waits = nullptr) const {
         const uint32_t burst = spec_.burst_bytes();
-        const uint64_t count = std::max<uint64_t>(1, (h.size_bytes + burst - 1) / burst);
-        const uint64_t base = h.addr / burst * burst;
+        const uint64_t count = std::max<uint64_t>(1, (size_bytes + burst - 1) / burst);
+        const uint64_t base = addr / burst * burst;
         uint64_t entered = t;
         for (uint64_t k = 0; k < count; ++k) {
             uint64_t at = std::max(t, c.now());
-            while (!c.enqueue(id, base + k * burst, h.write, at)) at = c.now() + 1;
+            while (!c.enqueue(id, base + k * burst, write, at)) {
+                at = c.now() + 1;
+                if (full_waits) ++*full_waits;
+            }
             entered = std::max(entered, at);
             ++id;
         }
         return entered;
+    }
+    uint64_t put(DramController& c, uint64_t& id, const Held& h) const {
+        return put(c, id, h.addr, h.size_bytes, h.write, to_device(h.chip));
     }
 
     // The held requests that arrived before chip cycle `below` enter the controller, in time
@@ -246,19 +243,11 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         late_ += t < latest_arrival_;
         late_device_cycles_ += std::max(t, ctrl_.now()) - t;
         latest_arrival_ = std::max(latest_arrival_, t);
+        const uint64_t first = next_id_;
+        const uint64_t entered =
+            put(ctrl_, next_id_, r.addr, r.size_bytes, r.write, t, &queue_full_waits_);
+        const uint64_t count = next_id_ - first;
         const uint32_t burst = spec_.burst_bytes();
-        const uint64_t count = std::max<uint64_t>(1, (r.size_bytes + burst - 1) / burst);
-        const uint64_t base = r.addr / burst * burst;
-        uint64_t entered = t;
-        for (uint64_t k = 0; k < count; ++k) {
-            uint64_t at = std::max(t, ctrl_.now());
-            while (!ctrl_.enqueue(next_id_, base + k * burst, r.write, at)) {
-                at = ctrl_.now() + 1;
-                ++queue_full_waits_;
-            }
-            entered = std::max(entered, at);
-            ++next_id_;
-        }
         (r.write ? writes_ : reads_) += count;
         bytes_ += count * burst;
         if (r.write) write_bytes_ += count * burst;
@@ -284,6 +273,13 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
                 last = std::max(last, c.cycle);
                 ++seen;
             }
+        return to_chip(run_until_back(copy, first, count, last, seen)) + params_.latency_cycles;
+    }
+
+    // Runs `copy` on until bursts [first, first + count) are back, `seen` of them already (the
+    // last at `last`); returns the device cycle the last one is back.
+    static uint64_t run_until_back(DramController& copy, uint64_t first, uint64_t count,
+                                   uint64_t last, uint64_t seen) {
         while (seen < count && copy.pending() > 0) {
             copy.run_until(copy.now());
             for (const auto& c : copy.completions())
@@ -293,7 +289,7 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
                 }
             copy.completions().clear();
         }
-        return to_chip(last) + params_.latency_cycles;
+        return last;
     }
 
     void collect() {
