@@ -310,6 +310,7 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
         return false;
     };
     for (auto it = q.begin(); it != q.end(); ++it) {
+        if (t < it->arrival + uint64_t(spec_.frontend_cycles)) continue;  // not yet scheduled
         Bank& b = bank(c, it->a);
         if (!b.open || b.row != it->a.row) continue;
         if (c.ranks[size_t(it->a.rank)].refresh_pending) continue;  // its banks are closing
@@ -329,6 +330,7 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
 
 bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
     for (Request& r : q) {
+        if (t < r.arrival + uint64_t(spec_.frontend_cycles)) continue;  // not yet scheduled
         Rank& rank = c.ranks[size_t(r.a.rank)];
         Bank& b = bank(c, r.a);
         if (b.open && b.row == r.a.row) continue;  // waits for its column command

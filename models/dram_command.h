@@ -62,6 +62,11 @@ struct DramDeviceSpec {
     // waited this long, row hits to its bank stop overtaking it and its row is opened even if
     // younger requests still want the open one. 0: no cap (plain FR-FCFS, as DRAMsim3).
     int starvation_cycles = 0;
+    // Device cycles from a request's arrival until the scheduler may issue its first command:
+    // the controller's front end. 0: the same cycle. DRAMsim3 takes 1 (its tick issues that
+    // cycle's command before it moves newly arrived transactions into its command queues), and
+    // its device files are imported so.
+    int frontend_cycles = 0;
     bool refresh = true;
 
     int banks_per_rank() const { return bankgroups * banks_per_group; }

@@ -93,6 +93,7 @@ const std::vector<FieldRow>& rows() {
         row("write_high", &S::write_high),
         row("write_low", &S::write_low),
         row("starvation_cycles", &S::starvation_cycles),
+        row("frontend_cycles", &S::frontend_cycles),
         row("refresh", &S::refresh),
     };
     return r;

@@ -132,6 +132,7 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
     // stream opened 15 times the rows DRAMsim3 opens, and 16 times the ranks refreshed).
     if (gddr) s.columns *= s.burst_length;
     if (hbm) s.columns *= 2;
+    s.frontend_cycles = 1;  // DRAMsim3's controller: see DramDeviceSpec::frontend_cycles
     s.channels = integer_or("system.channels", 1);
     s.bus_width_bits = integer_or("system.bus_width", 64);
     s.address_mapping = text_or("system.address_mapping", "chrobabgraco");

@@ -125,7 +125,10 @@ row_buf_policy = OPEN_PAGE
          db = json::parse(slurp(b / "stats.json"))["device"];
     EXPECT_EQ(da["ranks"].get<int>(), 2);
     EXPECT_EQ(da["name"].get<std::string>(), "DDR4_test");
-    for (const char* k : {"ranks", "name"}) {
+    // DRAMsim3's controller takes a cycle to schedule an arrival; the preset's takes none.
+    EXPECT_EQ(da["frontend_cycles"].get<int>(), 1);
+    EXPECT_EQ(db["frontend_cycles"].get<int>(), 0);
+    for (const char* k : {"ranks", "name", "frontend_cycles"}) {
         da.erase(k);
         db.erase(k);
     }
@@ -148,10 +151,10 @@ TEST(DramTrace, Dramsim3IniFilesReadAsDramsim3ReadsThem) {
         const Result r = run_rtsim("dram -q '" + trace.string() + "' --device '" + ini.string() +
                                    "' -o '" + out.string() + "'");
         EXPECT_EQ(r.status, 0) << r.err;
-        return json::parse(slurp(out / "stats.json"))["device"];
+        return json::parse(slurp(out / "stats.json"));
     };
     // A DDR3 file with no tREFI, tWTR_L, tRTP or power section (as DRAMsim3's DDR3 files).
-    const json ddr3 = device("ddr3_defaults.ini", R"([dram_structure]
+    const json ddr3_stats = device("ddr3_defaults.ini", R"([dram_structure]
 protocol = DDR3
 bankgroups = 1
 banks_per_group = 8
@@ -169,14 +172,19 @@ tRAS = 28
 tRFC = 280
 tWTR_S = 6
 )");
+    const json& ddr3 = ddr3_stats["device"];
     EXPECT_EQ(ddr3["t_refi"].get<int>(), 7800);
     EXPECT_EQ(ddr3["t_rtp"].get<int>(), 5);
     EXPECT_EQ(ddr3["t_wtr_l"].get<int>(), 6);  // one bank group: the _S timing
     EXPECT_EQ(ddr3["t_rfc"].get<int>(), 280);
     EXPECT_DOUBLE_EQ(ddr3["idd5ab"].get<double>(), 250.0);
     EXPECT_EQ(ddr3["address_mapping"].get<std::string>(), "chrobabgraco");
+    // DRAMsim3's controller issues a transaction's first command the cycle after it arrives:
+    // one read on an idle bank is back 1 + tRCD 11 + CL 11 + BL/2 4 = 27 cycles after it came.
+    EXPECT_EQ(ddr3["frontend_cycles"].get<int>(), 1);
+    EXPECT_EQ(ddr3_stats["read_latency_cycles"]["mean"].get<double>(), 27.0);
     // HBM with an empty tRFC; GDDR5X's tCK with its derivation beside it; tRCDRD over tRCD.
-    const json hbm = device("hbm_empty.ini", R"([dram_structure]
+    const json hbm_stats = device("hbm_empty.ini", R"([dram_structure]
 protocol = HBM
 bankgroups = 4
 banks_per_group = 2
@@ -192,10 +200,11 @@ tRCD = 9
 tRCDRD = 7
 tRFC =
 )");
+    const json& hbm = hbm_stats["device"];
     EXPECT_EQ(hbm["t_rfc"].get<int>(), 74);
     EXPECT_EQ(hbm["t_rcd"].get<int>(), 7);
     EXPECT_EQ(hbm["columns"].get<int>(), 128);  // DRAMsim3: an HBM column is two words
-    const json gddr5x = device("gddr5x_tck.ini", R"([dram_structure]
+    const json gddr5x_stats = device("gddr5x_tck.ini", R"([dram_structure]
 protocol = GDDR5X
 bankgroups = 4
 banks_per_group = 4
@@ -209,6 +218,7 @@ bus_width = 32
 [timing]
 tCK = 0.666 (1/1.5)
 )");
+    const json& gddr5x = gddr5x_stats["device"];
     EXPECT_DOUBLE_EQ(gddr5x["tck_ns"].get<double>(), 0.666);
     EXPECT_EQ(gddr5x["t_rcd"].get<int>(), 24);         // DRAMsim3's tRCDRD default
     EXPECT_EQ(gddr5x["burst_cycles"].get<int>(), 2);   // BL / 8
