@@ -152,13 +152,17 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         const uint64_t line = addr >> line_shift_;
         return find_way<0>(set_of(line), line) >= 0;
     }
+    // First and last line address a request touches.
+    std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
+        return {addr >> line_shift_, (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_};
+    }
+    // MSHRs free at `t`, for misses from then on (UINT32_MAX when they are unlimited).
+    uint32_t free_mshrs_at(Cycle t) const;
     // A miss looked up from `now` on: the cycle it can first leave for the next level, when all
     // MSHRs are busy until later (otherwise `now`). A cache with unlimited MSHRs in front of
     // another of the same level (a treelet cache before its L1) leaves through that one's.
     // The fast model's cores hold such a miss back until then: the shared levels below see it
     // in time order.
-    // MSHRs free at `t`, for misses from then on (UINT32_MAX when they are unlimited).
-    uint32_t free_mshrs_at(Cycle t) const;
     Cycle miss_leaves_at(Cycle now) {
         if (few_mshrs_ || !mshr_free_.empty()) return std::max(now, earliest_mshr());
         return same_level_next_ ? same_level_next_->miss_leaves_at(now) : now;
@@ -232,10 +236,6 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     template <int G = 0>
     Cycle* fill_ready(uint64_t set) {
         return reinterpret_cast<Cycle*>(set_block<G>(set) + 8 * uint64_t(ways_of<G>()));
-    }
-    // First and last line address a request touches.
-    std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
-        return {addr >> line_shift_, (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_};
     }
     // The way holding `line_addr` in its set, or -1. Compares every way without an early exit:
     // a data-dependent exit mispredicts on most lookups, the extra compares cost less.

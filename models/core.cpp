@@ -166,12 +166,11 @@ namespace {
 // Whether a fetch of several lines from `cache` at `issued` must go line by line: more of its
 // lines miss than MSHRs are free then, so some misses would wait for others' fills.
 bool needs_line_by_line(const Cache& cache, const Step& st, Cycle issued) {
-    const uint32_t line_bytes = cache.params().line_bytes;
-    const uint64_t first_line = st.addr / line_bytes;
-    const uint64_t lines = (st.addr + st.size_bytes - 1) / line_bytes - first_line + 1;
-    if (lines < 2 || lines > 255 || cache.params().mshrs <= 0) return false;
+    const auto [first, last] = cache.line_range(st.addr, st.size_bytes);
+    if (last == first || last - first >= 255 || cache.params().mshrs <= 0) return false;
     uint32_t missing = 0;
-    for (uint64_t k = 0; k < lines; ++k) missing += !cache.contains((first_line + k) * line_bytes);
+    for (uint64_t line = first; line <= last; ++line)
+        missing += !cache.contains(cache.line_address(line));
     return missing > 1 && missing > cache.free_mshrs_at(issued);
 }
 }  // namespace
@@ -348,22 +347,24 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             // ahead of other cores' requests, which would queue behind them (BVH8 nodes, one
             // L1 MSHR, 64 cores: +88% cycles against the time-ordered reference). It goes line
             // by line instead, each miss held back until it can leave.
+            // Held back: the issue is undone, and the slot resumes at `at` (the same issue).
+            const auto hold_until = [&](Cycle at) {
+                issue_port_ = saved_port;
+                issue_stall_cycles = saved_issue_stall;
+                s.fetch_is_shared = true;
+                return at;
+            };
             if (cache && (s.fetch_lines_sent > 0 || needs_line_by_line(*cache, st, issued))) {
-                const uint32_t line_bytes = cache->params().line_bytes;
                 const uint64_t end = st.addr + st.size_bytes;
-                const uint64_t first_line = st.addr / line_bytes;
-                const uint64_t lines = (end - 1) / line_bytes - first_line + 1;
-                for (uint64_t k = s.fetch_lines_sent; k < lines; ++k) {
-                    const uint64_t from = std::max(st.addr, (first_line + k) * line_bytes);
-                    const uint64_t to = std::min(end, (first_line + k + 1) * line_bytes);
+                const auto [first_line, last_line] = cache->line_range(st.addr, st.size_bytes);
+                for (uint64_t k = s.fetch_lines_sent; first_line + k <= last_line; ++k) {
+                    const uint64_t from = std::max(st.addr, cache->line_address(first_line + k));
+                    const uint64_t to = std::min(end, cache->line_address(first_line + k + 1));
                     const Cycle line_leaves =
                         cache->contains(from) ? issued : cache->miss_leaves_at(issued);
                     if (beyond(line_leaves)) {
-                        issue_port_ = saved_port;
-                        issue_stall_cycles = saved_issue_stall;
-                        s.fetch_is_shared = true;
                         s.fetch_lines_sent = uint8_t(k);
-                        return line_leaves;
+                        return hold_until(line_leaves);
                     }
                     AccessBreakdown line_bd;
                     const Cycle ready = mem->access(from, uint32_t(to - from), issued, &line_bd);
@@ -378,12 +379,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
                 s.fetch_is_shared = false;
             } else {
                 const Cycle leaves = cache ? cache->miss_leaves_at(issued) : issued;
-                if (beyond(leaves)) {
-                    issue_port_ = saved_port;
-                    issue_stall_cycles = saved_issue_stall;
-                    s.fetch_is_shared = true;
-                    return leaves;
-                }
+                if (beyond(leaves)) return hold_until(leaves);
                 fetched = mem->access(st.addr, st.size_bytes, issued, &bd);
                 s.fetch_is_shared = false;
             }

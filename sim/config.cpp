@@ -1,7 +1,7 @@
 #include "sim/config.h"
-#include "sim/sampling/sampler.h"
 
 #include "models/dram_device.h"
+#include "sim/sampling/registry.h"
 
 #include <fmt/format.h>
 #include <cmath>

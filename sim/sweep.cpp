@@ -1,6 +1,6 @@
 #include "sim/sweep.h"
 
-#include "sim/sampling/sampler.h"
+#include "sim/sampling/registry.h"
 
 #include <cerrno>
 #include <csignal>

@@ -5,7 +5,7 @@
 #include <cstdio>
 
 #include "models/traversal_mode.h"
-#include "sim/sampling/sampler.h"
+#include "sim/sampling/registry.h"
 #include "workloads/error.h"
 #include "workloads/reduced_box.h"
 #include "workloads/trace_file.h"

@@ -42,12 +42,12 @@
 #include <vector>
 
 #include "models/core.h"
-#include "models/registry.h"
 #include "models/stats.h"
 #include "models/timing.h"
 #include "sim/sampling/estimators.h"
 #include "sim/sampling/frame_profile.h"
 #include "sim/sampling/functional_l2.h"
+#include "sim/sampling/registry.h"
 #include "workloads/step.h"
 
 namespace rtsim {
@@ -477,34 +477,5 @@ struct SampledFrame {
     std::string cache_dir;                       // where profiles and their counts are kept
     uint64_t fetch_begin = 0, fetch_end = 0;     // the addresses rays fetch from (BVH layout)
 };
-
-// Sampling layers, registered by what becomes of the work between measured units
-// (sim.sample_fast_forward; `rtsim list fast_forward`): each builds its sampler over a chip.
-struct FastForwardEntry {
-    static constexpr const char* kKind = "fast_forward";
-    std::string name, description;
-    std::vector<std::string> params;
-    // True when the layer needs the frame's profile (units of tiles, generated on the fly).
-    bool needs_profile = false;
-    std::unique_ptr<Sampler> (*make)(const SamplingParams&, const SampledChip&,
-                                     const SampledFrame&) = nullptr;
-};
-using FastForwardRegistry = Registry<FastForwardEntry>;
-
-// Sample designs, registered by name (sim.sample_design; `rtsim list sample_design`): which
-// units are measured. `configure` sets the plan's choice of units.
-struct SampleDesignEntry {
-    static constexpr const char* kKind = "sample_design";
-    std::string name, description;
-    std::vector<std::string> params;
-    void (*configure)(SamplingParams&) = nullptr;
-    // True when the design draws from the frame's profile (sim.sample_fast_forward = skip).
-    bool needs_profile = false;
-};
-using SampleDesignRegistry = Registry<SampleDesignEntry>;
-
-// The sampler sim.sample_fast_forward names, over `chip`, for `frame`.
-std::unique_ptr<Sampler> make_sampler(const std::string& fast_forward, const SamplingParams& params,
-                                      const SampledChip& chip, const SampledFrame& frame);
 
 }  // namespace rtsim

@@ -548,21 +548,31 @@ double column_sum(const UnitsCsv& csv, const std::string& name) {
     const auto& v = csv.cols.at(name);
     return std::accumulate(v.begin(), v.end(), 0.0);
 }
+
+// Runs `common` (an `rtsim run` command line) in full, and again as a skip run that measures
+// every unit of 2 tiles: the two stats.json, full first (null when a run failed).
+std::pair<json, json> full_and_every_unit_run(const std::string& common, const std::string& name) {
+    const fs::path full = work_dir() / (name + "_full"), all = work_dir() / (name + "_all");
+    const Result f = run_rtsim(common + "-o '" + full.string() + "'");
+    EXPECT_EQ(f.status, 0) << f.err;
+    const Result r = run_rtsim(common +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_period_units=1 --set sim.sample_unit_tiles=2 "
+                               "--bvh-cache off -o '" +
+                               all.string() + "'");
+    EXPECT_EQ(r.status, 0) << r.err;
+    if (f.status != 0 || r.status != 0) return {};  // null: the caller stops
+    return {stats_of(full), stats_of(all)};
+}
 }  // namespace
 
 // The skip design (sim.sample_fast_forward = skip) with every unit measured traces every tile and
 // skips none: the run is the full run, and the estimates are what it measured.
 TEST(Sampled, SkipDesignMeasuringEveryUnitIsTheFullRun) {
     const std::string common = "run --scene builtin:sphere --rays primary,ao --res 48x48 ";
-    const fs::path full = work_dir() / "k_full", all = work_dir() / "k_all";
-    ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
-    const Result r = run_rtsim(common +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_period_units=1 --set sim.sample_unit_tiles=2 "
-                               "--bvh-cache off -o '" +
-                               all.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    const json f = stats_of(full), a = stats_of(all);
+    const fs::path all = work_dir() / "k_all";
+    const auto [f, a] = full_and_every_unit_run(common, "k");
+    ASSERT_FALSE(f.is_null() || a.is_null());
     const json& sm = a["sampling"];
     EXPECT_EQ(sm["units"], 18);  // 6 x 6 tiles
     EXPECT_EQ(sm["units_measured"], 18);
@@ -618,15 +628,8 @@ TEST(Sampled, TheAccurateEngineSamplesAsTheFastOneDoes) {
         "run --scene builtin:sphere --rays primary,ao --res 48x48 --set "
         "l1.mshrs=1 --set l2.mshrs=2 ";
     const std::string common = chip + "--set sim.fidelity=accurate ";
-    const fs::path full = work_dir() / "acc_full", all = work_dir() / "acc_all";
-    ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
-    const Result r = run_rtsim(common +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_period_units=1 --set sim.sample_unit_tiles=2 "
-                               "--bvh-cache off -o '" +
-                               all.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    const json f = stats_of(full), a = stats_of(all);
+    const auto [f, a] = full_and_every_unit_run(common, "acc");
+    ASSERT_FALSE(f.is_null() || a.is_null());
     EXPECT_EQ(a["config"]["sim"]["fidelity"], "accurate");
     EXPECT_EQ(a["sampling"]["units_measured"], 18);
     EXPECT_EQ(a["sampling"]["simulated_cycles"], f["total_cycles"]);
