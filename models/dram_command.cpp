@@ -70,12 +70,27 @@ std::string DramDeviceSpec::check() const {
     if (burst_cycles < 1)
         return fmt::format("burst_cycles: expected 1 or more, got {}", burst_cycles);
     if (!(tck_ns > 0)) return fmt::format("tck_ns: expected a positive period, got {}", tck_ns);
-    const std::pair<const char*, int> timing[] = {
-        {"cl", cl},           {"cwl", cwl},         {"t_rcd", t_rcd},     {"t_rp", t_rp},
-        {"t_ras", t_ras},     {"t_rtp", t_rtp},     {"t_wr", t_wr},       {"t_wtr_s", t_wtr_s},
-        {"t_wtr_l", t_wtr_l}, {"t_ccd_s", t_ccd_s}, {"t_ccd_l", t_ccd_l}, {"t_rrd_s", t_rrd_s},
-        {"t_rrd_l", t_rrd_l}, {"t_faw", t_faw},     {"t_rtrs", t_rtrs},   {"t_refi", t_refi},
-        {"t_rfc", t_rfc}};
+    const std::pair<const char*, int> timing[] = {{"cl", cl},
+                                                  {"cwl", cwl},
+                                                  {"t_rcd", t_rcd},
+                                                  {"t_rp", t_rp},
+                                                  {"t_ras", t_ras},
+                                                  {"t_rtp", t_rtp},
+                                                  {"t_wr", t_wr},
+                                                  {"t_wtr_s", t_wtr_s},
+                                                  {"t_wtr_l", t_wtr_l},
+                                                  {"t_ccd_s", t_ccd_s},
+                                                  {"t_ccd_l", t_ccd_l},
+                                                  {"t_rrd_s", t_rrd_s},
+                                                  {"t_rrd_l", t_rrd_l},
+                                                  {"t_faw", t_faw},
+                                                  {"t_rtrs", t_rtrs},
+                                                  {"t_refi", t_refi},
+                                                  {"t_rfc", t_rfc},
+                                                  {"t_32aw", t_32aw},
+                                                  {"t_rcd_wr", t_rcd_wr},
+                                                  {"wck_sync_cycles", wck_sync_cycles},
+                                                  {"wck_postamble_cycles", wck_postamble_cycles}};
     for (const auto& [field, v] : timing)
         if (v < 0) return fmt::format("{}: expected 0 or more cycles, got {}", field, v);
     if (refresh && t_refi <= t_rfc)
@@ -321,6 +336,16 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
         const uint64_t gap =
             c.last_data_rank >= 0 && c.last_data_rank != it->a.rank ? uint64_t(spec_.t_rtrs) : 0;
         if (data_start < c.data_free + gap) continue;
+        if (spec_.wck_sync_cycles > 0 && t >= c.wck_until) {
+            // The data clock has stopped: a CAS with WCK sync takes this cycle's command slot
+            // unless one is under way, and every column command waits for it.
+            if (c.wck_sync_done <= c.wck_until) {
+                c.wck_sync_done = t + uint64_t(spec_.wck_sync_cycles);
+                ++counters_.wck_syncs;
+                return true;
+            }
+            if (t < c.wck_sync_done) return false;
+        }
         issue_column(c, channel, *it, t);
         q.erase(it);
         return true;
@@ -352,6 +377,9 @@ bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, ui
             // tFAW needs the fourth-last activate.
             if (rank.act_count >= 4 && t < rank.acts[0] + uint64_t(spec_.t_faw)) continue;
         }
+        if (spec_.t_32aw > 0 && rank.acts32.size() >= 32 &&
+            t < rank.acts32.front() + uint64_t(spec_.t_32aw))
+            continue;
         r.caused_act = true;
         issue_act(c, channel, r.a, t);
         return true;
@@ -367,7 +395,8 @@ void DramController::issue_act(Channel& c, int channel, const DramAddress& a, ui
     b.row = a.row;
     ++rank.open_banks;
     b.next_rd = std::max(b.next_rd, t + uint64_t(spec_.t_rcd));
-    b.next_wr = std::max(b.next_wr, t + uint64_t(spec_.t_rcd));
+    b.next_wr =
+        std::max(b.next_wr, t + uint64_t(spec_.t_rcd_wr > 0 ? spec_.t_rcd_wr : spec_.t_rcd));
     b.next_pre = std::max(b.next_pre, t + uint64_t(spec_.t_ras));
     b.next_act = std::max(b.next_act, t + uint64_t(spec_.t_ras + spec_.t_rp));  // tRC
     // tRRD: the same bank group waits longer than the others.
@@ -384,6 +413,10 @@ void DramController::issue_act(Channel& c, int channel, const DramAddress& a, ui
     } else {
         std::rotate(rank.acts.begin(), rank.acts.begin() + 1, rank.acts.end());
         rank.acts[3] = t;
+    }
+    if (spec_.t_32aw > 0) {
+        rank.acts32.push_back(t);
+        if (rank.acts32.size() > 32) rank.acts32.pop_front();
     }
     ++counters_.acts;
     counters_.act_pj += e_act_;
@@ -407,6 +440,8 @@ void DramController::issue_column(Channel& c, int channel, Request& r, uint64_t 
     const uint64_t data_end = t + latency + burst;
     c.data_free = data_end;
     c.last_data_rank = r.a.rank;
+    if (spec_.wck_sync_cycles > 0)
+        c.wck_until = std::max(c.wck_until, data_end + uint64_t(spec_.wck_postamble_cycles));
     Bank& b = bank(c, r.a);
     // Column-to-column constraints within the rank (other ranks are kept apart by the data
     // bus and tRTRS).

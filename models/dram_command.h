@@ -47,8 +47,14 @@ struct DramDeviceSpec {
     int t_ccd_s = 4, t_ccd_l = 8;           // column to column, other/same bank group
     int t_rrd_s = 4, t_rrd_l = 8;           // activate to activate, other/same bank group
     int t_faw = 34;                         // at most four activates per rank in this window
-    int t_rtrs = 1;                         // rank to rank switch on the data bus
-    int t_refi = 12480, t_rfc = 560;        // refresh interval and refresh cycle (all banks)
+    // Graphics memories also allow at most 32 activates per rank in any window of t_32aw cycles
+    // (GDDR5, GDDR5X, GDDR6). 0: no such window.
+    int t_32aw = 0;
+    // Activate to write when it differs from activate to read (GDDR and HBM: tRCDWR against
+    // tRCDRD, which t_rcd holds). 0: t_rcd.
+    int t_rcd_wr = 0;
+    int t_rtrs = 1;                   // rank to rank switch on the data bus
+    int t_refi = 12480, t_rfc = 560;  // refresh interval and refresh cycle (all banks)
     // Currents (mA) and supply (V), per device
     double vdd = 1.2;
     double idd0 = 57, idd2n = 37, idd3n = 52, idd4r = 168, idd4w = 150, idd5ab = 250;
@@ -67,6 +73,12 @@ struct DramDeviceSpec {
     // cycle's command before it moves newly arrived transactions into its command queues), and
     // its device files are imported so.
     int frontend_cycles = 0;
+    // LPDDR5's data clock (WCK) runs only around bursts. A column command issued after it has
+    // stopped follows a CAS command with WCK sync, this many cycles earlier (JESD209-5; Ramulator
+    // 2 issues that CAS one cycle before the RD or WR). 0: a free-running data clock (every other
+    // standard). The clock keeps running wck_postamble_cycles past a burst's last data (tWCKPST).
+    int wck_sync_cycles = 0;
+    int wck_postamble_cycles = 0;
     bool refresh = true;
 
     int banks_per_rank() const { return bankgroups * banks_per_group; }
@@ -105,7 +117,7 @@ class DramAddressMap {
 
 struct DramCounters {
     uint64_t reads = 0, writes = 0;  // bursts
-    uint64_t acts = 0, pres = 0, refs = 0;
+    uint64_t acts = 0, pres = 0, refs = 0, wck_syncs = 0;
     uint64_t row_hits = 0;       // column commands whose row was open for an earlier request
     uint64_t row_misses = 0;     // to a precharged bank (activate only)
     uint64_t row_conflicts = 0;  // another row was open (precharge, then activate)
@@ -170,8 +182,9 @@ class DramController {
     struct Rank {
         std::array<uint64_t, 4> acts{};  // the last four activates (tFAW), oldest first
         int act_count = 0;
-        uint64_t next_ref_due = 0;  // the next refresh is owed from this cycle
-        uint64_t busy_until = 0;    // refreshing until
+        std::deque<uint64_t> acts32;  // the last 32 activates (t_32aw), oldest first
+        uint64_t next_ref_due = 0;    // the next refresh is owed from this cycle
+        uint64_t busy_until = 0;      // refreshing until
         int open_banks = 0;
         bool refresh_pending = false;
         uint64_t bg_since = 0;  // background energy accounted up to this cycle
@@ -183,6 +196,8 @@ class DramController {
         bool draining = false;
         uint64_t data_free = 0;  // the data bus is free from this cycle
         int last_data_rank = -1;
+        uint64_t wck_until = 0;      // the data clock runs until this cycle
+        uint64_t wck_sync_done = 0;  // the last WCK sync completes at this cycle
     };
 
     Bank& bank(Channel& c, const DramAddress& a) {

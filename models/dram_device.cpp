@@ -77,6 +77,8 @@ const std::vector<FieldRow>& rows() {
         row("t_rrd_s", &S::t_rrd_s),
         row("t_rrd_l", &S::t_rrd_l),
         row("t_faw", &S::t_faw),
+        row("t_32aw", &S::t_32aw),
+        row("t_rcd_wr", &S::t_rcd_wr),
         row("t_rtrs", &S::t_rtrs),
         row("t_refi", &S::t_refi),
         row("t_rfc", &S::t_rfc),
@@ -94,6 +96,8 @@ const std::vector<FieldRow>& rows() {
         row("write_low", &S::write_low),
         row("starvation_cycles", &S::starvation_cycles),
         row("frontend_cycles", &S::frontend_cycles),
+        row("wck_sync_cycles", &S::wck_sync_cycles),
+        row("wck_postamble_cycles", &S::wck_postamble_cycles),
         row("refresh", &S::refresh),
     };
     return r;

@@ -150,6 +150,9 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
     s.cwl = integer_or("timing.CWL", 12) + al;
     // Graphics and HBM memories time an activate to a read by tRCDRD, the others by tRCD.
     s.t_rcd = gddr || hbm ? integer_or("timing.tRCDRD", 24) : integer_or("timing.tRCD", 10);
+    if (gddr || hbm) s.t_rcd_wr = integer_or("timing.tRCDWR", 20);
+    // DRAMsim3 applies its 32-activate window to the graphics memories only.
+    if (gddr) s.t_32aw = integer_or("timing.t32AW", 330);
     s.t_rp = integer_or("timing.tRP", 10);
     s.t_ras = integer_or("timing.tRAS", 24);
     s.t_rtp = integer_or("timing.tRTP", 5);
@@ -318,30 +321,34 @@ int dram_command(const DramTraceOptions& opt) {
                  p999 = percentile(lat, 0.999);
     const double maxl = lat.empty() ? 0 : double(*std::max_element(lat.begin(), lat.end()));
     const uint64_t columns = k.reads + k.writes;
-    json out = {
-        {"device", dram_device_to_json(spec)},
-        {"trace", opt.trace_path},
-        {"requests", trace.size()},
-        {"reads", k.reads},
-        {"writes", k.writes},
-        {"cycles", uint64_t(cycles)},
-        {"seconds", ns * 1e-9},
-        {"bytes", bytes},
-        {"bandwidth_gbps", ns > 0 ? bytes / ns : 0.0},
-        {"peak_gbps", spec.peak_bytes_per_cycle() * spec.channels / spec.tck_ns},
-        {"read_latency_cycles",
-         {{"mean", mean}, {"p50", p50}, {"p99", p99}, {"p999", p999}, {"max", maxl}}},
-        {"read_latency_ns", {{"mean", mean * spec.tck_ns}, {"p99", p99 * spec.tck_ns}}},
-        {"commands",
-         {{"act", k.acts}, {"pre", k.pres}, {"ref", k.refs}, {"rd", k.reads}, {"wr", k.writes}}},
-        {"row_hits", k.row_hits},
-        {"row_misses", k.row_misses},
-        {"row_conflicts", k.row_conflicts},
-        {"row_hit_rate", columns ? double(k.row_hits) / double(columns) : 0.0},
-        {"write_drains", k.write_drains},
-        {"energy_pj", dram_energy_json(k)},
-        {"energy_pj_per_bit", bytes > 0 ? k.total_pj() / (bytes * 8) : 0.0},
-        {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
+    json out = {{"device", dram_device_to_json(spec)},
+                {"trace", opt.trace_path},
+                {"requests", trace.size()},
+                {"reads", k.reads},
+                {"writes", k.writes},
+                {"cycles", uint64_t(cycles)},
+                {"seconds", ns * 1e-9},
+                {"bytes", bytes},
+                {"bandwidth_gbps", ns > 0 ? bytes / ns : 0.0},
+                {"peak_gbps", spec.peak_bytes_per_cycle() * spec.channels / spec.tck_ns},
+                {"read_latency_cycles",
+                 {{"mean", mean}, {"p50", p50}, {"p99", p99}, {"p999", p999}, {"max", maxl}}},
+                {"read_latency_ns", {{"mean", mean * spec.tck_ns}, {"p99", p99 * spec.tck_ns}}},
+                {"commands",
+                 {{"act", k.acts},
+                  {"pre", k.pres},
+                  {"ref", k.refs},
+                  {"rd", k.reads},
+                  {"wr", k.writes},
+                  {"wck_sync", k.wck_syncs}}},
+                {"row_hits", k.row_hits},
+                {"row_misses", k.row_misses},
+                {"row_conflicts", k.row_conflicts},
+                {"row_hit_rate", columns ? double(k.row_hits) / double(columns) : 0.0},
+                {"write_drains", k.write_drains},
+                {"energy_pj", dram_energy_json(k)},
+                {"energy_pj_per_bit", bytes > 0 ? k.total_pj() / (bytes * 8) : 0.0},
+                {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
     if (!opt.out_dir.empty()) {
         fs::create_directories(opt.out_dir);
         write_file_atomically((fs::path(opt.out_dir) / "stats.json").string(), out.dump(2) + "\n");

@@ -179,6 +179,8 @@ tWTR_S = 6
     EXPECT_EQ(ddr3["t_rfc"].get<int>(), 280);
     EXPECT_DOUBLE_EQ(ddr3["idd5ab"].get<double>(), 250.0);
     EXPECT_EQ(ddr3["address_mapping"].get<std::string>(), "chrobabgraco");
+    EXPECT_EQ(ddr3["t_rcd_wr"].get<int>(), 0);  // DDR times a write's activate by tRCD too
+    EXPECT_EQ(ddr3["t_32aw"].get<int>(), 0);    // DRAMsim3: a graphics memory's window only
     // DRAMsim3's controller issues a transaction's first command the cycle after it arrives:
     // one read on an idle bank is back 1 + tRCD 11 + CL 11 + BL/2 4 = 27 cycles after it came.
     EXPECT_EQ(ddr3["frontend_cycles"].get<int>(), 1);
@@ -204,6 +206,8 @@ tRFC =
     EXPECT_EQ(hbm["t_rfc"].get<int>(), 74);
     EXPECT_EQ(hbm["t_rcd"].get<int>(), 7);
     EXPECT_EQ(hbm["columns"].get<int>(), 128);  // DRAMsim3: an HBM column is two words
+    EXPECT_EQ(hbm["t_rcd_wr"].get<int>(), 20);  // DRAMsim3's tRCDWR default
+    EXPECT_EQ(hbm["t_32aw"].get<int>(), 0);
     const json gddr5x_stats = device("gddr5x_tck.ini", R"([dram_structure]
 protocol = GDDR5X
 bankgroups = 4
@@ -225,6 +229,8 @@ tCK = 0.666 (1/1.5)
     EXPECT_EQ(gddr5x["columns"].get<int>(), 64 * 16);  // DRAMsim3: a GDDR column is BL words
     EXPECT_EQ(gddr5x["bankgroups"].get<int>(), 1);
     EXPECT_EQ(gddr5x["banks_per_group"].get<int>(), 16);
+    EXPECT_EQ(gddr5x["t_32aw"].get<int>(), 330);  // DRAMsim3's t32AW default
+    EXPECT_EQ(gddr5x["t_rcd_wr"].get<int>(), 20);
 
     const fs::path hmc = write("hmc.ini", "[dram_structure]\nprotocol = HMC\n");
     expect_one_line_error(

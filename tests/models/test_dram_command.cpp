@@ -110,6 +110,46 @@ TEST(DramCommand, FourActivatesPerTfawWindow) {
     for (size_t i = 0; i < 8; ++i) EXPECT_EQ(acts[i].cycle, expected[i]) << i;
 }
 
+TEST(DramCommand, GraphicsMemoriesAllowThirtyTwoActivatesPerT32aw) {
+    // 64 banks, tFAW and tRRD out of the way (0 and 1): 33 reads to 33 banks arriving at 0
+    // activate at 0, 1, ..., 31; the 33rd waits for the first + t_32aw = 100. Without the
+    // window it goes at 32.
+    for (const int t32aw : {0, 100}) {
+        DramDeviceSpec s = ddr4("rochrababgco");
+        s.banks_per_group = 16;
+        s.rows = 1 << 14;
+        s.t_faw = 0;
+        s.t_rrd_s = s.t_rrd_l = 1;
+        s.t_rcd = 1000;  // no read competes for the command bus meanwhile
+        s.read_queue = 64;
+        s.t_32aw = t32aw;
+        DramController d(s);
+        d.record_commands(true);
+        for (uint64_t i = 0; i < 33; ++i) ASSERT_TRUE(d.enqueue(i, i * 64 * 128, false, 0));
+        d.drain();
+        const auto acts = of_kind(d, DramCommand::Act);
+        ASSERT_EQ(acts.size(), 33u);
+        EXPECT_EQ(acts[31].cycle, 31u);
+        EXPECT_EQ(acts[32].cycle, t32aw ? 100u : 32u);
+    }
+}
+
+TEST(DramCommand, ActivateToWriteTakesTrcdWrWhereTheDeviceHasOne) {
+    // GDDR and HBM time an activate to a write by tRCDWR: ACT at 100, WR at 100 + 15, not
+    // 100 + tRCD (22).
+    for (const int rcd_wr : {0, 15}) {
+        DramDeviceSpec s = ddr4();
+        s.t_rcd_wr = rcd_wr;
+        DramController d(s);
+        d.record_commands(true);
+        ASSERT_TRUE(d.enqueue(1, 0x1000, true, 100));
+        d.drain();
+        const auto wr = of_kind(d, DramCommand::Wr);
+        ASSERT_EQ(wr.size(), 1u);
+        EXPECT_EQ(wr[0].cycle, rcd_wr ? 115u : 122u);
+    }
+}
+
 TEST(DramCommand, RefreshCostsAboutTrfcOverTrefi) {
     // A long peak-rate stream loses the refresh's share of time: tRFC / tREFI = 4.5%, plus the
     // precharge and re-activation around each refresh.
@@ -141,6 +181,31 @@ TEST(DramCommand, WriteToReadTurnaroundIsTwtrAfterTheWriteData) {
         ASSERT_EQ(rd.size(), 1u);
         EXPECT_EQ(rd[0].cycle, same_group ? 54u : 46u);
     }
+}
+
+TEST(DramCommand, AStoppedDataClockCostsAWckSyncBeforeTheColumnCommand) {
+    // LPDDR5's rule on the DDR4 timings: WCK sync 1 cycle, postamble 1. Read A (arrives 100):
+    // ACT 100, column ready at 122, WCK stopped: sync at 122, RD 123, data ends 149, WCK runs to
+    // 150. Read B (same row, arrives 140): WCK running, RD at 140 (tCCD_L from 123 allows 131).
+    // Read C (same row, arrives 300): WCK stopped since 167: sync at 300, RD 301.
+    DramDeviceSpec s = ddr4();
+    s.wck_sync_cycles = 1;
+    s.wck_postamble_cycles = 1;
+    DramController d(s);
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 100));
+    d.run_until(139);
+    ASSERT_TRUE(d.enqueue(2, 64, false, 140));
+    d.run_until(299);
+    ASSERT_TRUE(d.enqueue(3, 128, false, 300));
+    d.drain();
+    const auto rd = of_kind(d, DramCommand::Rd);
+    ASSERT_EQ(rd.size(), 3u);
+    EXPECT_EQ(rd[0].cycle, 123u);
+    EXPECT_EQ(rd[1].cycle, 140u);
+    EXPECT_EQ(rd[2].cycle, 301u);
+    EXPECT_EQ(d.counters().wck_syncs, 2u);
+    EXPECT_EQ(d.counters().read_latency_sum, (149u - 100) + (140 + 26 - 140) + (301 + 26 - 300));
 }
 
 TEST(DramCommand, ReadToWriteLeavesTheBusTurnaround) {
