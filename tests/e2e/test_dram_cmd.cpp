@@ -232,6 +232,33 @@ tCK = 0.666 (1/1.5)
     EXPECT_EQ(gddr5x["t_32aw"].get<int>(), 330);  // DRAMsim3's t32AW default
     EXPECT_EQ(gddr5x["t_rcd_wr"].get<int>(), 20);
 
+    // GDDR6 as DRAMsim3's file has it: a 128-bit channel, BL16, so one 64-byte request moves a
+    // whole 256-byte burst in BL/16 = 1 cycle; its read is back 1 + tRCDRD 24 + CL 24 + 1 = 50
+    // cycles after it came; tRCDWR and t32AW are read for it.
+    const json gddr6_stats = device("gddr6_burst.ini", R"([dram_structure]
+protocol = GDDR6
+bankgroups = 4
+banks_per_group = 4
+rows = 16384
+columns = 128
+device_width = 16
+BL = 16
+bankgroup_enable = false
+[system]
+bus_width = 128
+[timing]
+tCK = 0.66
+CL = 24
+tRCDRD = 24
+tRCDWR = 20
+t32AW = 420
+)");
+    EXPECT_EQ(gddr6_stats["bytes"].get<int>(), 256);
+    EXPECT_EQ(gddr6_stats["device"]["burst_cycles"].get<int>(), 1);
+    EXPECT_EQ(gddr6_stats["read_latency_cycles"]["mean"].get<double>(), 50.0);
+    EXPECT_EQ(gddr6_stats["device"]["t_rcd_wr"].get<int>(), 20);
+    EXPECT_EQ(gddr6_stats["device"]["t_32aw"].get<int>(), 420);
+
     const fs::path hmc = write("hmc.ini", "[dram_structure]\nprotocol = HMC\n");
     expect_one_line_error(
         run_rtsim("dram '" + trace.string() + "' --device '" + hmc.string() + "'"),
