@@ -371,14 +371,12 @@ bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, ui
             return true;
         }
         if (t < b.next_act) continue;
-        // tRRD (per bank group) and tFAW (four activates per window) across the rank.
-        if (rank.act_count > 0) {
-            // The rank's activate constraints are folded into each bank's next_act at issue;
-            // tFAW needs the fourth-last activate.
-            if (rank.act_count >= 4 && t < rank.acts[0] + uint64_t(spec_.t_faw)) continue;
-        }
-        if (spec_.t_32aw > 0 && rank.acts32.size() >= 32 &&
-            t < rank.acts32.front() + uint64_t(spec_.t_32aw))
+        // tRRD (per bank group) is folded into each bank's next_act at issue; the activate windows
+        // look back through the rank's last activates: tFAW to the fourth-last, t_32aw to the
+        // 32nd-last.
+        const auto& acts = rank.acts;
+        if (acts.count >= 4 && t < acts.back(4) + uint64_t(spec_.t_faw)) continue;
+        if (spec_.t_32aw > 0 && acts.count >= 32 && t < acts.back(32) + uint64_t(spec_.t_32aw))
             continue;
         r.caused_act = true;
         issue_act(c, channel, r.a, t);
@@ -407,17 +405,7 @@ void DramController::issue_act(Channel& c, int channel, const DramAddress& a, ui
             o.next_act = std::max(o.next_act,
                                   t + uint64_t(bg == a.bankgroup ? spec_.t_rrd_l : spec_.t_rrd_s));
         }
-    // The last four activates, oldest first.
-    if (rank.act_count < 4) {
-        rank.acts[size_t(rank.act_count++)] = t;
-    } else {
-        std::rotate(rank.acts.begin(), rank.acts.begin() + 1, rank.acts.end());
-        rank.acts[3] = t;
-    }
-    if (spec_.t_32aw > 0) {
-        rank.acts32.push_back(t);
-        if (rank.acts32.size() > 32) rank.acts32.pop_front();
-    }
+    rank.acts.push(t);
     ++counters_.acts;
     counters_.act_pj += e_act_;
     log(t, DramCommand::Act, channel, a.rank, a.bankgroup, a.bank, a.row);

@@ -18,6 +18,7 @@
 // back), so a trace replay (rtsim dram) and a timing model can both drive it.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <deque>
@@ -180,11 +181,21 @@ class DramController {
         uint64_t next_act = 0, next_pre = 0, next_rd = 0, next_wr = 0;
     };
     struct Rank {
-        std::array<uint64_t, 4> acts{};  // the last four activates (tFAW), oldest first
-        int act_count = 0;
-        std::deque<uint64_t> acts32;  // the last 32 activates (t_32aw), oldest first
-        uint64_t next_ref_due = 0;    // the next refresh is owed from this cycle
-        uint64_t busy_until = 0;      // refreshing until
+        // The last 32 activates, for the activate windows (tFAW, t_32aw). A fixed ring, not a
+        // container that allocates: the fast engine copies the controller per held request.
+        struct ActHistory {
+            std::array<uint64_t, 32> at{};
+            int count = 0;  // activates stored, at most 32
+            int next = 0;   // the slot the next one takes
+            void push(uint64_t t) {
+                at[size_t(next)] = t;
+                next = (next + 1) % 32;
+                count = std::min(count + 1, 32);
+            }
+            uint64_t back(int n) const { return at[size_t((next - n + 32) % 32)]; }  // 1: last
+        } acts;
+        uint64_t next_ref_due = 0;  // the next refresh is owed from this cycle
+        uint64_t busy_until = 0;    // refreshing until
         int open_banks = 0;
         bool refresh_pending = false;
         uint64_t bg_since = 0;  // background energy accounted up to this cycle

@@ -67,11 +67,14 @@ def write_trace(path, kind, interval, n, seed):
 
 def write_loadstore_trace(trace, path):
     """The same requests in Ramulator 2's LoadStoreTrace format (no times: the load comes from the
-    clock ratio between its front end and its memory)."""
+    clock ratio between its front end and its memory); returns their operations in order."""
+    ops = []
     with open(trace) as f, open(path, "w") as out:
         for line in f:
             addr, op, _ = line.split()
+            ops.append(op)
             out.write(f"{'ST' if op == 'WRITE' else 'LD'} {addr}\n")
+    return ops
 
 
 def ramulator2_timings(dev):
@@ -117,9 +120,10 @@ def ramulator2_config(ramulator, dev, timing_preset, trace, interval, out):
     controllers = []
     for ch in range(dev["channels"]):
         dram = getattr(ramulator.dram, std)(
-            org_preset=ramulator2_org_preset(dev), timing_preset=timing_preset, rank=dev["ranks"], bankgroup=dev["bankgroups"],
-            bank=dev["banks_per_group"], row=dev["rows"], column=dev["columns"],
-            channel_width=dev["bus_width_bits"], **ramulator2_timings(dev))
+            org_preset=ramulator2_org_preset(dev), timing_preset=timing_preset,
+            rank=dev["ranks"], bankgroup=dev["bankgroups"], bank=dev["banks_per_group"],
+            row=dev["rows"], column=dev["columns"], channel_width=dev["bus_width_bits"],
+            **ramulator2_timings(dev))
         kind = ramulator.controller.LPDDR5 if std == "LPDDR5" else ramulator.controller.GenericDDR
         controllers.append(kind(
             dram=dram, scheduler=ramulator.scheduler.FRFCFS(),
@@ -141,14 +145,12 @@ def ramulator2(tools, dev, timing_preset, trace, interval, tmp):
     out = os.path.join(tmp, "r2-" + os.path.basename(trace))
     os.makedirs(out, exist_ok=True)
     ls = os.path.join(out, "trace.ls")
-    write_loadstore_trace(trace, ls)
+    ops = write_loadstore_trace(trace, ls)
     cfg = os.path.join(out, "config.json")
     with open(cfg, "w") as f:
         json.dump(ramulator2_config(ramulator, dev, timing_preset, ls, interval, out), f)
-    with open(trace) as f:
-        ops = [line.split()[1] for line in f]
     # Ticks after the last request is sent: enough for two full queues and a refresh to drain.
-    drain = 64 * 4 * (dev["t_rc"] if "t_rc" in dev else dev["t_ras"] + dev["t_rp"]) + dev["t_rfc"]
+    drain = 64 * 4 * (dev["t_ras"] + dev["t_rp"]) + dev["t_rfc"]
     r = subprocess.run([driver, cfg, str(drain)], capture_output=True, text=True)
     if r.returncode != 0:
         raise RuntimeError(f"ramulator2: {trace}: {r.stderr.strip() or r.stdout[-300:]}")
@@ -231,8 +233,9 @@ def report(requests, seed, rows, loaded, refused):
              f"DRAMsim3's families: one DRAMsim3 device file per family, read by both simulators "
              f"(rtsim through its .ini importer). DDR5 and LPDDR5: rtsim's preset against "
              f"Ramulator 2 given the same organisation and rtsim's timings in cycles "
-             f"(matched; where Ramulator 2's own table differs is listed below). {requests} requests per trace, 64-byte, random ones "
-             f"25% writes, addresses from seed {seed}; loads: one request per 40, 10 and 1 "
+             f"(matched; where Ramulator 2's own table differs is listed below). {requests} "
+             f"requests per trace, 64-byte, random ones 25% writes, addresses from seed {seed}; "
+             f"loads: one request per 40, 10 and 1 "
              f"device cycles. Differences relative to the reference. Targets: read latency and "
              f"ACTs within 5% at light load, completion within 10% at saturating load "
              f"(**bold**: missed). Energy only where the reference computes it (DRAMsim3).", ""]
