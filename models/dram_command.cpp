@@ -37,23 +37,22 @@ const char* dram_command_name(DramCommand c) {
             return "PRE";
         case DramCommand::Ref:
             return "REF";
+        case DramCommand::RefPb:
+            return "REFpb";
     }
     return "?";
 }
 
 uint64_t DramDeviceSpec::capacity_bytes() const {
-    return uint64_t(channels) * uint64_t(ranks) * uint64_t(banks_per_rank()) * uint64_t(rows) *
-           uint64_t(columns) * uint64_t(bus_width_bits / 8);
+    return uint64_t(data_channels()) * uint64_t(ranks) * uint64_t(banks_per_rank()) *
+           uint64_t(rows) * uint64_t(columns) * uint64_t(bus_width_bits / 8);
 }
 
 std::string DramDeviceSpec::check() const {
-    const std::pair<const char*, int64_t> pow2[] = {{"channels", channels},
-                                                    {"ranks", ranks},
-                                                    {"bankgroups", bankgroups},
-                                                    {"banks_per_group", banks_per_group},
-                                                    {"rows", rows},
-                                                    {"columns", columns},
-                                                    {"burst_length", burst_length}};
+    const std::pair<const char*, int64_t> pow2[] = {
+        {"channels", channels},     {"pseudo_channels", pseudo_channels}, {"ranks", ranks},
+        {"bankgroups", bankgroups}, {"banks_per_group", banks_per_group}, {"rows", rows},
+        {"columns", columns},       {"burst_length", burst_length}};
     for (const auto& [field, v] : pow2)
         if (!power_of_two(v)) return fmt::format("{}: expected a power of two, got {}", field, v);
     if (device_width_bits <= 0 || bus_width_bits <= 0 || bus_width_bits % device_width_bits != 0)
@@ -90,25 +89,47 @@ std::string DramDeviceSpec::check() const {
                                                   {"t_32aw", t_32aw},
                                                   {"t_rcd_wr", t_rcd_wr},
                                                   {"wck_sync_cycles", wck_sync_cycles},
-                                                  {"wck_postamble_cycles", wck_postamble_cycles}};
+                                                  {"wck_postamble_cycles", wck_postamble_cycles},
+                                                  {"t_refi_pb", t_refi_pb},
+                                                  {"t_rfc_pb", t_rfc_pb},
+                                                  {"t_pbr2pbr", t_pbr2pbr},
+                                                  {"t_pbr2act", t_pbr2act}};
     for (const auto& [field, v] : timing)
         if (v < 0) return fmt::format("{}: expected 0 or more cycles, got {}", field, v);
-    if (refresh && t_refi <= t_rfc)
+    if (refresh_mode != "all_bank" && refresh_mode != "per_bank")
+        return fmt::format("refresh_mode: expected all_bank or per_bank, got '{}'", refresh_mode);
+    if (refresh && !per_bank_refresh() && t_refi <= t_rfc)
         return fmt::format("t_refi ({}) must exceed t_rfc ({})", t_refi, t_rfc);
+    if (refresh && per_bank_refresh()) {
+        if (t_rfc_pb < 1)
+            return "refresh_mode per_bank needs t_rfc_pb, the per-bank refresh cycle (tRFCpb)";
+        if (refresh_pb_banks < 1 || banks_per_rank() % refresh_pb_banks != 0)
+            return fmt::format("refresh_pb_banks ({}) must divide the {} banks of a rank",
+                               refresh_pb_banks, banks_per_rank());
+        // Every bank must be refreshable in turn faster than they fall due.
+        if (int64_t(refresh_interval_pb()) * refreshes_per_round() <= t_rfc_pb)
+            return fmt::format(
+                "per-bank refresh: t_refi_pb ({}) x {} refreshes a round must exceed t_rfc_pb "
+                "({})",
+                refresh_interval_pb(), refreshes_per_round(), t_rfc_pb);
+    }
     if (read_queue < 1 || write_queue < 1)
         return "read_queue and write_queue need at least one entry each";
     if (write_low < 0 || write_high > write_queue || write_low >= write_high)
         return fmt::format("expected 0 <= write_low < write_high <= write_queue, got {} {} {}",
                            write_low, write_high, write_queue);
-    // The mapping: six two-letter fields, each once.
-    if (address_mapping.size() != 12)
+    // The mapping: six two-letter fields, each once, and the pseudo-channel (pc) with
+    // pseudo-channels.
+    const size_t fields = pseudo_channels > 1 ? 7 : 6;
+    if (address_mapping.size() != 2 * fields)
         return fmt::format(
-            "address_mapping '{}': expected six two-letter fields (ro ch ra bg ba "
-            "co in some order)",
-            address_mapping);
-    for (const char* f : {"ro", "ch", "ra", "bg", "ba", "co"}) {
+            "address_mapping '{}': expected {} two-letter fields (ro ch{} ra bg ba co in some "
+            "order)",
+            address_mapping, fields, pseudo_channels > 1 ? " pc" : "");
+    for (const char* f : {"ro", "ch", "pc", "ra", "bg", "ba", "co"}) {
+        if (fields == 6 && std::string(f) == "pc") continue;
         int seen = 0;
-        for (size_t i = 0; i < 12; i += 2) seen += address_mapping.compare(i, 2, f) == 0;
+        for (size_t i = 0; i < 2 * fields; i += 2) seen += address_mapping.compare(i, 2, f) == 0;
         if (seen != 1)
             return fmt::format("address_mapping '{}': field '{}' appears {} times, expected once",
                                address_mapping, f, seen);
@@ -118,8 +139,10 @@ std::string DramDeviceSpec::check() const {
 
 DramAddressMap::DramAddressMap(const DramDeviceSpec& s) {
     shift_ = log2i(int64_t(s.burst_bytes()));
+    pseudo_channels_ = s.pseudo_channels;
     auto width = [&](const std::string& f) {
         if (f == "ch") return log2i(s.channels);
+        if (f == "pc") return log2i(s.pseudo_channels);
         if (f == "ra") return log2i(s.ranks);
         if (f == "bg") return log2i(s.bankgroups);
         if (f == "ba") return log2i(s.banks_per_group);
@@ -128,12 +151,14 @@ DramAddressMap::DramAddressMap(const DramDeviceSpec& s) {
     };
     int pos = 0;
     // The mapping names fields from the most significant down: assign from its end.
-    for (int i = 10; i >= 0; i -= 2) {
+    for (int i = int(s.address_mapping.size()) - 2; i >= 0; i -= 2) {
         const std::string f = s.address_mapping.substr(size_t(i), 2);
         const int w = width(f);
         Field field{pos, (uint64_t(1) << w) - 1};
         if (f == "ch")
             ch_ = field;
+        else if (f == "pc")
+            pc_ = field;
         else if (f == "ra")
             ra_ = field;
         else if (f == "bg")
@@ -152,7 +177,8 @@ DramAddress DramAddressMap::map(uint64_t addr) const {
     const uint64_t a = addr >> shift_;
     auto get = [a](const Field& f) { return (a >> f.pos) & f.mask; };
     DramAddress d;
-    d.channel = int(get(ch_));
+    // Pseudo-channels of a channel are adjacent data channels.
+    d.channel = int(get(ch_)) * pseudo_channels_ + int(get(pc_));
     d.rank = int(get(ra_));
     d.bankgroup = int(get(bg_));
     d.bank = int(get(ba_));
@@ -162,23 +188,28 @@ DramAddress DramAddressMap::map(uint64_t addr) const {
 }
 
 DramController::DramController(const DramDeviceSpec& spec)
-    : spec_(spec), map_(spec), channels_(size_t(spec.channels)) {
+    : spec_(spec), map_(spec), channels_(size_t(spec.data_channels())) {
+    const uint64_t interval =
+        uint64_t(spec_.per_bank_refresh() ? spec_.refresh_interval_pb() : spec_.t_refi);
     for (Channel& c : channels_) {
         c.banks.resize(size_t(spec_.ranks * spec_.banks_per_rank()));
         c.ranks.resize(size_t(spec_.ranks));
         // Ranks refresh staggered across the interval.
         for (int r = 0; r < spec_.ranks; ++r)
-            c.ranks[size_t(r)].next_ref_due =
-                uint64_t(spec_.t_refi) * uint64_t(r + 1) / uint64_t(spec_.ranks);
+            c.ranks[size_t(r)].next_ref_due = interval * uint64_t(r + 1) / uint64_t(spec_.ranks);
     }
     // DRAMPower's increments as DRAMsim3 applies them: mA x V x ns = pJ, for every device of a
-    // rank (a command reaches them all).
-    const double k = spec_.vdd * spec_.tck_ns * spec_.devices_per_rank();
+    // rank (a command reaches them all). Currents are a channel's: a pseudo-channel, half the
+    // banks' background, half a page per activate and half the bits per burst, is charged its
+    // share.
+    const double k = spec_.vdd * spec_.tck_ns * spec_.devices_per_rank() / spec_.pseudo_channels;
     const int t_rc = spec_.t_ras + spec_.t_rp;
     e_act_ = k * (spec_.idd0 * t_rc - (spec_.idd3n * spec_.t_ras + spec_.idd2n * spec_.t_rp));
     e_rd_ = k * (spec_.idd4r - spec_.idd3n) * spec_.burst_cycles;
     e_wr_ = k * (spec_.idd4w - spec_.idd3n) * spec_.burst_cycles;
     e_ref_ = k * (spec_.idd5ab - spec_.idd3n) * spec_.t_rfc;
+    e_ref_pb_ = spec_.idd5pb > 0 ? k * (spec_.idd5pb - spec_.idd3n) * spec_.t_rfc_pb
+                                 : e_ref_ / spec_.refreshes_per_round();
     e_act_stby_ = k * spec_.idd3n;
     e_pre_stby_ = k * spec_.idd2n;
 }
@@ -227,7 +258,15 @@ void DramController::run_until(uint64_t cycle) {
                 continue;
             }
         }
-        for (size_t ch = 0; ch < channels_.size(); ++ch) step(channels_[ch], int(ch), now_);
+        // The pseudo-channels of a channel share its command buses; which goes first rotates.
+        const auto pcs = size_t(spec_.pseudo_channels);
+        for (size_t ch = 0; ch < channels_.size(); ch += pcs) {
+            CommandSlots slots;
+            for (size_t j = 0; j < pcs; ++j) {
+                const size_t i = ch + (j + now_) % pcs;
+                step(channels_[i], int(i), now_, slots);
+            }
+        }
         ++now_;
     }
 }
@@ -254,12 +293,15 @@ void DramController::log(uint64_t t, DramCommand cmd, int ch, int ra, int bg, in
     if (record_) log_.push_back({t, cmd, ch, ra, bg, ba, row});
 }
 
-void DramController::step(Channel& c, int channel, uint64_t t) {
+void DramController::step(Channel& c, int channel, uint64_t t, CommandSlots& slots) {
     // Refresh owed by a rank comes first.
     if (spec_.refresh)
         for (Rank& r : c.ranks)
             if (!r.refresh_pending && t >= r.next_ref_due) r.refresh_pending = true;
-    if (try_refresh(c, channel, t)) return;
+    if (slots.row && try_refresh(c, channel, t)) {
+        take(slots, true);
+        if (!slots.column) return;
+    }
     // Writes drain between watermarks, or whenever no read waits.
     if (!c.draining &&
         (int(c.writes.size()) >= spec_.write_high || (c.reads.empty() && !c.writes.empty()))) {
@@ -272,14 +314,21 @@ void DramController::step(Channel& c, int channel, uint64_t t) {
     std::deque<Request>& q = c.draining ? c.writes : c.reads;
     if (q.empty()) return;
     // FR-FCFS: the oldest ready column command to an open row, else the oldest row command.
-    if (try_column(c, channel, q, t)) return;
-    try_row(c, channel, q, t);
+    if (slots.column && try_column(c, channel, q, t)) {
+        take(slots, false);
+        if (!slots.row) return;
+    }
+    if (slots.row && try_row(c, channel, q, t)) take(slots, true);
 }
 
 bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
     for (int ri = 0; ri < spec_.ranks; ++ri) {
         Rank& r = c.ranks[size_t(ri)];
         if (!r.refresh_pending) continue;
+        if (spec_.per_bank_refresh()) {
+            if (try_refresh_bank(c, channel, ri, t)) return true;
+            continue;
+        }
         // Close every open bank first, then REF once all may take it.
         bool ready = t >= r.busy_until;
         for (int bg = 0; bg < spec_.bankgroups; ++bg)
@@ -314,6 +363,43 @@ bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
     return false;
 }
 
+bool DramController::try_refresh_bank(Channel& c, int channel, int rank_index, uint64_t t) {
+    Rank& r = c.ranks[size_t(rank_index)];
+    const int step = spec_.refreshes_per_round();
+    Bank* rank_banks = &c.banks[size_t(rank_index * spec_.banks_per_rank())];
+    // The banks this refresh covers: the step's bank and every step-th one after it. Each must
+    // be closed (precharge an open one), then past tRP, tRC or its own last refresh.
+    bool ready = t >= r.next_ref_pb;  // tpbR2pbR
+    for (int k = r.refresh_bank; k < spec_.banks_per_rank(); k += step) {
+        Bank& b = rank_banks[k];
+        if (b.open) {
+            if (t < b.next_pre) {
+                ready = false;
+                continue;
+            }
+            issue_pre(c, channel, rank_index, b, k / spec_.banks_per_group,
+                      k % spec_.banks_per_group, t);
+            return true;
+        }
+        if (t < b.next_act) ready = false;
+    }
+    if (!ready) return false;
+    for (int o = 0; o < spec_.banks_per_rank(); ++o)
+        rank_banks[o].next_act =
+            std::max(rank_banks[o].next_act,
+                     t + uint64_t(o % step == r.refresh_bank ? spec_.t_rfc_pb : spec_.t_pbr2act));
+    const int k = r.refresh_bank;
+    r.next_ref_pb = t + uint64_t(spec_.t_pbr2pbr);
+    r.refresh_pending = false;
+    r.next_ref_due += uint64_t(spec_.refresh_interval_pb());
+    r.refresh_bank = (k + 1) % step;
+    ++counters_.refs_per_bank;
+    counters_.refresh_pj += e_ref_pb_;
+    log(t, DramCommand::RefPb, channel, rank_index, k / spec_.banks_per_group,
+        k % spec_.banks_per_group, 0);
+    return true;
+}
+
 bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
     // Banks whose open row a starving request waits to close: no more hits there.
     auto blocked = [&](const Request& hit) {
@@ -328,7 +414,7 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
         if (t < it->arrival + uint64_t(spec_.frontend_cycles)) continue;  // not yet scheduled
         Bank& b = bank(c, it->a);
         if (!b.open || b.row != it->a.row) continue;
-        if (c.ranks[size_t(it->a.rank)].refresh_pending) continue;  // its banks are closing
+        if (refresh_blocks(c, it->a)) continue;  // its bank is closing for a refresh
         if (blocked(*it)) continue;
         if (t < (it->write ? b.next_wr : b.next_rd)) continue;
         // The data bus: one burst at a time, with a switch gap between ranks.
@@ -359,7 +445,7 @@ bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, ui
         Rank& rank = c.ranks[size_t(r.a.rank)];
         Bank& b = bank(c, r.a);
         if (b.open && b.row == r.a.row) continue;  // waits for its column command
-        if (rank.refresh_pending) continue;        // no new rows while a refresh is owed
+        if (refresh_blocks(c, r.a)) continue;      // no new rows while a refresh is owed
         if (b.open) {
             // A conflict: close the row, unless a queued request still wants it.
             const bool wanted = std::any_of(q.begin(), q.end(), [&](const Request& o) {

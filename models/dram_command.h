@@ -32,8 +32,10 @@ namespace rtsim {
 struct DramDeviceSpec {
     std::string name = "DDR4_8Gb_x8_3200";
     std::string protocol = "DDR4";  // DDR4, DDR5, LPDDR5, GDDR6, HBM2, ... (burst timing below)
-    // Organisation
-    int channels = 1, ranks = 1, bankgroups = 4, banks_per_group = 4;
+    // Organisation. A channel may be split into pseudo-channels (HBM2's pseudo-channel mode, HBM3):
+    // each has its own banks, data bus (bus_width_bits wide), activate windows and refresh, and
+    // the pseudo-channels of a channel share its command bus.
+    int channels = 1, pseudo_channels = 1, ranks = 1, bankgroups = 4, banks_per_group = 4;
     int rows = 65536, columns = 1024;
     int device_width_bits = 8, bus_width_bits = 64;
     int burst_length = 8;   // beats per burst (BL)
@@ -56,9 +58,23 @@ struct DramDeviceSpec {
     int t_rcd_wr = 0;
     int t_rtrs = 1;                   // rank to rank switch on the data bus
     int t_refi = 12480, t_rfc = 560;  // refresh interval and refresh cycle (all banks)
+    // "all_bank": every t_refi a rank closes all its banks and refreshes them together (REFab).
+    // "per_bank": every t_refi_pb one bank of each rank, in bank order (group 0's banks, then
+    // group 1's, ...), is closed and refreshed alone (REFpb) while the others keep serving
+    // (LPDDR4, LPDDR5, HBM). LPDDR5 with 16 banks refreshes a pair per command, bank k with bank
+    // k + 8 (refresh_pb_banks 2). Its timings: t_rfc_pb the refresh cycle of those banks;
+    // t_pbr2pbr between per-bank refreshes (tpbR2pbR); t_pbr2act from a per-bank refresh to an
+    // activate of another bank of the rank (LPDDR5 tpbR2act, HBM tRREFD). t_refi_pb 0: t_refi
+    // over the refreshes a round takes (banks per rank / refresh_pb_banks).
+    std::string refresh_mode = "all_bank";
+    int t_refi_pb = 0, t_rfc_pb = 0, t_pbr2pbr = 0, t_pbr2act = 0;
+    int refresh_pb_banks = 1;
     // Currents (mA) and supply (V), per device
     double vdd = 1.2;
     double idd0 = 57, idd2n = 37, idd3n = 52, idd4r = 168, idd4w = 150, idd5ab = 250;
+    // Per-bank refresh current (IDD5PB). 0: a per-bank refresh costs the all-bank refresh's
+    // energy over the banks of a rank (it refreshes their rows one bank at a time).
+    double idd5pb = 0;
     // Controller
     bool open_page = true;  // false: closed page (auto-precharge with every column command)
     int read_queue = 32;    // entries per channel
@@ -80,12 +96,23 @@ struct DramDeviceSpec {
     // standard). The clock keeps running wck_postamble_cycles past a burst's last data (tWCKPST).
     int wck_sync_cycles = 0;
     int wck_postamble_cycles = 0;
+    // Separate row and column command buses (HBM): a row command (ACT, PRE, REF) and a column
+    // command may issue in the same cycle. false: one command per cycle.
+    bool dual_command_bus = false;
     bool refresh = true;
 
     int banks_per_rank() const { return bankgroups * banks_per_group; }
+    // Channels with their own data bus and banks: channels x pseudo-channels.
+    int data_channels() const { return channels * pseudo_channels; }
+    bool per_bank_refresh() const { return refresh_mode == "per_bank"; }
+    // Per-bank refreshes in a round over a rank's banks.
+    int refreshes_per_round() const { return banks_per_rank() / std::max(1, refresh_pb_banks); }
+    int refresh_interval_pb() const {
+        return t_refi_pb > 0 ? t_refi_pb : std::max(1, t_refi / refreshes_per_round());
+    }
     int devices_per_rank() const { return bus_width_bits / device_width_bits; }
     uint32_t burst_bytes() const { return uint32_t(bus_width_bits / 8 * burst_length); }
-    double peak_bytes_per_cycle() const {  // per channel
+    double peak_bytes_per_cycle() const {  // per data channel
         return double(burst_bytes()) / double(burst_cycles);
     }
     uint64_t capacity_bytes() const;
@@ -93,11 +120,11 @@ struct DramDeviceSpec {
     std::string check() const;
 };
 
-enum class DramCommand : uint8_t { Act, Rd, Wr, Pre, Ref };
+enum class DramCommand : uint8_t { Act, Rd, Wr, Pre, Ref, RefPb };
 const char* dram_command_name(DramCommand c);
 
 struct DramAddress {
-    int channel = 0, rank = 0, bankgroup = 0, bank = 0;
+    int channel = 0, rank = 0, bankgroup = 0, bank = 0;  // channel: the data channel
     uint32_t row = 0, column = 0;
 };
 
@@ -113,12 +140,14 @@ class DramAddressMap {
         int pos = 0;
         uint64_t mask = 0;
     };
-    Field ch_, ra_, bg_, ba_, ro_, co_;
+    Field ch_, pc_, ra_, bg_, ba_, ro_, co_;
+    int pseudo_channels_ = 1;
 };
 
 struct DramCounters {
     uint64_t reads = 0, writes = 0;  // bursts
     uint64_t acts = 0, pres = 0, refs = 0, wck_syncs = 0;
+    uint64_t refs_per_bank = 0;  // REFpb commands (refresh_mode per_bank)
     uint64_t row_hits = 0;       // column commands whose row was open for an earlier request
     uint64_t row_misses = 0;     // to a precharged bank (activate only)
     uint64_t row_conflicts = 0;  // another row was open (precharge, then activate)
@@ -198,7 +227,9 @@ class DramController {
         uint64_t busy_until = 0;    // refreshing until
         int open_banks = 0;
         bool refresh_pending = false;
-        uint64_t bg_since = 0;  // background energy accounted up to this cycle
+        int refresh_bank = 0;      // per-bank refresh: the step of the round owed
+        uint64_t next_ref_pb = 0;  // per-bank refresh: tpbR2pbR since the last one
+        uint64_t bg_since = 0;     // background energy accounted up to this cycle
     };
     struct Channel {
         std::deque<Request> reads, writes;
@@ -215,9 +246,29 @@ class DramController {
         return c.banks[size_t((a.rank * spec_.bankgroups + a.bankgroup) * spec_.banks_per_group +
                               a.bank)];
     }
-    // Issues at most one command on channel `c` at cycle `t`.
-    void step(Channel& c, int channel, uint64_t t);
+    // The command buses of a channel in one cycle (shared by its pseudo-channels).
+    struct CommandSlots {
+        bool row = true, column = true;
+    };
+    // Issues at most one command on data channel `c` at cycle `t` (or one row and one column
+    // command with dual_command_bus) in the slots still free.
+    void step(Channel& c, int channel, uint64_t t, CommandSlots& slots);
+    void take(CommandSlots& slots, bool row_command) const {
+        if (!spec_.dual_command_bus)
+            slots.row = slots.column = false;
+        else
+            (row_command ? slots.row : slots.column) = false;
+    }
     bool try_refresh(Channel& c, int channel, uint64_t t);
+    bool try_refresh_bank(Channel& c, int channel, int rank_index, uint64_t t);
+    // Per-bank refresh owed by this request's bank: no new commands to it.
+    bool refresh_blocks(const Channel& c, const DramAddress& a) const {
+        const Rank& r = c.ranks[size_t(a.rank)];
+        if (!r.refresh_pending) return false;
+        return !spec_.per_bank_refresh() ||
+               (a.bankgroup * spec_.banks_per_group + a.bank) % spec_.refreshes_per_round() ==
+                   r.refresh_bank;
+    }
     bool try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
     bool try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
     // Over the cap: waited starvation_cycles for a row other than its bank's open one.
@@ -239,7 +290,8 @@ class DramController {
     bool record_ = false;
     std::vector<DramCommandRecord> log_;
     // Energy increments (pJ) per command, and per cycle of background per rank.
-    double e_act_ = 0, e_rd_ = 0, e_wr_ = 0, e_ref_ = 0, e_act_stby_ = 0, e_pre_stby_ = 0;
+    double e_act_ = 0, e_rd_ = 0, e_wr_ = 0, e_ref_ = 0, e_ref_pb_ = 0, e_act_stby_ = 0,
+           e_pre_stby_ = 0;
 };
 
 }  // namespace rtsim

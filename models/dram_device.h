@@ -26,7 +26,8 @@ using DramDeviceRegistry = Registry<DramDeviceEntry>;
 DramDeviceSpec dram_device_from_json(const nlohmann::json& j);
 // The spec as JSON (the same keys), for stats.json and round trips.
 nlohmann::json dram_device_to_json(const DramDeviceSpec& s);
-// Sets one field from text ("t_rcd", "20"), as --set does; throws std::invalid_argument.
+// Sets one field from text ("t_rcd", "20"), as --set does; throws std::invalid_argument on a bad
+// value. The caller checks the whole spec (DramDeviceSpec::check) once every field is set.
 void set_dram_device_field(DramDeviceSpec& s, const std::string& key, const std::string& value);
 
 // A controller's energy by kind, in pJ: activate, read, write, refresh, background and total

@@ -174,6 +174,17 @@ DramDeviceSpec import_dramsim3_ini(const std::string& path) {
     s.idd4r = number_or("power.IDD4R", 135);
     s.idd4w = number_or("power.IDD4W", 123);
     s.idd5ab = number_or("power.IDD5AB", 250);
+    // DRAMsim3's per-bank refresh (no file of its own sets it). Read with the standard's meaning:
+    // DRAMsim3's timing table also keeps every other bank from activating for tRFC after each
+    // per-bank refresh, which the standards do not.
+    if (text_or("system.refresh_policy", "RANK_LEVEL_STAGGERED") == "BANK_LEVEL_STAGGERED") {
+        s.refresh_mode = "per_bank";
+        s.t_refi_pb = integer_or("timing.tREFIb", 1950);
+        s.t_rfc_pb = integer_or("timing.tRFCb", 20);
+        s.idd5pb = number_or("power.IDD5PB", 0);
+    }
+    // DRAMsim3 issues a row and a column command in one cycle on HBM's two command buses.
+    if (hbm) s.dual_command_bus = boolean_or("dram_structure.hbm_dual_cmd", true);
     // Bank groups switched off: one group of all the banks, and the _S timings throughout.
     if (!boolean_or("dram_structure.bankgroup_enable", true)) {
         s.banks_per_group *= s.bankgroups;
@@ -229,6 +240,14 @@ DramDeviceSpec load_dram_device(const std::string& name_or_path,
         } catch (const std::invalid_argument& e) {
             throw InputError(fmt::format("--set {}: {}", kv, e.what()));
         }
+    }
+    // Consistency once every setting is in: one field may need another (refresh_mode per_bank
+    // needs t_rfc_pb).
+    if (!sets.empty()) {
+        const std::string why = s.check();
+        if (!why.empty())
+            throw InputError(
+                fmt::format("{} with --set {}: {}", name_or_path, fmt::join(sets, " --set "), why));
     }
     return s;
 }
@@ -292,6 +311,7 @@ int dram_command(const DramTraceOptions& opt) {
     const DramDeviceSpec spec = load_dram_device(opt.device, opt.sets);
     const std::vector<TraceRequest> trace = read_mem_trace(opt.trace_path);
     DramController d(spec);
+    d.record_commands(!opt.commands_path.empty());
     // As DRAMsim3's trace-driven CPU: a request enters at its cycle, or once its queue has room.
     std::vector<uint64_t> enter(trace.size(), 0);
     for (size_t i = 0; i < trace.size(); ++i) {
@@ -330,7 +350,7 @@ int dram_command(const DramTraceOptions& opt) {
                 {"seconds", ns * 1e-9},
                 {"bytes", bytes},
                 {"bandwidth_gbps", ns > 0 ? bytes / ns : 0.0},
-                {"peak_gbps", spec.peak_bytes_per_cycle() * spec.channels / spec.tck_ns},
+                {"peak_gbps", spec.peak_bytes_per_cycle() * spec.data_channels() / spec.tck_ns},
                 {"read_latency_cycles",
                  {{"mean", mean}, {"p50", p50}, {"p99", p99}, {"p999", p999}, {"max", maxl}}},
                 {"read_latency_ns", {{"mean", mean * spec.tck_ns}, {"p99", p99 * spec.tck_ns}}},
@@ -338,6 +358,7 @@ int dram_command(const DramTraceOptions& opt) {
                  {{"act", k.acts},
                   {"pre", k.pres},
                   {"ref", k.refs},
+                  {"ref_pb", k.refs_per_bank},
                   {"rd", k.reads},
                   {"wr", k.writes},
                   {"wck_sync", k.wck_syncs}}},
@@ -353,11 +374,20 @@ int dram_command(const DramTraceOptions& opt) {
         fs::create_directories(opt.out_dir);
         write_file_atomically((fs::path(opt.out_dir) / "stats.json").string(), out.dump(2) + "\n");
     }
+    if (!opt.commands_path.empty()) {
+        std::string csv = "cycle,command,channel,rank,bankgroup,bank,row\n";
+        for (const DramCommandRecord& c : d.commands())
+            csv += fmt::format("{},{},{},{},{},{},{}\n", c.cycle, dram_command_name(c.cmd),
+                               c.channel, c.rank, c.bankgroup, c.bank, c.row);
+        write_file_atomically(opt.commands_path, csv);
+    }
     if (!opt.quiet) {
-        fmt::print("rtsim dram  {} on {} ({}, {} channel{} x {} rank{}, {} B bursts, tCK {} ns)\n",
-                   opt.trace_path, spec.name, spec.protocol, spec.channels,
-                   spec.channels == 1 ? "" : "s", spec.ranks, spec.ranks == 1 ? "" : "s",
-                   spec.burst_bytes(), spec.tck_ns);
+        fmt::print(
+            "rtsim dram  {} on {} ({}, {} channel{}{} x {} rank{}, {} B bursts, tCK {} ns)\n",
+            opt.trace_path, spec.name, spec.protocol, spec.channels, spec.channels == 1 ? "" : "s",
+            spec.pseudo_channels > 1 ? fmt::format(" x {} pseudo-channels", spec.pseudo_channels)
+                                     : "",
+            spec.ranks, spec.ranks == 1 ? "" : "s", spec.burst_bytes(), spec.tck_ns);
         fmt::print("  requests   {} ({} reads, {} writes) in {} cycles ({:.3f} us)\n", trace.size(),
                    k.reads, k.writes, uint64_t(cycles), ns * 1e-3);
         fmt::print("  bandwidth  {:.2f} GB/s of {:.2f} peak\n", out["bandwidth_gbps"].get<double>(),
@@ -366,8 +396,9 @@ int dram_command(const DramTraceOptions& opt) {
             "  read lat.  mean {:.1f}, p50 {:.0f}, p99 {:.0f}, max {:.0f} cycles "
             "(mean {:.1f} ns)\n",
             mean, p50, p99, maxl, mean * spec.tck_ns);
-        fmt::print("  rows       {:.1f}% hits; {} ACT, {} PRE, {} REF\n",
-                   100.0 * out["row_hit_rate"].get<double>(), k.acts, k.pres, k.refs);
+        fmt::print("  rows       {:.1f}% hits; {} ACT, {} PRE, {} REF{}\n",
+                   100.0 * out["row_hit_rate"].get<double>(), k.acts, k.pres, k.refs,
+                   spec.per_bank_refresh() ? fmt::format(", {} REFpb", k.refs_per_bank) : "");
         fmt::print(
             "  energy     {:.1f} nJ ({:.2f} pJ/bit; act {:.1f}, rd {:.1f}, wr {:.1f}, ref "
             "{:.1f}, background {:.1f} nJ), {:.1f} mW\n",

@@ -26,6 +26,9 @@ struct DramTraceOptions {
     std::string device = "DDR4_8Gb_x8_3200";
     std::vector<std::string> sets;
     std::string out_dir;  // writes stats.json here when set
+    // Writes every issued command here when set, a CSV line each:
+    // cycle,command,channel,rank,bankgroup,bank,row (REF: bank group and bank -1).
+    std::string commands_path;
     bool quiet = false;
 };
 

@@ -195,6 +195,9 @@ int main_impl(int argc, char** argv) {
         "--set", dram.sets,
         "Override a device field, FIELD=VALUE (e.g. t_rcd=20, open_page=false); repeatable");
     dram_cmd->add_option("-o,--out", dram.out_dir, "Also write stats.json to this folder");
+    dram_cmd->add_option("--commands", dram.commands_path,
+                         "Also write every issued command to this CSV file "
+                         "(cycle,command,channel,rank,bankgroup,bank,row)");
     dram_cmd->add_flag("-q,--quiet", dram.quiet, "No summary");
 
     std::string list_kind;

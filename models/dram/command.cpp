@@ -95,7 +95,8 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         reg.add(block, "row_conflicts", &k.row_conflicts,
                 "column commands that needed a precharge and an activate");
         reg.add(block, "activates", &k.acts, "ACT commands");
-        reg.add(block, "refreshes", &k.refs, "REF commands");
+        reg.add(block, "refreshes", &k.refs, "REF commands (all banks of a rank)");
+        reg.add(block, "bank_refreshes", &k.refs_per_bank, "REFpb commands (one bank)");
         reg.add(block, "late_requests", &late_,
                 "requests that arrived behind one later in simulated time (fast model)");
         reg.add(block, "late_device_cycles", &late_device_cycles_,
@@ -123,10 +124,11 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
             {"row_empty", k.row_misses},
             {"row_conflicts", k.row_conflicts},
             {"row_hit_rate", R::ratio(double(k.row_hits), double(k.reads + k.writes))},
-            {"commands", {{"act", k.acts}, {"pre", k.pres}, {"ref", k.refs}}},
+            {"commands",
+             {{"act", k.acts}, {"pre", k.pres}, {"ref", k.refs}, {"ref_pb", k.refs_per_bank}}},
             {"read_latency_device_cycles", R::ratio(double(k.read_latency_sum), double(k.reads))},
             {"utilization", R::ratio(double(k.reads + k.writes) * spec_.burst_cycles,
-                                     device_cycles * spec_.channels)},
+                                     device_cycles * spec_.data_channels())},
             {"energy_pj", dram_energy_json(k)},
             {"average_power_mw", ns > 0 ? k.total_pj() / ns : 0.0}};
     }

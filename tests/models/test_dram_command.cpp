@@ -342,3 +342,160 @@ TEST(DramCommand, StarvationCapBoundsHowLongRowHitsOvertake) {
         }
     }
 }
+
+namespace {
+
+// DDR4 timings with per-bank refresh: one bank every 1000 cycles, 100 cycles to refresh it,
+// 8 from a refresh to another bank's activate, 50 between refreshes.
+DramDeviceSpec ddr4_per_bank(int banks_per_refresh = 1) {
+    DramDeviceSpec s = ddr4("rochrababgco", true);
+    s.refresh_mode = "per_bank";
+    s.t_refi_pb = 1000;
+    s.t_rfc_pb = 100;
+    s.t_pbr2act = 8;
+    s.t_pbr2pbr = 50;
+    s.refresh_pb_banks = banks_per_refresh;
+    return s;
+}
+
+constexpr uint64_t kBank1 = 1u << 15, kBank2 = 2u << 15;  // bank group 0, banks 1 and 2
+constexpr uint64_t kBank8 = 2u << 13;                     // bank group 2, bank 0
+
+}  // namespace
+
+// Bank 0 is open (ACT 0, RD 22) when its refresh falls due at 1000: PRE at 1000 (tRAS and tRTP
+// long past), REFpb at 1022 (tRP). A read to bank 0 arriving at 1001 waits for tRFCpb: ACT at
+// 1122. A read to bank 1 arriving at 1001 is not held: ACT 1001. A read to bank 2 arriving at
+// 1023 waits tpbR2act after the refresh: ACT 1030. The next refresh (2000) is bank 1's, open
+// since 1001: PRE 2000, REFpb 2022. No all-bank REF at all.
+TEST(DramCommand, PerBankRefreshClosesAndHoldsOnlyItsBank) {
+    DramController d(ddr4_per_bank());
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    d.run_until(1000);
+    ASSERT_TRUE(d.enqueue(2, 64, false, 1001));  // bank 0, the open row
+    ASSERT_TRUE(d.enqueue(3, kBank1, false, 1001));
+    d.run_until(1022);
+    ASSERT_TRUE(d.enqueue(4, kBank2, false, 1023));
+    d.run_until(2500);
+    const auto ref = of_kind(d, DramCommand::RefPb);
+    ASSERT_EQ(ref.size(), 2u);
+    EXPECT_EQ(ref[0].cycle, 1022u);
+    EXPECT_EQ(ref[0].bankgroup * 4 + ref[0].bank, 0);
+    EXPECT_EQ(ref[1].cycle, 2022u);
+    EXPECT_EQ(ref[1].bankgroup * 4 + ref[1].bank, 1);
+    std::map<uint64_t, uint64_t> act_of_bank;  // bank index -> last ACT cycle
+    for (const auto& a : of_kind(d, DramCommand::Act))
+        act_of_bank[uint64_t(a.bankgroup * 4 + a.bank)] = a.cycle;
+    EXPECT_EQ(act_of_bank[0], 1122u);
+    EXPECT_EQ(act_of_bank[1], 1001u);
+    EXPECT_EQ(act_of_bank[2], 1030u);
+    const auto pre = of_kind(d, DramCommand::Pre);
+    ASSERT_GE(pre.size(), 2u);
+    EXPECT_EQ(pre[0].cycle, 1000u);
+    EXPECT_EQ(pre[1].cycle, 2000u);
+    EXPECT_EQ(d.counters().refs, 0u);
+    EXPECT_EQ(d.counters().refs_per_bank, 2u);
+    // Energy: with no IDD5PB, a refresh of one bank of 16 costs a sixteenth of an all-bank
+    // refresh: 6 (IDD5AB - IDD3N) tRFC / 16 = 6 x 198 x 560 / 16 = 41580 pJ.
+    EXPECT_NEAR(d.counters().refresh_pj, 2 * 41580.0, 1e-6);
+}
+
+// LPDDR5 refreshes a pair of banks per REFpb: bank k with bank k + 8. The first refresh (1000)
+// holds bank 8 as well as bank 0: a read to bank 8 arriving at 1001 activates after tRFCpb
+// (REFpb at 1000, both banks closed: ACT 1100), one to bank 1 after tpbR2act only (1008). With
+// IDD5PB = 100 mA the
+// refresh costs 6 (100 - 52) 100 = 28800 pJ.
+TEST(DramCommand, PerBankRefreshOfABankPairHoldsBoth) {
+    DramDeviceSpec s = ddr4_per_bank(2);
+    s.idd5pb = 100;
+    DramController d(s);
+    d.record_commands(true);
+    d.run_until(1000);
+    ASSERT_TRUE(d.enqueue(1, kBank8, false, 1001));
+    ASSERT_TRUE(d.enqueue(2, kBank1, false, 1001));
+    d.run_until(1500);
+    const auto ref = of_kind(d, DramCommand::RefPb);
+    ASSERT_EQ(ref.size(), 1u);
+    EXPECT_EQ(ref[0].cycle, 1000u);
+    std::map<int, uint64_t> act_of_bank;
+    for (const auto& a : of_kind(d, DramCommand::Act))
+        act_of_bank[a.bankgroup * 4 + a.bank] = a.cycle;
+    EXPECT_EQ(act_of_bank[8], 1100u);
+    EXPECT_EQ(act_of_bank[1], 1008u);
+    EXPECT_NEAR(d.counters().refresh_pj, 28800.0, 1e-6);
+    // A round is 8 refreshes: 8 x 1000 cycles must exceed tRFCpb, and the pair must divide 16.
+    s.refresh_pb_banks = 3;
+    EXPECT_NE(s.check().find("refresh_pb_banks (3) must divide the 16 banks"), std::string::npos);
+    s = ddr4_per_bank();
+    s.t_rfc_pb = 0;
+    EXPECT_NE(s.check().find("needs t_rfc_pb"), std::string::npos);
+}
+
+namespace {
+
+// One channel split into two pseudo-channels on the DDR4 timings; the pseudo-channel bit sits
+// just under the row: 6 offset + 7 column + 2 bank group + 2 bank bits, so at bit 17.
+DramDeviceSpec two_pseudo_channels(bool dual_command_bus) {
+    DramDeviceSpec s = ddr4("ropcchrababgco");
+    s.pseudo_channels = 2;
+    s.dual_command_bus = dual_command_bus;
+    return s;
+}
+
+constexpr uint64_t kPc1 = 1u << 17;
+
+}  // namespace
+
+// Two reads to bank 0 of each pseudo-channel, row 0, both at cycle 0: 32 banks in the channel,
+// so neither conflicts with the other. One command bus: ACT 0 (pseudo-channel 0 goes first on
+// even cycles) and ACT 1, not tRRD_L (8) apart, since each pseudo-channel has its own banks and
+// activate windows; RD 22 and 23, and their bursts overlap (44-48 and 45-49) on the two data
+// buses.
+TEST(DramCommand, PseudoChannelsHaveTheirOwnBanksAndDataBuses) {
+    const DramDeviceSpec s = two_pseudo_channels(false);
+    EXPECT_EQ(s.check(), "");
+    EXPECT_EQ(s.capacity_bytes(), 2 * ddr4().capacity_bytes());
+    EXPECT_EQ(DramAddressMap(s).map(kPc1).channel, 1);
+    EXPECT_EQ(DramAddressMap(s).map(kPc1 - 64).channel, 0);
+    DramController d(s);
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(d.enqueue(2, kPc1, false, 0));
+    d.drain();
+    const auto act = of_kind(d, DramCommand::Act);
+    ASSERT_EQ(act.size(), 2u);
+    EXPECT_EQ(act[0].cycle, 0u);
+    EXPECT_EQ(act[0].channel, 0);
+    EXPECT_EQ(act[1].cycle, 1u);
+    EXPECT_EQ(act[1].channel, 1);
+    EXPECT_EQ(d.counters().row_conflicts, 0u);
+    EXPECT_EQ(d.counters().row_misses, 2u);
+    std::map<uint64_t, uint64_t> done;
+    for (const auto& c : d.completions()) done[c.id] = c.cycle;
+    EXPECT_EQ(done[1], 48u);
+    EXPECT_EQ(done[2], 49u);
+    // Without the pc field the mapping is refused.
+    DramDeviceSpec bad = s;
+    bad.address_mapping = "rochrababgco";
+    EXPECT_NE(bad.check().find("expected 7 two-letter fields"), std::string::npos);
+}
+
+// Read A (pseudo-channel 0) arrives at 0: ACT 0, RD 22. Read C (pseudo-channel 1) arrives at
+// 22. With one command bus A's RD takes cycle 22 and C activates at 23; with HBM's separate row
+// and column buses both issue at 22.
+TEST(DramCommand, DualCommandBusIssuesARowAndAColumnCommandTogether) {
+    for (const bool dual : {false, true}) {
+        DramController d(two_pseudo_channels(dual));
+        d.record_commands(true);
+        ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+        d.run_until(21);
+        ASSERT_TRUE(d.enqueue(2, kPc1, false, 22));
+        d.drain();
+        const auto rd = of_kind(d, DramCommand::Rd);
+        const auto act = of_kind(d, DramCommand::Act);
+        ASSERT_EQ(act.size(), 2u);
+        EXPECT_EQ(rd[0].cycle, 22u);
+        EXPECT_EQ(act[1].cycle, dual ? 22u : 23u) << (dual ? "dual" : "single");
+    }
+}
