@@ -96,6 +96,8 @@ std::string DramDeviceSpec::check() const {
                                                   {"t_pbr2act", t_pbr2act}};
     for (const auto& [field, v] : timing)
         if (v < 0) return fmt::format("{}: expected 0 or more cycles, got {}", field, v);
+    if (!(bankwise_rho >= 0 && bankwise_rho <= 1))
+        return fmt::format("bankwise_rho: expected a number from 0 to 1, got {}", bankwise_rho);
     if (refresh_mode != "all_bank" && refresh_mode != "per_bank")
         return fmt::format("refresh_mode: expected all_bank or per_bank, got '{}'", refresh_mode);
     if (refresh && !per_bank_refresh() && t_refi <= t_rfc)
@@ -208,10 +210,16 @@ DramController::DramController(const DramDeviceSpec& spec)
     e_rd_ = k * (spec_.idd4r - spec_.idd3n) * spec_.burst_cycles;
     e_wr_ = k * (spec_.idd4w - spec_.idd3n) * spec_.burst_cycles;
     e_ref_ = k * (spec_.idd5ab - spec_.idd3n) * spec_.t_rfc;
-    e_ref_pb_ = spec_.idd5pb > 0 ? k * (spec_.idd5pb - spec_.idd3n) * spec_.t_rfc_pb
+    e_ref_pb_ = spec_.idd5pb > 0 ? k * (spec_.idd5pb - spec_.idd2n) * spec_.refresh_interval_pb()
                                  : e_ref_ / spec_.refreshes_per_round();
     e_act_stby_ = k * spec_.idd3n;
     e_pre_stby_ = k * spec_.idd2n;
+    if (spec_.bankwise_rho < 1) {
+        const double i_rho = spec_.idd2n + spec_.bankwise_rho * (spec_.idd3n - spec_.idd2n);
+        e_act_stby_ = k * i_rho;
+        const int n = spec_.idd3n_open_banks > 0 ? spec_.idd3n_open_banks : spec_.banks_per_rank();
+        e_open_bank_ = k * (spec_.idd3n - i_rho) / n;
+    }
 }
 
 uint64_t DramController::pending() const {
@@ -284,7 +292,8 @@ void DramController::settle_background() {
 void DramController::account_background(Rank& r, uint64_t until) {
     if (until <= r.bg_since) return;
     counters_.background_pj +=
-        double(until - r.bg_since) * (r.open_banks > 0 ? e_act_stby_ : e_pre_stby_);
+        double(until - r.bg_since) *
+        (r.open_banks > 0 ? e_act_stby_ + r.open_banks * e_open_bank_ : e_pre_stby_);
     r.bg_since = until;
 }
 

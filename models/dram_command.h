@@ -72,9 +72,18 @@ struct DramDeviceSpec {
     // Currents (mA) and supply (V), per device
     double vdd = 1.2;
     double idd0 = 57, idd2n = 37, idd3n = 52, idd4r = 168, idd4w = 150, idd5ab = 250;
-    // Per-bank refresh current (IDD5PB). 0: a per-bank refresh costs the all-bank refresh's
-    // energy over the banks of a rank (it refreshes their rows one bank at a time).
+    // Per-bank refresh current (IDD5PB): as JEDEC measures it and DRAMPower applies it, the
+    // average current with a per-bank refresh every t_refi_pb, so each costs (IDD5PB - IDD2N)
+    // over t_refi_pb above precharge standby. 0: each costs the all-bank refresh's energy over
+    // the refreshes of a round (the same rows, refreshed a bank or a pair at a time).
     double idd5pb = 0;
+    // Active standby as DRAMPower's bank-wise model charges it: with n banks open a rank draws
+    // I_rho + n (IDD3N - I_rho) / N, I_rho = IDD2N + rho (IDD3N - IDD2N), where IDD3N is the
+    // current with N banks open: all of a rank's (idd3n_open_banks 0; DRAMPower's DDR4 and DDR5)
+    // or one (1; its LPDDR4 and LPDDR5). rho 1: IDD3N however many banks are open (DRAMsim3, and
+    // DRAMPower before its bank-wise model).
+    double bankwise_rho = 1;
+    int idd3n_open_banks = 0;
     // Controller
     bool open_page = true;  // false: closed page (auto-precharge with every column command)
     int read_queue = 32;    // entries per channel
@@ -292,6 +301,7 @@ class DramController {
     // Energy increments (pJ) per command, and per cycle of background per rank.
     double e_act_ = 0, e_rd_ = 0, e_wr_ = 0, e_ref_ = 0, e_ref_pb_ = 0, e_act_stby_ = 0,
            e_pre_stby_ = 0;
+    double e_open_bank_ = 0;  // bank-wise model: each open bank's share above I_rho, per cycle
 };
 
 }  // namespace rtsim

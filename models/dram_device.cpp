@@ -97,6 +97,8 @@ const std::vector<FieldRow>& rows() {
         row("idd4w", &S::idd4w),
         row("idd5ab", &S::idd5ab),
         row("idd5pb", &S::idd5pb),
+        row("bankwise_rho", &S::bankwise_rho),
+        row("idd3n_open_banks", &S::idd3n_open_banks),
         row("open_page", &S::open_page),
         row("read_queue", &S::read_queue),
         row("write_queue", &S::write_queue),

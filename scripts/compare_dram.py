@@ -42,13 +42,28 @@ FAMILIES = {"DDR3": "DDR3_8Gb_x8_1600.ini", "DDR4": "DDR4_8Gb_x8_3200.ini",
             "LPDDR3": "LPDDR3_8Gb_x32_1600.ini", "LPDDR4": "LPDDR4_8Gb_x16_2400.ini",
             "GDDR5": "GDDR5_8Gb_x32.ini", "GDDR5X": "GDDR5X_8Gb_x32.ini",
             "GDDR6": "GDDR6_8Gb_x16.ini", "HBM": "HBM_4Gb_x128.ini", "HBM2": "HBM2_8Gb_x128.ini"}
-# rtsim's own presets checked against Ramulator 2: the preset of Ramulator 2's tables it was taken
-# from, for the timings rtsim has no field for.
-RAMULATOR2_FAMILIES = {"DDR5": ("DDR5_16Gb_x8_4800", "DDR5_4800AN"),
-                       "LPDDR5": ("LPDDR5_8Gb_x16_6400", "LPDDR5_6400")}
+# rtsim's own presets checked against Ramulator 2: the preset, the timing preset of Ramulator 2's
+# tables it was taken from (for the timings rtsim has no field for), device fields set on both
+# sides, and where a convention differs, the rtsim field that matches Ramulator 2's and why.
+RAMULATOR2_FAMILIES = {
+    "DDR5": {"preset": "DDR5_16Gb_x8_4800", "timing": "DDR5_4800AN"},
+    # Per-bank refresh (the preset's default): Ramulator 2's REFpb refreshes one bank where
+    # JESD209-5's 16-bank modes (and DRAMPower's REFP2B) refresh a pair.
+    "LPDDR5": {"preset": "LPDDR5_8Gb_x16_6400", "timing": "LPDDR5_6400",
+               "set": {"refresh_pb_banks": 1},
+               "convention": "REFpb refreshes one bank in Ramulator 2, a bank pair in rtsim's "
+                             "preset (JESD209-5 16-bank modes): compared with refresh_pb_banks=1"},
+    "LPDDR5-allbank": {"preset": "LPDDR5_8Gb_x16_6400", "timing": "LPDDR5_6400",
+                       "set": {"refresh_mode": "all_bank"}},
+    # Pseudo-channel mode: 8 channels of two 64-bit pseudo-channels, separate row and column
+    # command buses.
+    "HBM2-pc": {"preset": "HBM2_8Gb_x128_2000", "timing": "HBM2_2000Mbps",
+                "convention": "an ACT holds Ramulator 2's row command bus 2 cycles, rtsim's 1"},
+}
 # Ramulator 2's channel interleave on the line above the transaction, then RoBaRaCoCh (column,
-# rank, bank group, bank, row upwards), in rtsim's most-significant-first notation.
-RAMULATOR2_MAPPING = "robabgracoch"
+# then the levels under the channel upwards: rank or pseudo-channel, bank group, bank, row), in
+# rtsim's most-significant-first notation.
+RAMULATOR2_MAPPING = {"DDR5": "robabgracoch", "LPDDR5": "robabgracoch", "HBM2": "rorababgpccoch"}
 LOADS = {"random-light": ("random", 40), "random-moderate": ("random", 10),
          "random-saturating": ("random", 1), "stream-light": ("stream", 40),
          "stream-saturating": ("stream", 1)}
@@ -82,6 +97,14 @@ def ramulator2_timings(dev):
     bank-group relation for reads and writes alike, so the write tCCDs are set to it; LPDDR5's
     per-bank and all-bank precharge both take rtsim's t_rp."""
     burst = dev["burst_cycles"]
+    if dev["protocol"] == "HBM2":
+        return {"nBL": burst, "nCL": dev["cl"], "nCWL": dev["cwl"], "nRCDRD": dev["t_rcd"],
+                "nRCDWR": dev.get("t_rcd_wr") or dev["t_rcd"], "nRP": dev["t_rp"],
+                "nRAS": dev["t_ras"], "nRC": dev["t_ras"] + dev["t_rp"], "nWR": dev["t_wr"],
+                "nRTPL": dev["t_rtp"], "nCCDS": dev["t_ccd_s"], "nCCDL": dev["t_ccd_l"],
+                "nRRDS": dev["t_rrd_s"], "nRRDL": dev["t_rrd_l"], "nWTRS": dev["t_wtr_s"],
+                "nWTRL": dev["t_wtr_l"], "nFAW": dev["t_faw"], "nRFC": dev["t_rfc"],
+                "nREFI": dev["t_refi"]}
     t = {"nCL": dev["cl"], "nCWL": dev["cwl"], "nRCD": dev["t_rcd"], "nRP": dev["t_rp"],
          "nRAS": dev["t_ras"], "nRC": dev["t_ras"] + dev["t_rp"], "nWR": dev["t_wr"],
          "nRTP": dev["t_rtp"], "nCCDS": dev["t_ccd_s"], "nCCDL": dev["t_ccd_l"],
@@ -90,12 +113,17 @@ def ramulator2_timings(dev):
          "nFAW": dev["t_faw"], "nRFC": dev["t_rfc"], "nREFI": dev["t_refi"]}
     if dev["protocol"] == "LPDDR5":
         t.update(nBL_min=burst, nRPab=dev["t_rp"])
+        if dev.get("refresh_mode") == "per_bank":
+            t.update(nRFCpb=dev["t_rfc_pb"], nREFIpb=dev["t_refi_pb"],
+                     nPBR2PBR=dev["t_pbr2pbr"], nPBR2ACT=dev["t_pbr2act"])
     else:
         t.update(nBL=burst)
     return t
 
 
 def ramulator2_org_preset(dev):
+    if dev["protocol"] == "HBM2":
+        return "HBM2_8Gb"  # the organisation is given level by level
     density_gb = (dev["bankgroups"] * dev["banks_per_group"] * dev["rows"] * dev["columns"]
                   * dev["device_width_bits"]) >> 30
     return f"{dev['protocol']}_{density_gb}Gb_x{dev['device_width_bits']}"
@@ -118,16 +146,22 @@ def ramulator2_config(ramulator, dev, timing_preset, trace, interval, out):
     per `interval` memory cycles, waiting whenever the controller's queue is full."""
     std = dev["protocol"]
     controllers = []
+    # Ranks, or HBM's pseudo-channels, as the level under the channel.
+    upper = ({"pseudochannel": dev["pseudo_channels"]} if std == "HBM2"
+             else {"rank": dev["ranks"]})
+    kind = {"LPDDR5": ramulator.controller.LPDDR5,
+            "HBM2": ramulator.controller.HBM12}.get(std, ramulator.controller.GenericDDR)
+    refresh = (ramulator.refresh_manager.PerBank if dev.get("refresh_mode") == "per_bank"
+               else ramulator.refresh_manager.AllBank)
     for ch in range(dev["channels"]):
         dram = getattr(ramulator.dram, std)(
-            org_preset=ramulator2_org_preset(dev), timing_preset=timing_preset,
-            rank=dev["ranks"], bankgroup=dev["bankgroups"], bank=dev["banks_per_group"],
+            org_preset=ramulator2_org_preset(dev), timing_preset=timing_preset, **upper,
+            bankgroup=dev["bankgroups"], bank=dev["banks_per_group"],
             row=dev["rows"], column=dev["columns"], channel_width=dev["bus_width_bits"],
             **ramulator2_timings(dev))
-        kind = ramulator.controller.LPDDR5 if std == "LPDDR5" else ramulator.controller.GenericDDR
         controllers.append(kind(
             dram=dram, scheduler=ramulator.scheduler.FRFCFS(),
-            refresh_manager=ramulator.refresh_manager.AllBank(),
+            refresh_manager=refresh(),
             row_policy=ramulator.row_policy.Open(), addr_mapper=ramulator.addr_mapper.RoBaRaCoCh(),
             controller_plugins=[ramulator.controller_plugin.CmdTraceRecorder(
                 path=os.path.join(out, "cmd"))]))
@@ -176,7 +210,7 @@ def ramulator2(tools, dev, timing_preset, trace, interval, tmp):
     act = "ACT1" if dev["protocol"] == "LPDDR5" else "ACT"
     return {"cycles": done, "read_latency": stat["read_latency"] / ops.count("READ"),
             "act": sum(1 for c, x in cmds if x == act and c <= done),
-            "ref": sum(1 for c, x in cmds if x == "REFab" and c <= done)}
+            "ref": sum(1 for c, x in cmds if x in ("REFab", "REFpb") and c <= done)}
 
 
 def ramulator2_tools(src, tmp):
@@ -196,25 +230,137 @@ def ramulator2_tools(src, tmp):
     return ramulator, driver
 
 
-def compare_trace_ramulator2(rtsim, tools, preset, timing_preset, trace, interval, tmp):
-    """One trace through `rtsim dram` (its preset, address mapping set to Ramulator 2's) and
-    Ramulator 2 (the same device through its config)."""
+def compare_trace_ramulator2(rtsim, tools, family, trace, interval, tmp, drampower=None):
+    """One trace through `rtsim dram` (its preset, with the family's settings and Ramulator 2's
+    address mapping) and Ramulator 2 (the same device through its config)."""
+    fam = RAMULATOR2_FAMILIES[family]
+    preset, timing_preset = fam["preset"], fam["timing"]
     with open(os.path.join(ROOT, "configs", "dram", preset + ".json")) as f:
         dev = json.load(f)
-    dev["address_mapping"] = RAMULATOR2_MAPPING
+    sets = dict(fam.get("set", {}), address_mapping=RAMULATOR2_MAPPING[dev["protocol"]])
+    if drampower:
+        # DRAMPower's bank-wise background (its memspec's factRho): matched on rtsim's side,
+        # where it changes energy only.
+        sets["bankwise_rho"] = drampower_memspec(drampower, dev)["memspec"]["bankwisespec"][
+            "factRho"]
+        # Its LPDDR5 model reads IDD3N as one bank open, its DDR5 model as all.
+        if dev["protocol"] == "LPDDR5":
+            sets["idd3n_open_banks"] = 1
+    dev.update(sets)
     out = os.path.join(tmp, "rt-" + os.path.basename(trace))
-    subprocess.run([rtsim, "dram", "-q", trace, "--device", preset, "-o", out, "--set",
-                    f"address_mapping={RAMULATOR2_MAPPING}"], check=True)
+    commands = os.path.join(out, "commands.csv")
+    cmd = [rtsim, "dram", "-q", trace, "--device", preset, "-o", out, "--commands", commands]
+    for k, v in sets.items():
+        cmd += ["--set", f"{k}={v}"]
+    subprocess.run(cmd, check=True)
     with open(os.path.join(out, "stats.json")) as f:
         r = json.load(f)
     with open(trace) as f:
         n = sum(1 for _ in f)
-    return {"requests": n,
+    reference = ramulator2(tools, dev, timing_preset, trace, interval, tmp)
+    if drampower:
+        reference["energy_nj"] = drampower_energy_nj(drampower, dev, commands, r["cycles"], out)
+    return {"requests": n, "sets": sets,
             "table_differs": ramulator2_table_differences(tools[0], dev, timing_preset),
             "rtsim": {"cycles": r["cycles"], "read_latency": r["read_latency_cycles"]["mean"],
-                      "act": r["commands"]["act"], "ref": r["commands"]["ref"],
+                      "act": r["commands"]["act"],
+                      "ref": r["commands"]["ref"] + r["commands"]["ref_pb"],
                       "energy_nj": r["energy_pj"]["total"] / 1e3},
-            "reference": ramulator2(tools, dev, timing_preset, trace, interval, tmp)}
+            "reference": reference}
+
+
+# DRAMPower's own memspecs (its test resources) as templates: rtsim's organisation, currents and
+# timings go in; DRAMPower's model parameters (bank-wise factRho, impedances) stay its own.
+DRAMPOWER_TEMPLATES = {"DDR5": "ddr5.json", "LPDDR5": "lpddr5.json"}
+
+
+def drampower_memspec(src, dev):
+    """rtsim's device `dev` as a DRAMPower memspec of one channel (currents in A, tCK in s)."""
+    with open(os.path.join(src, "tests", "tests_drampower", "resources",
+                           DRAMPOWER_TEMPLATES[dev["protocol"]])) as f:
+        spec = json.load(f)
+    m = spec["memspec"]
+    a, p, t = m["memarchitecturespec"], m["mempowerspec"], m["memtimingspec"]
+    a.update(nbrOfColumns=dev["columns"], nbrOfRows=dev["rows"], width=dev["device_width_bits"],
+             burstLength=dev["burst_length"], maxBurstLength=dev["burst_length"],
+             nbrOfBankGroups=dev["bankgroups"],
+             nbrOfBanks=dev["bankgroups"] * dev["banks_per_group"], nbrOfRanks=dev["ranks"],
+             nbrOfDevices=dev["bus_width_bits"] // dev["device_width_bits"])
+    t["tCK"] = dev["tck_ns"] * 1e-9
+    amp = {k: dev[k] / 1000.0 for k in ("idd0", "idd2n", "idd3n", "idd4r", "idd4w", "idd5ab")}
+    if dev["protocol"] == "DDR5":
+        p.update(vdd=dev["vdd"], idd0=amp["idd0"], idd2n=amp["idd2n"], idd3n=amp["idd3n"],
+                 idd4r=amp["idd4r"], idd4w=amp["idd4w"], idd5b=amp["idd5ab"],
+                 idd5c=amp["idd5ab"], idd5f=amp["idd5ab"], iBeta_vdd=amp["idd0"])
+        t.update(RAS=dev["t_ras"], RCD=dev["t_rcd"], RTP=dev["t_rtp"], WL=dev["cwl"],
+                 RL=dev["cl"], WR=dev["t_wr"], RP=dev["t_rp"], RFC1=dev["t_rfc"],
+                 RFC1_slr=dev["t_rfc"], REFI1=dev["t_refi"])
+        return spec
+    # LPDDR5: bursts of BL / (2 x WCK:CK) clock cycles, as rtsim's burst_cycles.
+    banks = a["nbrOfBanks"]
+    a.update(dataRate=2, per2BankOffset=banks // 2)
+    t.update(WCK2CK=dev["burst_length"] // (2 * dev["burst_cycles"]), RAS=dev["t_ras"],
+             RPab=dev["t_rp"], RPpb=dev["t_rp"], RCab=dev["t_ras"] + dev["t_rp"],
+             RCpb=dev["t_ras"] + dev["t_rp"], RCD=dev["t_rcd"], RL=dev["cl"], WL=dev["cwl"],
+             WR=dev["t_wr"], RBTP=dev["t_rtp"], REFI=dev["t_refi"], RFCab=dev["t_rfc"],
+             RFCpb=dev.get("t_rfc_pb") or 1, REFIpb=dev.get("t_refi_pb", 0),
+             pbR2act=dev.get("t_pbr2act", 0), pbR2pbR=dev.get("t_pbr2pbr", 0))
+    # Per-bank refresh: DRAMPower reads IDD5PB as the average current with one refresh every
+    # tREFI / 8, and charges it per bank refreshed. rtsim's preset has no IDD5PB (its refresh
+    # costs the all-bank refresh's charge over the refreshes of a round), so that same charge
+    # per bank goes in as the IDD5PB that yields it under DRAMPower's reading.
+    per_bank_j = (dev["vdd"] * (amp["idd5ab"] - amp["idd3n"]) * dev["t_rfc"] / banks)
+    idd5pb = amp["idd2n"] + per_bank_j / (dev["vdd"] * dev["t_refi"] / 8)
+    p.update(vdd1=dev["vdd"], idd01=amp["idd0"], idd2n1=amp["idd2n"], idd3n1=amp["idd3n"],
+             idd4r1=amp["idd4r"], idd4w1=amp["idd4w"], idd51=amp["idd5ab"], idd5pb1=idd5pb,
+             iBeta_vdd1=amp["idd0"])
+    return spec
+
+
+def drampower_energy_nj(src, dev, commands_csv, end_cycle, tmp):
+    """DRAMPower's core energy (nJ; its interface and I/O energy left out, as rtsim has none) of
+    rtsim's own command trace, one DRAMPower run per channel."""
+    cli = os.path.join(src, "build", "bin", "drampower_cli")
+    spec_path = os.path.join(tmp, "memspec.json")
+    with open(spec_path, "w") as f:
+        json.dump(drampower_memspec(src, dev), f)
+    config = os.path.join(tmp, "drampower_config.json")
+    with open(config, "w") as f:
+        json.dump({"useToggleRate": False}, f)
+    burst_hex = "00" * (dev["bus_width_bits"] // 8 * dev["burst_length"])
+    refpb = "REFP2B" if dev.get("refresh_pb_banks", 1) == 2 else "REFB"
+    names = {"ACT": "ACT", "PRE": "PRE", "RD": "RD", "WR": "WR", "REF": "REFA", "REFpb": refpb}
+    bpg = dev["banks_per_group"]
+    per_channel = {}
+    with open(commands_csv) as f:
+        next(f)  # cycle,command,channel,rank,bankgroup,bank,row
+        for line in f:
+            cyc, cmd, ch, rank, bg, ba, row = line.strip().split(",")
+            bank = int(bg) * bpg + int(ba) if int(bg) >= 0 else 0
+            text = f"{cyc},{names[cmd]},{rank},{max(0, int(bg))},{bank},{row},0"
+            if cmd in ("RD", "WR"):
+                text += "," + burst_hex
+            per_channel.setdefault(int(ch), []).append(text)
+    total_j = 0.0
+    for ch in range(dev["channels"] * dev.get("pseudo_channels", 1)):
+        trace = os.path.join(tmp, f"drampower-ch{ch}.csv")
+        with open(trace, "w") as f:
+            f.write("\n".join(per_channel.get(ch, []) + [f"{end_cycle},END,0,0,0,0,0"]) + "\n")
+        out = os.path.join(tmp, f"drampower-ch{ch}.json")
+        open(out, "w").close()  # its CLI writes only to an existing file
+        r = subprocess.run([cli, "-c", config, "-m", spec_path, "-t", trace, "-j", out],
+                           capture_output=True, text=True)
+        if r.returncode != 0:
+            raise RuntimeError(f"drampower: {trace}: {(r.stdout + r.stderr).strip()[-300:]}")
+        with open(out) as f:
+            core = json.load(f)["CoreEnergy"]
+        for key, value in core.items():
+            if isinstance(value, list):
+                total_j += sum(v for b in value for k, v in b.items()
+                               if k not in ("Bank", "Device", "Rank"))
+            else:
+                total_j += value
+    return total_j * 1e9
 
 
 def pct(a, b):
@@ -238,16 +384,24 @@ def report(requests, seed, rows, loaded, refused):
              f"loads: one request per 40, 10 and 1 "
              f"device cycles. Differences relative to the reference. Targets: read latency and "
              f"ACTs within 5% at light load, completion within 10% at saturating load "
-             f"(**bold**: missed). Energy only where the reference computes it (DRAMsim3).", ""]
+             f"(**bold**: missed). Energy: DRAMsim3's own on its families; for the Ramulator 2 "
+             f"families (Ramulator 2 has no energy model), DRAMPower's core energy (interface "
+             f"and I/O left out, as rtsim models none) of rtsim's own command trace, with "
+             f"rtsim's currents and timings in DRAMPower's memspec; target within 10%.", ""]
     if loaded or refused:
         lines += [f"Device files in DRAMsim3's configs folder: {len(loaded)} of "
                   f"{len(loaded) + len(refused)} simulate; refused: "
                   + ("; ".join(f"{n} ({why})" for n, why in refused) or "none") + ".", ""]
-    differs = {r["device"]: r["table_differs"] for r in rows if "table_differs" in r}
-    for device, diff in differs.items():
-        lines.append(f"- {device}: Ramulator 2's table differs in "
-                     + (", ".join(f"{k} {a} (rtsim {b})" for k, (a, b) in diff.items())
-                        or "nothing") + ".")
+    differs = {r["family"]: r for r in rows if "table_differs" in r}
+    for family, r in differs.items():
+        fam = RAMULATOR2_FAMILIES[family]
+        sets = ", ".join(f"{k}={v}" for k, v in r["sets"].items())
+        lines.append(f"- {family} ({r['device']}, rtsim --set {sets}): Ramulator 2's table "
+                     "differs in " + (", ".join(f"{k} {a} (rtsim {b})"
+                                                for k, (a, b) in r["table_differs"].items())
+                                      or "nothing")
+                     + (f"; convention: {fam['convention']}" if "convention" in fam else "")
+                     + ".")
     if differs:
         lines.append("")
     lines += ["| family | device | reference | load | completion | read latency rtsim | reference "
@@ -285,6 +439,8 @@ def main():
     ap.add_argument("--dramsim3", help="DRAMsim3's dramsim3main binary")
     ap.add_argument("--configs", help="DRAMsim3's configs folder")
     ap.add_argument("--ramulator2", help="a built Ramulator 2 source tree (DDR5, LPDDR5)")
+    ap.add_argument("--drampower", help="a DRAMPower source tree with its CLI built "
+                    "(build/bin/drampower_cli): energy reference for DDR5 and LPDDR5")
     ap.add_argument("--rtsim", default=os.path.join(ROOT, "build", "rtsim"))
     ap.add_argument("--requests", type=int, default=15000)
     ap.add_argument("--families", help="default: every family whose reference is given")
@@ -336,10 +492,10 @@ def main():
                     row["reference"] = row.pop("dramsim3")
                     row.update(device=FAMILIES[family], ref_name="DRAMsim3")
                 else:
-                    preset, timing_preset = RAMULATOR2_FAMILIES[family]
-                    row = compare_trace_ramulator2(a.rtsim, tools, preset, timing_preset,
-                                                   trace, interval, tmp)
-                    row.update(device=preset, ref_name="Ramulator 2")
+                    row = compare_trace_ramulator2(a.rtsim, tools, family, trace, interval, tmp,
+                                                   a.drampower)
+                    row.update(device=RAMULATOR2_FAMILIES[family]["preset"],
+                               ref_name="Ramulator 2")
                 row.update(family=family, load=load)
                 rows.append(row)
                 print(f"compare_dram: {family} {load} done", file=sys.stderr)

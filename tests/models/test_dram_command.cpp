@@ -404,8 +404,8 @@ TEST(DramCommand, PerBankRefreshClosesAndHoldsOnlyItsBank) {
 // LPDDR5 refreshes a pair of banks per REFpb: bank k with bank k + 8. The first refresh (1000)
 // holds bank 8 as well as bank 0: a read to bank 8 arriving at 1001 activates after tRFCpb
 // (REFpb at 1000, both banks closed: ACT 1100), one to bank 1 after tpbR2act only (1008). With
-// IDD5PB = 100 mA the
-// refresh costs 6 (100 - 52) 100 = 28800 pJ.
+// IDD5PB = 100 mA (the average current refreshing every t_refi_pb) the refresh costs
+// 6 (IDD5PB - IDD2N) t_refi_pb = 6 (100 - 37) 1000 = 378000 pJ.
 TEST(DramCommand, PerBankRefreshOfABankPairHoldsBoth) {
     DramDeviceSpec s = ddr4_per_bank(2);
     s.idd5pb = 100;
@@ -423,7 +423,7 @@ TEST(DramCommand, PerBankRefreshOfABankPairHoldsBoth) {
         act_of_bank[a.bankgroup * 4 + a.bank] = a.cycle;
     EXPECT_EQ(act_of_bank[8], 1100u);
     EXPECT_EQ(act_of_bank[1], 1008u);
-    EXPECT_NEAR(d.counters().refresh_pj, 28800.0, 1e-6);
+    EXPECT_NEAR(d.counters().refresh_pj, 378000.0, 1e-6);
     // A round is 8 refreshes: 8 x 1000 cycles must exceed tRFCpb, and the pair must divide 16.
     s.refresh_pb_banks = 3;
     EXPECT_NE(s.check().find("refresh_pb_banks (3) must divide the 16 banks"), std::string::npos);
@@ -498,4 +498,39 @@ TEST(DramCommand, DualCommandBusIssuesARowAndAColumnCommandTogether) {
         EXPECT_EQ(rd[0].cycle, 22u);
         EXPECT_EQ(act[1].cycle, dual ? 22u : 23u) << (dual ? "dual" : "single");
     }
+}
+
+// DRAMPower's bank-wise background with rho = 0.5 on the DDR4 currents: I_rho = IDD2N + 0.5
+// (IDD3N - IDD2N) = 44.5 mA. Read as IDD3N with one bank open (its LPDDR5 model), each open bank
+// adds IDD3N - I_rho = 7.5 mA: one bank open draws IDD3N as before (6 x 52 = 312 pJ a cycle),
+// two 59.5 mA (357 pJ a cycle). Reads to bank groups 0 and 1 at cycle 0: ACT 0 and ACT 4
+// (tRRD_S), both rows stay open: to cycle 1000, 4 x 312 + 996 x 357 pJ. With rho = 1 (the
+// default) it is IDD3N throughout: 1000 x 312. Read as IDD3N with all 16 banks open (its DDR5
+// model), each open bank adds 7.5 / 16 mA: 6 (44.5 + 7.5 / 16) = 269.8125 pJ a cycle with one,
+// 272.625 with two.
+TEST(DramCommand, BankWiseBackgroundChargesEachOpenBank) {
+    for (const double rho : {0.5, 1.0}) {
+        DramDeviceSpec s = ddr4();
+        s.bankwise_rho = rho;
+        s.idd3n_open_banks = 1;
+        DramController d(s);
+        ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+        ASSERT_TRUE(d.enqueue(2, 64 * 128, false, 0));
+        d.run_until(999);
+        d.settle_background();
+        EXPECT_NEAR(d.counters().background_pj, rho < 1 ? 4 * 312.0 + 996 * 357.0 : 1000 * 312.0,
+                    1e-6)
+            << rho;
+    }
+    DramDeviceSpec all = ddr4();
+    all.bankwise_rho = 0.5;
+    DramController d(all);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(d.enqueue(2, 64 * 128, false, 0));
+    d.run_until(999);
+    d.settle_background();
+    EXPECT_NEAR(d.counters().background_pj, 4 * 269.8125 + 996 * 272.625, 1e-6);
+    DramDeviceSpec bad = ddr4();
+    bad.bankwise_rho = 1.5;
+    EXPECT_NE(bad.check().find("bankwise_rho"), std::string::npos);
 }
