@@ -1,28 +1,33 @@
 #!/usr/bin/env python3
 """Every memory family against a reference simulator: DRAMsim3 for the families it models,
-Ramulator 2 for DDR5 and LPDDR5; light, moderate and saturating loads, one table.
+Ramulator 2 for DDR5, LPDDR5 (per-bank and all-bank refresh) and HBM2 in pseudo-channel mode, and
+DRAMPower for DDR5's and LPDDR5's energy; light, moderate and saturating loads, one table.
 
-Neither reference is part of RTSim: build DRAMsim3 from its public repository (umd-memsys/DRAMsim3)
-and pass its binary and its configs folder; build Ramulator 2 (CMU-SAFARI/ramulator2, the last
-version with the `ramulator2` executable, whose main loop must accept `-d CYCLES` to keep ticking
-the memory after the trace is sent so that every request completes) and pass its binary. For each
-DRAMsim3 family's device file both simulators read the same .ini (rtsim through its importer); for
-DDR5 and LPDDR5, rtsim's preset is written out as a Ramulator 2 config with the same organisation
-and every timing in cycles (matched timings), its RoBaRaCoCh address mapping, open rows, FR-FCFS
-and all-bank refresh. Both run the same traces (device cycles):
+No reference is part of RTSim. Build DRAMsim3 from its public repository (umd-memsys/DRAMsim3) and
+pass its binary and its configs folder. Build Ramulator 2 (CMU-SAFARI/ramulator2) with its own
+CMake and pass the source tree: it has no executable, so this script compiles
+scripts/ramulator2_driver.cpp against its library and writes rtsim's preset as a Ramulator 2
+config through Ramulator 2's Python package, with the same organisation and every timing in
+cycles (matched timings), its RoBaRaCoCh mapping, open rows and FR-FCFS; where a convention
+differs (a REFpb's banks), the rtsim field that matches it is set and named in the table. Build
+DRAMPower's CLI (tukl-msd/DRAMPower, DRAMPOWER_BUILD_CLI) and pass the source tree: rtsim's own
+command trace (rtsim dram --commands) goes through it with rtsim's currents and timings in a
+memspec made from DRAMPower's test memspec, and its core energy is the reference. For each
+DRAMsim3 family's device file both simulators read the same .ini (rtsim through its importer).
+Both run the same traces (device cycles):
   * random-light: uniform random 64-byte addresses, 25% writes, one request per 40 cycles;
   * random-moderate: the same, one per 10 cycles;
   * random-saturating: the same, one per cycle (the queues fill; completion time matters);
   * stream-light: sequential 64-byte reads, one per 40 cycles;
   * stream-saturating: the same, one per cycle.
 The targets: read latency and ACT count within 5% at light load, completion time within 10% at
-saturating load. Also counts how many of the folder's device files load at all. The traces'
-addresses come from --seed (drawn at run time when not given, and printed with the table). Writes
-bench/results/dram_standards.md (every row: out/bench/dram_standards.json).
+saturating load, energy within 10%. Also counts how many of the folder's device files load at
+all. The traces' addresses come from --seed (drawn at run time when not given, and printed with
+the table). Writes bench/results/dram_standards.md (every row: out/bench/dram_standards.json).
 
     scripts/compare_dram.py --dramsim3 /path/to/dramsim3main --configs /path/to/DRAMsim3/configs
-        [--ramulator2 /path/to/ramulator2] [--rtsim build/rtsim] [--requests 15000]
-        [--families DDR3,GDDR6,DDR5,...] [--seed S] [--out bench/results]
+        [--ramulator2 /path/to/ramulator2] [--drampower /path/to/DRAMPower] [--rtsim build/rtsim]
+        [--requests 15000] [--families DDR3,GDDR6,DDR5,HBM2-pc,...] [--seed S] [--out DIR]
 """
 import argparse
 import os

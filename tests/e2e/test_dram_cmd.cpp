@@ -208,6 +208,33 @@ tRFC =
     EXPECT_EQ(hbm["columns"].get<int>(), 128);  // DRAMsim3: an HBM column is two words
     EXPECT_EQ(hbm["t_rcd_wr"].get<int>(), 20);  // DRAMsim3's tRCDWR default
     EXPECT_EQ(hbm["t_32aw"].get<int>(), 0);
+    EXPECT_TRUE(hbm["dual_command_bus"].get<bool>());  // DRAMsim3's hbm_dual_cmd default
+    EXPECT_EQ(hbm["pseudo_channels"].get<int>(), 1);   // DRAMsim3 runs legacy mode
+    // DRAMsim3's per-bank refresh policy (no file of its own sets it): tREFIb, tRFCb, IDD5PB.
+    const json lpddr4_stats = device("lpddr4_per_bank.ini", R"([dram_structure]
+protocol = LPDDR4
+bankgroups = 2
+banks_per_group = 4
+rows = 65536
+columns = 1024
+device_width = 16
+BL = 16
+[timing]
+tCK = 0.83
+tREFI = 8660
+tREFIb = 1082
+tRFCb = 168
+[power]
+IDD5PB = 60
+[system]
+refresh_policy = BANK_LEVEL_STAGGERED
+)");
+    const json& lpddr4 = lpddr4_stats["device"];
+    EXPECT_EQ(lpddr4["refresh_mode"].get<std::string>(), "per_bank");
+    EXPECT_EQ(lpddr4["t_refi_pb"].get<int>(), 1082);
+    EXPECT_EQ(lpddr4["t_rfc_pb"].get<int>(), 168);
+    EXPECT_DOUBLE_EQ(lpddr4["idd5pb"].get<double>(), 60.0);
+    EXPECT_FALSE(lpddr4["dual_command_bus"].get<bool>());
     const json gddr5x_stats = device("gddr5x_tck.ini", R"([dram_structure]
 protocol = GDDR5X
 bankgroups = 4
@@ -271,6 +298,26 @@ t32AW = 420
     expect_one_line_error(
         run_rtsim("dram '" + trace.string() + "' --device '" + odd.string() + "'"),
         "protocol RDRAM: not a protocol");
+}
+
+// --commands writes the issued commands: one read of 0x2000 (bank group 1: above 6 offset and 7
+// column bits) on an idle DDR4-3200 bank is ACT at its cycle and RD tRCD (22) later; a per-bank
+// refresh setting that needs another field names both the device and the settings.
+TEST(DramTrace, CommandLogAndSettingsCheckedTogether) {
+    const fs::path trace = write("one_read_cmd.trace", "0x2000 READ 10\n");
+    const fs::path csv = work_dir() / "commands.csv";
+    const Result r =
+        run_rtsim("dram -q '" + trace.string() + "' --commands '" + csv.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(slurp(csv),
+              "cycle,command,channel,rank,bankgroup,bank,row\n10,ACT,0,0,1,0,0\n32,RD,0,0,1,0,0\n");
+    expect_one_line_error(run_rtsim("dram -q '" + trace.string() +
+                                    "' --device DDR4_8Gb_x8_3200 --set refresh_mode=per_bank"),
+                          "DDR4_8Gb_x8_3200 with --set refresh_mode=per_bank: refresh_mode "
+                          "per_bank needs t_rfc_pb");
+    const Result ok = run_rtsim("dram -q '" + trace.string() +
+                                "' --set refresh_mode=per_bank --set t_rfc_pb=100");
+    EXPECT_EQ(ok.status, 0) << ok.err;
 }
 
 TEST(DramTrace, EveryPresetLoadsAndRuns) {
