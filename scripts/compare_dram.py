@@ -243,7 +243,8 @@ def compare_trace_ramulator2(rtsim, tools, family, trace, interval, tmp, drampow
     with open(os.path.join(ROOT, "configs", "dram", preset + ".json")) as f:
         dev = json.load(f)
     sets = dict(fam.get("set", {}), address_mapping=RAMULATOR2_MAPPING[dev["protocol"]])
-    if drampower:
+    energy_ref = drampower and dev["protocol"] in DRAMPOWER_TEMPLATES
+    if energy_ref:
         # DRAMPower's bank-wise background (its memspec's factRho): matched on rtsim's side,
         # where it changes energy only.
         sets["bankwise_rho"] = drampower_memspec(drampower, dev)["memspec"]["bankwisespec"][
@@ -263,7 +264,7 @@ def compare_trace_ramulator2(rtsim, tools, family, trace, interval, tmp, drampow
     with open(trace) as f:
         n = sum(1 for _ in f)
     reference = ramulator2(tools, dev, timing_preset, trace, interval, tmp)
-    if drampower:
+    if energy_ref:
         reference["energy_nj"] = drampower_energy_nj(drampower, dev, commands, r["cycles"], out)
     return {"requests": n, "sets": sets,
             "table_differs": ramulator2_table_differences(tools[0], dev, timing_preset),
