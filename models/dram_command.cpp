@@ -190,9 +190,13 @@ DramAddress DramAddressMap::map(uint64_t addr) const {
 }
 
 DramController::DramController(const DramDeviceSpec& spec)
-    : spec_(spec), map_(spec), channels_(size_t(spec.data_channels())) {
+    : spec_(spec),
+      per_bank_refresh_(spec.per_bank_refresh()),
+      refresh_step_(spec.refreshes_per_round()),
+      map_(spec),
+      channels_(size_t(spec.data_channels())) {
     const uint64_t interval =
-        uint64_t(spec_.per_bank_refresh() ? spec_.refresh_interval_pb() : spec_.t_refi);
+        uint64_t(per_bank_refresh_ ? spec_.refresh_interval_pb() : spec_.t_refi);
     for (Channel& c : channels_) {
         c.banks.resize(size_t(spec_.ranks * spec_.banks_per_rank()));
         c.ranks.resize(size_t(spec_.ranks));
@@ -334,7 +338,7 @@ bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
     for (int ri = 0; ri < spec_.ranks; ++ri) {
         Rank& r = c.ranks[size_t(ri)];
         if (!r.refresh_pending) continue;
-        if (spec_.per_bank_refresh()) {
+        if (per_bank_refresh_) {
             if (try_refresh_bank(c, channel, ri, t)) return true;
             continue;
         }
@@ -374,12 +378,11 @@ bool DramController::try_refresh(Channel& c, int channel, uint64_t t) {
 
 bool DramController::try_refresh_bank(Channel& c, int channel, int rank_index, uint64_t t) {
     Rank& r = c.ranks[size_t(rank_index)];
-    const int step = spec_.refreshes_per_round();
     Bank* rank_banks = &c.banks[size_t(rank_index * spec_.banks_per_rank())];
-    // The banks this refresh covers: the step's bank and every step-th one after it. Each must
-    // be closed (precharge an open one), then past tRP, tRC or its own last refresh.
+    // The banks this refresh covers (in_bank_refresh) must each be closed (precharge an open
+    // one), then past tRP, tRC or their own last refresh.
     bool ready = t >= r.next_ref_pb;  // tpbR2pbR
-    for (int k = r.refresh_bank; k < spec_.banks_per_rank(); k += step) {
+    for (int k = r.refresh_bank; k < spec_.banks_per_rank(); k += refresh_step_) {
         Bank& b = rank_banks[k];
         if (b.open) {
             if (t < b.next_pre) {
@@ -396,12 +399,12 @@ bool DramController::try_refresh_bank(Channel& c, int channel, int rank_index, u
     for (int o = 0; o < spec_.banks_per_rank(); ++o)
         rank_banks[o].next_act =
             std::max(rank_banks[o].next_act,
-                     t + uint64_t(o % step == r.refresh_bank ? spec_.t_rfc_pb : spec_.t_pbr2act));
+                     t + uint64_t(in_bank_refresh(r, o) ? spec_.t_rfc_pb : spec_.t_pbr2act));
     const int k = r.refresh_bank;
     r.next_ref_pb = t + uint64_t(spec_.t_pbr2pbr);
     r.refresh_pending = false;
     r.next_ref_due += uint64_t(spec_.refresh_interval_pb());
-    r.refresh_bank = (k + 1) % step;
+    r.refresh_bank = (k + 1) % refresh_step_;
     ++counters_.refs_per_bank;
     counters_.refresh_pj += e_ref_pb_;
     log(t, DramCommand::RefPb, channel, rank_index, k / spec_.banks_per_group,

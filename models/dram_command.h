@@ -270,13 +270,15 @@ class DramController {
     }
     bool try_refresh(Channel& c, int channel, uint64_t t);
     bool try_refresh_bank(Channel& c, int channel, int rank_index, uint64_t t);
-    // Per-bank refresh owed by this request's bank: no new commands to it.
+    // Per-bank refresh: whether the rank's refresh owed covers bank `k` (its index in the
+    // rank): the step's bank and every refresh_step_-th one after it.
+    bool in_bank_refresh(const Rank& r, int k) const { return k % refresh_step_ == r.refresh_bank; }
+    // A refresh owed by this request's rank (all-bank) or bank (per-bank): no new commands to it.
     bool refresh_blocks(const Channel& c, const DramAddress& a) const {
         const Rank& r = c.ranks[size_t(a.rank)];
         if (!r.refresh_pending) return false;
-        return !spec_.per_bank_refresh() ||
-               (a.bankgroup * spec_.banks_per_group + a.bank) % spec_.refreshes_per_round() ==
-                   r.refresh_bank;
+        return !per_bank_refresh_ ||
+               in_bank_refresh(r, a.bankgroup * spec_.banks_per_group + a.bank);
     }
     bool try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
     bool try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t);
@@ -291,6 +293,9 @@ class DramController {
     void log(uint64_t t, DramCommand cmd, int ch, int ra, int bg, int ba, uint32_t row);
 
     DramDeviceSpec spec_;
+    // From the spec, read on every scheduling pass: refresh_mode is text.
+    bool per_bank_refresh_ = false;
+    int refresh_step_ = 1;  // per-bank refreshes in a round
     DramAddressMap map_;
     std::vector<Channel> channels_;
     DramCounters counters_;
