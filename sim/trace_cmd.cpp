@@ -111,6 +111,8 @@ class TraceJob {
         if (!reader_) {
             gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
             tiles_ = std::make_unique<TileQueue>(*gen_, threads_);  // tiles generated in parallel
+        } else {
+            check_scene_range(scene_.name, bvh_.bounds());  // as the generator does
         }
         open_outputs();
     }

@@ -164,21 +164,13 @@ Vec3 cosine_direction(Vec3 n, Rng2 r) {
 
 }  // namespace
 
-RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options)
-    : scene_(scene), bvh_(bvh), opt_(options) {
-    opt_.validate();
-    const AABB b = bvh.bounds();
-    camera_ = Camera::frame(b, opt_.width, opt_.height);
-    // Scenes so large that the bounds' extent or the camera overflow single precision would
-    // give every ray a non-finite origin: refuse them instead of reporting no hits.
+void check_scene_range(const std::string& scene_name, const AABB& b) {
     const Vec3 e0 = b.extent();
-    const float reach = length(e0);
-    if (!std::isfinite(reach) || !std::isfinite(camera_.eye.x) || !std::isfinite(camera_.eye.y) ||
-        !std::isfinite(camera_.eye.z))
+    if (!std::isfinite(length(e0)))
         throw InputError(fmt::format(
             "{}: scene bounds ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}) are too large for "
             "single-precision rays (their extent overflows a float); scale the scene down",
-            scene.name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
+            scene_name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
     // Outside the range the stress suite checks, say so: too large a scene overflows the
     // triangle test's products (every ray misses), too small or too far from the origin a one
     // loses hit precision.
@@ -188,17 +180,33 @@ RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptio
         throw InputError(fmt::format(
             "{}: scene extent {:g} is above {:g}, where single-precision triangle tests overflow "
             "and rays miss; scale the scene down",
-            scene.name, extent, kMaxSceneExtent));
+            scene_name, extent, kMaxSceneExtent));
     if (extent > 0 && extent < kMinSceneExtent)
         warn(
             fmt::format("{}: scene extent {:g} is below {:g}: hit distances may lose precision; "
                         "scale the scene up",
-                        scene.name, extent, kMinSceneExtent));
+                        scene_name, extent, kMinSceneExtent));
     if (extent > 0 && magnitude > kMaxOffsetOverExtent * extent)
         warn(
             fmt::format("{}: coordinates reach {:g}, over {:g} times the scene's extent {:g}: "
                         "hits may be missed or off; move the scene nearer the origin",
-                        scene.name, magnitude, kMaxOffsetOverExtent, extent));
+                        scene_name, magnitude, kMaxOffsetOverExtent, extent));
+}
+
+RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options)
+    : scene_(scene), bvh_(bvh), opt_(options) {
+    opt_.validate();
+    const AABB b = bvh.bounds();
+    camera_ = Camera::frame(b, opt_.width, opt_.height);
+    check_scene_range(scene.name, b);
+    // A finite extent can still put the camera out of float range: refuse it the same way.
+    if (!std::isfinite(camera_.eye.x) || !std::isfinite(camera_.eye.y) ||
+        !std::isfinite(camera_.eye.z))
+        throw InputError(fmt::format(
+            "{}: scene bounds ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}) are too large for "
+            "single-precision rays (the camera overflows a float); scale the scene down",
+            scene.name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
+    const float magnitude = b.largest_coordinate();
     scene_scale_ = magnitude > 0 ? magnitude : 1.0f;
     // Lights just under the top of the scene's bounds (inside a closed room): a point at the
     // centre, or a horizontal quad a quarter of the bounds' width and depth around it.

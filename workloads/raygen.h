@@ -62,6 +62,12 @@ Vec3 offset_ray_origin(Vec3 p, Vec3 n, float scene_scale = 1.0f);
 constexpr float kMinSceneExtent = 1e-9f, kMaxSceneExtent = 1e12f;
 constexpr float kMaxOffsetOverExtent = 1e2f;  // coordinates up to this many extents from 0
 
+// Holds a scene's bounds to that range, the same for every command that traces it (a generated
+// frame or a rays file): throws InputError naming the scene where single-precision tests fail
+// outright (an extent that overflows a float or exceeds kMaxSceneExtent, where every ray
+// misses), and warns (workloads/error.h) where hits may lose precision.
+void check_scene_range(const std::string& scene_name, const AABB& bounds);
+
 struct GeneratedRay {
     Ray ray;
     uint32_t id;

@@ -1494,6 +1494,31 @@ TEST(Trace, BadRayFileExitsTwoAndWritesNothing) {
     EXPECT_FALSE(fs::exists(csv.string() + ".tmp"));
 }
 
+TEST(Trace, OutOfRangeSceneIsRefusedByEveryCommand) {
+    // A tetrahedron of extent 1e30: beyond kMaxSceneExtent (every single-precision triangle test
+    // overflows). `run` and a generated `trace` refuse it; a rays file must too, not trace it
+    // silently (0 hits, exit 0).
+    const fs::path off = work_dir() / "huge.off";
+    std::ofstream(off) << "OFF\n4 4 0\n0 0 0\n1e30 0 0\n0 1e30 0\n0 0 1e30\n"
+                          "3 0 1 2\n3 0 1 3\n3 0 2 3\n3 1 2 3\n";
+    const float inf = std::numeric_limits<float>::infinity();
+    const std::string rays =
+        write_rays(work_dir() / "huge_rays.bin", {{1e29f, 1e29f, -1e30f, 0, 0, 1, 0, inf}});
+    const fs::path csv = work_dir() / "huge.csv";
+    for (const std::string& cmd :
+         {fmt::format("trace --scene '{}' --rays-file '{}' --hits '{}'", off.string(), rays,
+                      csv.string()),
+          fmt::format("trace --scene '{}' --res 8x8 --hits '{}'", off.string(), csv.string()),
+          fmt::format("run --scene '{}' --res 8x8 -o '{}'", off.string(),
+                      (work_dir() / "huge_out").string())}) {
+        const Result r = run_rtsim(cmd);
+        expect_one_line_error(
+            r, "huge.off: scene bounds (0, 0, 0) to (1e+30, 1e+30, 1e+30) are too large");
+        EXPECT_FALSE(fs::exists(csv)) << cmd;
+    }
+    EXPECT_FALSE(fs::exists(work_dir() / "huge_out" / "stats.json"));
+}
+
 TEST(Trace, PacketsReportUtilisationAndKeepHits) {
     const fs::path a = work_dir() / "single.csv", b = work_dir() / "packets.csv";
     ASSERT_EQ(
