@@ -8,8 +8,10 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "workloads/geometry.h"
+#include "workloads/instances.h"
 #include "workloads/scene.h"
 
 namespace rtsim::test {
@@ -87,6 +89,88 @@ class EmbreeScene {
     }
     RTCDevice device_;
     RTCScene scene_;
+    friend class EmbreeInstancedScene;
+};
+
+// The same through Embree's instancing API: one Embree scene per mesh, and a top scene of
+// instance geometries (geometry id = instance id) with each instance's row-major 3x4 transform
+// and mask.
+class EmbreeInstancedScene {
+  public:
+    explicit EmbreeInstancedScene(const InstancedScene& s) {
+        device_ = rtcNewDevice(nullptr);
+        for (const Scene& m : s.meshes) {
+            RTCScene ms = rtcNewScene(device_);
+            RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
+            auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+                g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, m.vertices.size()));
+            std::memcpy(v, m.vertices.data(), m.vertices.size() * 12);
+            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+                g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, m.triangles.size()));
+            std::memcpy(idx, m.triangles.data(), m.triangles.size() * 12);
+            rtcCommitGeometry(g);
+            rtcAttachGeometry(ms, g);
+            rtcReleaseGeometry(g);
+            rtcCommitScene(ms);
+            meshes_.push_back(ms);
+        }
+        top_ = rtcNewScene(device_);
+        for (size_t k = 0; k < s.instances.size(); ++k) {
+            const Instance& inst = s.instances[k];
+            RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(g, meshes_[inst.mesh]);
+            rtcSetGeometryTimeStepCount(g, 1);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                                    inst.object_to_world.m.data());
+            rtcSetGeometryMask(g, inst.mask);
+            rtcCommitGeometry(g);
+            rtcAttachGeometryByID(top_, g, unsigned(k));
+            rtcReleaseGeometry(g);
+        }
+        rtcCommitScene(top_);
+    }
+    ~EmbreeInstancedScene() {
+        rtcReleaseScene(top_);
+        for (RTCScene m : meshes_) rtcReleaseScene(m);
+        rtcReleaseDevice(device_);
+    }
+    EmbreeInstancedScene(const EmbreeInstancedScene&) = delete;
+    EmbreeInstancedScene& operator=(const EmbreeInstancedScene&) = delete;
+
+    // The hit and, in `instance`, the instance hit (kNoInstance on a miss).
+    Hit intersect(const Ray& r, uint32_t& instance, unsigned mask = 0xFFFFFFFFu) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRayHit rh{};
+        EmbreeScene::fill(rh.ray, r);
+        rh.ray.mask = mask;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(top_, &ctx, &rh);
+        Hit h;
+        instance = kNoInstance;
+        if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return h;
+        h.t = rh.ray.tfar;
+        h.prim = rh.hit.primID;
+        h.u = rh.hit.u;
+        h.v = rh.hit.v;
+        instance = rh.hit.instID[0];
+        return h;
+    }
+    bool occluded(const Ray& r, unsigned mask = 0xFFFFFFFFu) const {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        RTCRay ray{};
+        EmbreeScene::fill(ray, r);
+        ray.mask = mask;
+        rtcOccluded1(top_, &ctx, &ray);
+        return ray.tfar == -std::numeric_limits<float>::infinity();
+    }
+
+  private:
+    RTCDevice device_;
+    std::vector<RTCScene> meshes_;
+    RTCScene top_;
 };
 
 }  // namespace rtsim::test

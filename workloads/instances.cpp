@@ -1,0 +1,166 @@
+#include "workloads/instances.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+#include "workloads/error.h"
+
+namespace rtsim {
+
+double Affine3x4::determinant() const {
+    const auto a = [this](int r, int c) { return double(at(r, c)); };
+    return a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1)) -
+           a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0)) +
+           a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
+}
+
+Affine3x4 compose(const Affine3x4& a, const Affine3x4& b) {
+    Affine3x4 out;
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 4; ++c) {
+            double v = c == 3 ? double(a.at(r, 3)) : 0.0;
+            for (int k = 0; k < 3; ++k) v += double(a.at(r, k)) * double(b.at(k, c));
+            out.m[size_t(r * 4 + c)] = float(v);
+        }
+    return out;
+}
+
+bool invert(const Affine3x4& a, Affine3x4& out) {
+    for (float v : a.m)
+        if (!std::isfinite(v)) return false;
+    const double det = a.determinant();
+    if (!std::isfinite(det) || det == 0.0) return false;
+    const auto e = [&a](int r, int c) { return double(a.at(r, c)); };
+    // The adjugate over the determinant, then -L^-1 t for the translation.
+    double inv[3][3] = {
+        {e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1), e(0, 2) * e(2, 1) - e(0, 1) * e(2, 2),
+         e(0, 1) * e(1, 2) - e(0, 2) * e(1, 1)},
+        {e(1, 2) * e(2, 0) - e(1, 0) * e(2, 2), e(0, 0) * e(2, 2) - e(0, 2) * e(2, 0),
+         e(0, 2) * e(1, 0) - e(0, 0) * e(1, 2)},
+        {e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0), e(0, 1) * e(2, 0) - e(0, 0) * e(2, 1),
+         e(0, 0) * e(1, 1) - e(0, 1) * e(1, 0)}};
+    Affine3x4 r;
+    for (int i = 0; i < 3; ++i) {
+        double t = 0;
+        for (int j = 0; j < 3; ++j) {
+            inv[i][j] /= det;
+            r.m[size_t(i * 4 + j)] = float(inv[i][j]);
+            t -= inv[i][j] * e(j, 3);
+        }
+        r.m[size_t(i * 4 + 3)] = float(t);
+    }
+    for (float v : r.m)
+        if (!std::isfinite(v)) return false;
+    out = r;
+    return true;
+}
+
+AABB transform_box(const Affine3x4& a, const AABB& b) {
+    AABB out;
+    if (b.empty()) return out;
+    for (int corner = 0; corner < 8; ++corner)
+        out.grow(a.point(Vec3(corner & 1 ? b.hi.x : b.lo.x, corner & 2 ? b.hi.y : b.lo.y,
+                              corner & 4 ? b.hi.z : b.lo.z)));
+    return out;
+}
+
+uint64_t InstancedScene::unique_triangle_count() const {
+    uint64_t n = 0;
+    for (const Scene& m : meshes) n += m.triangle_count();
+    return n;
+}
+
+uint64_t InstancedScene::instanced_triangle_count() const {
+    uint64_t n = 0;
+    for (const Instance& i : instances)
+        n += i.mesh < meshes.size() ? meshes[i.mesh].triangle_count() : 0;
+    return n;
+}
+
+AABB InstancedScene::bounds() const {
+    std::vector<AABB> mesh_box(meshes.size());
+    for (size_t k = 0; k < meshes.size(); ++k) mesh_box[k] = meshes[k].bounds();
+    AABB b;
+    for (const Instance& i : instances) b.grow(transform_box(i.object_to_world, mesh_box[i.mesh]));
+    return b;
+}
+
+void InstancedScene::validate() const {
+    if (instances.empty()) throw InputError(fmt::format("{}: the scene has no instances", name));
+    for (size_t k = 0; k < meshes.size(); ++k)
+        if (meshes[k].triangles.empty())
+            throw InputError(
+                fmt::format("{}: mesh {} ({}) has no triangles", name, k, meshes[k].name));
+    Affine3x4 inverse;
+    for (size_t k = 0; k < instances.size(); ++k) {
+        if (instances[k].mesh >= meshes.size())
+            throw InputError(fmt::format("{}: instance {} names mesh {}, but the scene has {}",
+                                         name, k, instances[k].mesh, meshes.size()));
+        if (!invert(instances[k].object_to_world, inverse))
+            throw InputError(fmt::format(
+                "{}: instance {} has a singular or non-finite transform (determinant {:g})", name,
+                k, instances[k].object_to_world.determinant()));
+    }
+}
+
+TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options) {
+    scene.validate();
+    if (options.treelet_bytes != 0)
+        throw InputError(fmt::format(
+            "{}: treelets (bvh.treelet_bytes) are not cut across two-level BVHs yet; set it to 0",
+            scene.name));
+    TwoLevelBvh two;
+    two.options = options;
+    two.instances = scene.instances;
+    for (const Scene& mesh : scene.meshes) two.blas.push_back(build_bvh(mesh, options));
+    // The TLAS is built by the same builders over a proxy scene whose triangle k spans instance
+    // k's world box exactly (corners lo and hi), so its leaves' slots name instances.
+    Scene proxy;
+    proxy.name = scene.name + " (instances)";
+    std::vector<Vec3> corners;
+    std::vector<std::array<uint32_t, 3>> tris;
+    two.world_to_object.resize(scene.instances.size());
+    for (size_t k = 0; k < scene.instances.size(); ++k) {
+        const Instance& inst = scene.instances[k];
+        invert(inst.object_to_world, two.world_to_object[k]);  // validate() checked it
+        const AABB box = transform_box(inst.object_to_world, two.blas[inst.mesh].bounds());
+        const auto v = uint32_t(corners.size());
+        corners.push_back(box.lo);
+        corners.push_back(box.hi);
+        tris.push_back({v, v + 1, v});
+    }
+    proxy.vertices = std::move(corners);
+    proxy.triangles = std::move(tris);
+    BvhLayout tlas_layout;
+    tlas_layout.tri_size_bytes = two.instance_size_bytes;
+    two.tlas = build_bvh(proxy, options, tlas_layout);
+    // One address space: the TLAS's nodes, then each BLAS's; the instance records where the
+    // TLAS's triangles would be; then every BLAS's triangles.
+    const uint64_t page = 4096;
+    const uint32_t node_bytes = two.tlas.layout.node_size_bytes;
+    two.tlas_node_count = two.tlas.layout.inner_node_count;
+    uint64_t nodes = two.tlas_node_count, tris_total = 0;
+    for (const Bvh& b : two.blas) {
+        two.blas_node_offset.push_back(uint32_t(nodes));
+        two.blas_tri_offset.push_back(uint32_t(tris_total));
+        nodes += b.layout.inner_node_count;
+        tris_total += b.layout.triangle_count;
+    }
+    if (nodes > UINT32_MAX || tris_total > UINT32_MAX)
+        throw InputError(fmt::format("{}: more than 2^32 nodes or triangles", scene.name));
+    const uint64_t node_base = two.tlas.layout.node_base_addr;
+    two.instance_base_addr = (node_base + nodes * node_bytes + page - 1) / page * page;
+    two.tlas.layout.tri_base_addr = two.instance_base_addr;
+    const uint64_t tri_base =
+        (two.instance_base_addr + scene.instances.size() * two.instance_size_bytes + page - 1) /
+        page * page;
+    for (size_t k = 0; k < two.blas.size(); ++k) {
+        BvhLayout& L = two.blas[k].layout;
+        L.node_base_addr = node_base + uint64_t(two.blas_node_offset[k]) * node_bytes;
+        L.tri_base_addr = tri_base + uint64_t(two.blas_tri_offset[k]) * L.tri_size_bytes;
+    }
+    return two;
+}
+
+}  // namespace rtsim

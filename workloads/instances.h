@@ -1,0 +1,98 @@
+// Scenes as applications build them: meshes, each with a bottom-level BVH (BLAS), placed by
+// instances (an affine transform of one mesh), with a top-level BVH (TLAS) over the instances'
+// world boxes. Traversal enters a mesh through its instance's world-to-object transform: the ray
+// is moved into object space, unnormalised, so a hit's distance is the same in both spaces and
+// one bound serves the whole two-level traversal (as DXR, Vulkan and Embree define it).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "workloads/bvh.h"
+#include "workloads/geometry.h"
+#include "workloads/scene.h"
+#include "workloads/tracer.h"
+
+namespace rtsim {
+
+// An affine map as a row-major 3x4 matrix [L | t]: p' = L p + t.
+struct Affine3x4 {
+    std::array<float, 12> m{1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
+
+    float at(int row, int col) const { return m[size_t(row * 4 + col)]; }
+    Vec3 point(Vec3 p) const {
+        return {at(0, 0) * p.x + at(0, 1) * p.y + at(0, 2) * p.z + at(0, 3),
+                at(1, 0) * p.x + at(1, 1) * p.y + at(1, 2) * p.z + at(1, 3),
+                at(2, 0) * p.x + at(2, 1) * p.y + at(2, 2) * p.z + at(2, 3)};
+    }
+    Vec3 vector(Vec3 v) const {
+        return {at(0, 0) * v.x + at(0, 1) * v.y + at(0, 2) * v.z,
+                at(1, 0) * v.x + at(1, 1) * v.y + at(1, 2) * v.z,
+                at(2, 0) * v.x + at(2, 1) * v.y + at(2, 2) * v.z};
+    }
+    double determinant() const;
+};
+
+// a * b: b applied first.
+Affine3x4 compose(const Affine3x4& a, const Affine3x4& b);
+// The inverse, computed in double and rounded once; false (out untouched) when the linear part
+// is singular or not finite.
+bool invert(const Affine3x4& a, Affine3x4& out);
+// The box of the transformed corners of `b` (the tightest axis-aligned box of its image).
+AABB transform_box(const Affine3x4& a, const AABB& b);
+
+constexpr uint32_t kNoInstance = 0xFFFFFFFFu;
+
+struct Instance {
+    Affine3x4 object_to_world;
+    uint32_t mesh = 0;  // index into InstancedScene::meshes
+    uint8_t mask = 0xff;
+    bool opaque = true;
+};
+
+struct InstancedScene {
+    std::string name;    // e.g. "forest.json"
+    std::string source;  // its path
+    std::vector<Scene> meshes;
+    std::vector<Instance> instances;
+
+    uint64_t unique_triangle_count() const;
+    uint64_t instanced_triangle_count() const;  // every instance's mesh, counted per instance
+    AABB bounds() const;                        // of the instances' world boxes
+    // Throws InputError (naming the scene) for an instance of no mesh, an empty mesh, or a
+    // transform that is singular or not finite.
+    void validate() const;
+};
+
+// The two levels, with one address space: every inner node (the TLAS's first, then each BLAS's
+// in mesh order) is numbered in one node range of the layout, every triangle in one slot range,
+// and the instance records (the world-to-object transform, the BLAS root and the flags: 64 bytes,
+// one per instance, in TLAS leaf order) have a region of their own, so a step's record index and
+// address mean the same whichever BLAS it is in.
+struct TwoLevelBvh {
+    BvhBuildOptions options;
+    Bvh tlas;               // leaves hold instance slots (tlas.prim_order: slot -> instance id)
+    std::vector<Bvh> blas;  // per mesh
+    std::vector<Affine3x4> world_to_object;                   // per instance id
+    std::vector<Instance> instances;                          // per instance id
+    std::vector<uint32_t> blas_node_offset, blas_tri_offset;  // per mesh, in the global ranges
+    uint32_t tlas_node_count = 0;
+    uint64_t instance_base_addr = 0;
+    uint32_t instance_size_bytes = 64;
+    const AABB& bounds() const { return tlas.bounds(); }
+};
+
+// Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size;
+// treelets are not cut across two levels yet: treelet_bytes must be 0).
+TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options);
+
+// Traces one ray through both levels. hit.prim is the triangle's index in its mesh and
+// `instance` (when given) receives the instance hit (kNoInstance on a miss). `mask`: instances
+// whose mask shares no bit with it are skipped, as DXR's InstanceInclusionMask. counters add
+// the work of both levels (a TLAS leaf's instances count as box tests of their BLAS roots).
+Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint32_t* instance,
+              uint8_t mask = 0xff, TraceCounters* counters = nullptr);
+
+}  // namespace rtsim
