@@ -30,6 +30,7 @@
 #include "workloads/error.h"
 #include "workloads/mesh_cache.h"
 #include "workloads/output_file.h"
+#include "workloads/scene_file.h"
 #include "workloads/trace_file.h"
 
 namespace rtsim {
@@ -133,6 +134,11 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     const RayGenOptions& rg = opt.workload.gen;
     // Meshes, BVHs and frame profiles share one cache folder.
     const std::string cache_dir = w.cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
+    if (is_scene_file(opt.workload.scene))
+        throw InputError(fmt::format(
+            "{}: a scene of instances; the timing models simulate one-level scenes (one mesh) "
+            "so far: `rtsim trace` traces it",
+            opt.workload.scene));
     w.scene =
         std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
     w.bvh = std::make_unique<Bvh>(

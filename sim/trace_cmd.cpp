@@ -13,6 +13,7 @@
 #include "workloads/packet.h"
 #include "workloads/parallel.h"
 #include "workloads/ray_file.h"
+#include "workloads/scene_file.h"
 #include "workloads/tile_queue.h"
 #include "workloads/trace_file.h"
 #include "workloads/tracer.h"
@@ -105,14 +106,23 @@ class TraceJob {
         : opt_(opt),
           cfg_(load_config(opt.config_path, opt.sets)),
           reader_(opt.rays_file.empty() ? nullptr : std::make_unique<RayFileReader>(opt.rays_file)),
-          scene_(load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache))),
-          bvh_(build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
+          instanced_(is_scene_file(opt.workload.scene)),
+          scene_(instanced_
+                     ? Scene()
+                     : load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache))),
+          bvh_(instanced_
+                   ? Bvh()
+                   : build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
           threads_(resolve_threads(opt.threads)) {
+        if (instanced_) load_instanced();
         if (!reader_) {
-            gen_ = std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
+            gen_ = instanced_ ? std::make_unique<RayGenerator>(iscene_, two_, opt.workload.gen)
+                              : std::make_unique<RayGenerator>(scene_, bvh_, opt.workload.gen);
             tiles_ = std::make_unique<TileQueue>(*gen_, threads_);  // tiles generated in parallel
         } else {
-            check_scene_range(scene_.name, bvh_.bounds());  // as the generator does
+            // As the generator does.
+            check_scene_range(instanced_ ? iscene_.name : scene_.name,
+                              instanced_ ? two_.bounds() : bvh_.bounds());
         }
         open_outputs();
     }
@@ -135,10 +145,36 @@ class TraceJob {
     }
 
   private:
+    // A JSON scene file (workloads/scene_file.h): its meshes' BLASes and the TLAS over its
+    // instances, with the config's BVH settings. What the two-level tracer does not record yet
+    // is refused before anything is written.
+    void load_instanced() {
+        const std::string& file = opt_.workload.scene;
+        if (!opt_.trace_out.empty())
+            throw InputError(
+                fmt::format("-o: {} is an instanced scene; trace files of instanced scenes are not "
+                            "recorded yet (write hits with --hits)",
+                            file));
+        if (opt_.packet > 0)
+            throw InputError(
+                fmt::format("--packet: {} is an instanced scene; packets trace one level", file));
+        if (!opt_.hits_bin.empty())
+            throw InputError(fmt::format(
+                "--hits-bin: {} is an instanced scene; its hits carry an instance, written by "
+                "--hits (CSV)",
+                file));
+        const auto t0 = SteadyClock::now();
+        iscene_ = load_scene_file(file);
+        const auto t1 = SteadyClock::now();
+        two_ = build_two_level(iscene_, cfg_.typed.bvh);
+        load_seconds_ = std::chrono::duration<double>(t1 - t0).count();
+        build_seconds_ = seconds_since(t1);
+    }
+
     void open_outputs() {
         if (!opt_.hits_csv.empty()) {
             csv_ = std::make_unique<AtomicOutputFile>(opt_.hits_csv);
-            csv_->write(kHitCsvHeader);
+            csv_->write(instanced_ ? kInstancedHitCsvHeader : kHitCsvHeader);
         }
         if (!opt_.hits_bin.empty()) bin_ = std::make_unique<AtomicOutputFile>(opt_.hits_bin);
         if (!opt_.write_rays.empty())
@@ -189,8 +225,10 @@ class TraceJob {
                 for (size_t i = b; i < e; ++i) {
                     std::vector<Step>* steps = trace_out_ ? &records_[i].steps : nullptr;
                     if (steps) steps->clear();
-                    results_[i] =
-                        trace_ray(bvh_, batch_.rays[i], batch_.queries[i], steps, &counters_[i]);
+                    results_[i] = instanced_ ? trace_ray(two_, batch_.rays[i], batch_.queries[i],
+                                                         0xff, &counters_[i])
+                                             : trace_ray(bvh_, batch_.rays[i], batch_.queries[i],
+                                                         steps, &counters_[i]);
                 }
             });
         }
@@ -243,7 +281,8 @@ class TraceJob {
         }
         if (csv_) {
             text_.clear();
-            for (size_t i = 0; i < n; ++i) append_hit_csv(batch_.ids[i], results_[i], text_);
+            for (size_t i = 0; i < n; ++i)
+                append_hit_csv(batch_.ids[i], results_[i], text_, instanced_);
             csv_->write(text_);
         }
         if (bin_) {
@@ -264,10 +303,19 @@ class TraceJob {
             if (by_kind_[k])
                 kinds += fmt::format("{}{} {}", kinds.empty() ? "" : ", ",
                                      ray_kind_name(RayKind(k)), by_kind_[k]);
-        fmt::print(
-            "rtsim trace  scene {} ({} triangles), {} BVH{}, SAH cost {:.2f}, built in {:.3f} s\n",
-            scene_.name, scene_.triangle_count(), bvh_builder_name(bvh_.options.builder),
-            bvh_.width(), bvh_.quality.sah_cost, bvh_.quality.build_seconds);
+        if (instanced_)
+            fmt::print(
+                "rtsim trace  scene {} ({} meshes, {} triangles; {} instances, {} instanced "
+                "triangles), read in {:.3f} s; {} BVH{} over two levels, built in {:.3f} s\n",
+                iscene_.name, iscene_.meshes.size(), iscene_.unique_triangle_count(),
+                iscene_.instances.size(), iscene_.instanced_triangle_count(), load_seconds_,
+                bvh_builder_name(two_.options.builder), two_.options.width, build_seconds_);
+        else
+            fmt::print(
+                "rtsim trace  scene {} ({} triangles), {} BVH{}, SAH cost {:.2f}, built in {:.3f} "
+                "s\n",
+                scene_.name, scene_.triangle_count(), bvh_builder_name(bvh_.options.builder),
+                bvh_.width(), bvh_.quality.sah_cost, bvh_.quality.build_seconds);
         fmt::print("  rays     {} ({}) from {}\n", total_, kinds.empty() ? "none" : kinds,
                    reader_ ? opt_.rays_file : "the generator");
         fmt::print("  hits     {} ({:.1f}%)\n", hits_, total_ ? 100.0 * hits_ / total_ : 0.0);
@@ -308,8 +356,12 @@ class TraceJob {
     const TraceOptions& opt_;
     const Config cfg_;
     std::unique_ptr<RayFileReader> reader_;
+    const bool instanced_;  // a scene file: iscene_ and two_ instead of scene_ and bvh_
     const Scene scene_;
     const Bvh bvh_;
+    InstancedScene iscene_;
+    TwoLevelBvh two_;
+    double load_seconds_ = 0, build_seconds_ = 0;
     const int threads_;
     std::unique_ptr<RayGenerator> gen_;
     std::unique_ptr<AtomicOutputFile> csv_, bin_, rays_out_;

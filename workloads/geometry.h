@@ -105,6 +105,7 @@ struct Hit {
     float t = std::numeric_limits<float>::infinity();
     float u = 0.0f, v = 0.0f;
     uint32_t prim = kInvalidPrim;
+    uint32_t instance = kInvalidPrim;  // the instance hit in a two-level scene (else none)
     bool valid() const { return prim != kInvalidPrim; }
 };
 

@@ -87,6 +87,7 @@ AABB InstancedScene::bounds() const {
 }
 
 void InstancedScene::validate() const {
+    const std::string& name = source.empty() ? this->name : source;  // errors name the file
     if (instances.empty()) throw InputError(fmt::format("{}: the scene has no instances", name));
     for (size_t k = 0; k < meshes.size(); ++k)
         if (meshes[k].triangles.empty())

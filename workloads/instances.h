@@ -43,7 +43,7 @@ bool invert(const Affine3x4& a, Affine3x4& out);
 // The box of the transformed corners of `b` (the tightest axis-aligned box of its image).
 AABB transform_box(const Affine3x4& a, const AABB& b);
 
-constexpr uint32_t kNoInstance = 0xFFFFFFFFu;
+constexpr uint32_t kNoInstance = kInvalidPrim;  // Hit::instance of a miss or one level
 
 struct Instance {
     Affine3x4 object_to_world;
@@ -88,11 +88,11 @@ struct TwoLevelBvh {
 // treelets are not cut across two levels yet: treelet_bytes must be 0).
 TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options);
 
-// Traces one ray through both levels. hit.prim is the triangle's index in its mesh and
-// `instance` (when given) receives the instance hit (kNoInstance on a miss). `mask`: instances
-// whose mask shares no bit with it are skipped, as DXR's InstanceInclusionMask. counters add
-// the work of both levels (a TLAS leaf's instances count as box tests of their BLAS roots).
-Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint32_t* instance,
-              uint8_t mask = 0xff, TraceCounters* counters = nullptr);
+// Traces one ray through both levels: hit.prim is the triangle's index in its mesh and
+// hit.instance the instance's (kNoInstance on a miss). `mask`: instances whose mask shares no
+// bit with it are skipped, as DXR's InstanceInclusionMask. counters add the work of both levels
+// (each instance entered counts one box test, its BLAS root's box, kept in its record).
+Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint8_t mask = 0xff,
+              TraceCounters* counters = nullptr);
 
 }  // namespace rtsim

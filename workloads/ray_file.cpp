@@ -76,11 +76,13 @@ void append_ray_records(const std::vector<Ray>& rays, std::string& out) {
     }
 }
 
-void append_hit_csv(uint64_t ray, const Hit& h, std::string& out) {
+void append_hit_csv(uint64_t ray, const Hit& h, std::string& out, bool with_instance) {
     if (h.valid())
-        out += fmt::format("{},{},{},{},{}\n", ray, h.t, h.prim, h.u, h.v);
+        out += fmt::format("{},{},{},{},{}", ray, h.t, h.prim, h.u, h.v);
     else
-        out += fmt::format("{},inf,-1,0,0\n", ray);
+        out += fmt::format("{},inf,-1,0,0", ray);
+    if (with_instance) out += h.valid() ? fmt::format(",{}", h.instance) : std::string(",-1");
+    out += '\n';
 }
 
 void append_hit_binary(uint64_t ray, const Hit& h, std::string& out) {

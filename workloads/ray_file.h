@@ -45,8 +45,10 @@ class RayFileReader {
 void append_ray_records(const std::vector<Ray>& rays, std::string& out);
 
 // Hit output in both formats.
-void append_hit_csv(uint64_t ray, const Hit& h, std::string& out);
+// with_instance: a sixth column, the instance hit (-1 on a miss), for two-level scenes.
+void append_hit_csv(uint64_t ray, const Hit& h, std::string& out, bool with_instance = false);
 void append_hit_binary(uint64_t ray, const Hit& h, std::string& out);
 constexpr const char* kHitCsvHeader = "ray,t,prim,u,v\n";
+constexpr const char* kInstancedHitCsvHeader = "ray,t,prim,u,v,instance\n";
 
 }  // namespace rtsim

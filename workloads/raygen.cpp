@@ -194,18 +194,27 @@ void check_scene_range(const std::string& scene_name, const AABB& b) {
 }
 
 RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options)
-    : scene_(scene), bvh_(bvh), opt_(options) {
+    : scene_(&scene), bvh_(&bvh), opt_(options) {
+    init(scene.name, bvh.bounds());
+}
+
+RayGenerator::RayGenerator(const InstancedScene& scene, const TwoLevelBvh& bvh,
+                           const RayGenOptions& options)
+    : instanced_(&scene), two_(&bvh), opt_(options) {
+    init(scene.name, bvh.bounds());
+}
+
+void RayGenerator::init(const std::string& name, const AABB& b) {
     opt_.validate();
-    const AABB b = bvh.bounds();
     camera_ = Camera::frame(b, opt_.width, opt_.height);
-    check_scene_range(scene.name, b);
+    check_scene_range(name, b);
     // A finite extent can still put the camera out of float range: refuse it the same way.
     if (!std::isfinite(camera_.eye.x) || !std::isfinite(camera_.eye.y) ||
         !std::isfinite(camera_.eye.z))
         throw InputError(fmt::format(
             "{}: scene bounds ({:g}, {:g}, {:g}) to ({:g}, {:g}, {:g}) are too large for "
             "single-precision rays (the camera overflows a float); scale the scene down",
-            scene.name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
+            name, b.lo.x, b.lo.y, b.lo.z, b.hi.x, b.hi.y, b.hi.z));
     const float magnitude = b.largest_coordinate();
     scene_scale_ = magnitude > 0 ? magnitude : 1.0f;
     // Lights just under the top of the scene's bounds (inside a closed room): a point at the
@@ -224,9 +233,28 @@ RayGenerator::RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptio
     tiles_y_ = (opt_.height + opt_.tile_size - 1) / opt_.tile_size;
 }
 
+void RayGenerator::set_record_steps(bool record) {
+    if (record && two_)
+        throw InputError(fmt::format(
+            "{}: step streams of instanced scenes are not recorded yet (trace it without -o)",
+            instanced_->name));
+    record_steps_ = record;
+}
+
 bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
                                  SurfacePoint& out) const {
-    const Vec3 v0 = scene_.v(h.prim, 0), v1 = scene_.v(h.prim, 1), v2 = scene_.v(h.prim, 2);
+    Vec3 v0, v1, v2;
+    if (instanced_) {  // the triangle in world space, through its instance's transform
+        const Instance& inst = instanced_->instances[h.instance];
+        const Scene& mesh = instanced_->meshes[inst.mesh];
+        v0 = inst.object_to_world.point(mesh.v(h.prim, 0));
+        v1 = inst.object_to_world.point(mesh.v(h.prim, 1));
+        v2 = inst.object_to_world.point(mesh.v(h.prim, 2));
+    } else {
+        v0 = scene_->v(h.prim, 0);
+        v1 = scene_->v(h.prim, 1);
+        v2 = scene_->v(h.prim, 2);
+    }
     Vec3 ng = cross(v1 - v0, v2 - v0);
     const float len = length(ng);
     if (!(len > 0.0f)) return false;  // degenerate triangle: no defined surface
@@ -255,8 +283,9 @@ uint32_t RayGenerator::generate_tile(int index, std::vector<GeneratedRay>& out) 
     // Traces a ray whose hit starts further rays; an emitted one keeps the trace when asked.
     auto trace_for_hit = [&](const Ray& r, bool emitted) {
         GeneratedRay* g = emitted && record_steps_ ? &out.back() : nullptr;
-        const Hit h = g ? trace_ray_recorded(bvh_, r, HitQuery::Closest, g->steps)
-                        : trace_ray(bvh_, r, HitQuery::Closest);
+        const Hit h = two_ ? trace_ray(*two_, r, HitQuery::Closest)
+                      : g  ? trace_ray_recorded(*bvh_, r, HitQuery::Closest, g->steps)
+                           : trace_ray(*bvh_, r, HitQuery::Closest);
         if (g) {
             g->traced = true;
             g->prim = h.prim;

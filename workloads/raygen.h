@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "workloads/bvh.h"
+#include "workloads/instances.h"
 #include "workloads/scene.h"
 #include "workloads/step.h"
 #include "workloads/tracer.h"
@@ -87,13 +88,16 @@ struct GeneratedRay {
 class RayGenerator {
   public:
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
+    // Over a two-level scene: the same rays, traced through its instances (rays it traces keep
+    // no step streams: set_record_steps is refused).
+    RayGenerator(const InstancedScene& scene, const TwoLevelBvh& bvh, const RayGenOptions& options);
     // Appends tile `index`'s rays (0 <= index < tile_count()) to out, their ids numbered from 0
     // within the tile (TileQueue, workloads/tile_queue.h, hands tiles on in order and numbers ids
     // through the frame); returns how many. Tiles are independent: several threads may generate
     // tiles at once.
     uint32_t generate_tile(int index, std::vector<GeneratedRay>& out) const;
     // Rays the generator traces to find hits keep their step streams (see GeneratedRay).
-    void set_record_steps(bool record) { record_steps_ = record; }
+    void set_record_steps(bool record);
     int tile_count() const { return tiles_x_ * tiles_y_; }
     const Camera& camera() const { return camera_; }
     float ao_length() const { return ao_length_; }
@@ -111,8 +115,12 @@ class RayGenerator {
     };
     bool surface_point(const Ray& r, const Hit& h, uint64_t stream, SurfacePoint& out) const;
 
-    const Scene& scene_;
-    const Bvh& bvh_;
+    void init(const std::string& name, const AABB& bounds);
+    // One level (scene_, bvh_) or two (instanced_, two_).
+    const Scene* scene_ = nullptr;
+    const Bvh* bvh_ = nullptr;
+    const InstancedScene* instanced_ = nullptr;
+    const TwoLevelBvh* two_ = nullptr;
     RayGenOptions opt_;
     Camera camera_;
     float scene_scale_ = 1.0f;  // largest coordinate magnitude (offset_ray_origin)

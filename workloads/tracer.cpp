@@ -327,11 +327,10 @@ Hit dispatch(const Bvh& bvh, const Ray& ray, HitQuery q, Entry start, Hit hit, S
 }
 
 // Two levels: the TLAS's leaves hold instances, each entered through its transform into its
-// BLAS. `instance` follows the hit.
+// BLAS; the hit carries its instance.
 template <bool Reduced, class Sink, class Counters>
 Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp, HitQuery q,
-                    Entry start, Hit hit, uint8_t mask, uint32_t& instance, Sink& sink,
-                    Counters& c) {
+                    Entry start, Hit hit, uint8_t mask, Sink& sink, Counters& c) {
     const bool any = q == HitQuery::Any;
     auto instances = [&](uint32_t first, uint32_t count, Hit& h) {
         for (uint32_t slot = first; slot < first + count; ++slot) {
@@ -360,7 +359,7 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
             c.max_stack = std::max(outer_stack, c.max_stack);
             if (!found.valid()) continue;
             h = found;
-            instance = id;
+            h.instance = id;
             if (any) return true;
         }
         return false;
@@ -415,12 +414,10 @@ void trace_subtree(const Bvh& bvh, const Ray& ray, HitQuery query, uint32_t chil
     counters.tri_tests += c.tri_tests;
 }
 
-Hit trace_ray(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint32_t* instance,
-              uint8_t mask, TraceCounters* counters) {
+Hit trace_ray(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint8_t mask,
+              TraceCounters* counters) {
     Hit hit;
     hit.t = ray.tmax;
-    uint32_t inst = kNoInstance;
-    if (instance) *instance = kNoInstance;
     const RayPrecomp rp(ray);
     float root_t;
     if (two.instances.empty() || !finite_ray(ray) ||
@@ -433,13 +430,9 @@ Hit trace_ray(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint32_t* 
     TraceCounters& c = counters ? *counters : local;
     const Entry root = {0, 0, root_t};
     hit = two.options.box_mantissa_bits < kFullMantissaBits
-              ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, inst, sink, c)
-              : trace_two_level<false>(two, ray, rp, query, root, hit, mask, inst, sink, c);
-    if (!hit.valid()) {
-        hit.t = std::numeric_limits<float>::infinity();
-        inst = kNoInstance;
-    }
-    if (instance) *instance = inst;
+              ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, c)
+              : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, c);
+    if (!hit.valid()) hit = Hit{};
     return hit;
 }
 

@@ -10,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <random>
 #include <string>
@@ -135,17 +136,21 @@ inline Scene axis_aligned_grid_box(int n) {
     return s;
 }
 
+// Whether a ray (in the mesh's own space) hits, traced some other way than through the mesh's BVH
+// (an instance of the mesh in a two-level scene).
+using HitTest = std::function<bool(const Ray&, HitQuery)>;
+
 namespace detail {
 // A mesh's bounds' centre and diagonal (the size rays are placed by).
 inline std::pair<Vec3, float> centre_and_size(const AABB& b) {
     return {(b.lo + b.hi) * 0.5f, length(b.hi - b.lo)};
 }
 // Traces a ray that must hit, closest and any hit, into the tally.
-inline void must_hit_both(const Bvh& bvh, const Ray& r, StressTally& t) {
+inline void must_hit_both(const Bvh& bvh, const Ray& r, StressTally& t, const HitTest& hits = {}) {
     for (HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
         ++t.rays;
         ++t.must_hit;
-        t.misses += !trace_ray(bvh, r, q).valid();
+        t.misses += !(hits ? hits(r, q) : trace_ray(bvh, r, q).valid());
     }
 }
 inline double dot_d(const double* a, const double* b) {
@@ -248,7 +253,9 @@ struct MeshNormals {
 //   of a fold (cow.off has vertices whose faces point opposite ways), may rightly pass beside the
 //   point once its direction is rounded;
 // - from a point inside the mesh (any ray from inside a closed surface crosses it).
-inline StressTally watertight(const Scene& s, const Bvh& bvh, uint64_t rays, uint64_t seed) {
+// `hits` (optional) traces the rays instead of `bvh`: an instance of the mesh, for one.
+inline StressTally watertight(const Scene& s, const Bvh& bvh, uint64_t rays, uint64_t seed,
+                              const HitTest& hits = {}) {
     StressTally t;
     std::mt19937_64 rng(seed);
     const AABB b = s.bounds();
@@ -293,7 +300,7 @@ inline StressTally watertight(const Scene& s, const Bvh& bvh, uint64_t rays, uin
                 transversal = transversal && dot(normals.face[f], r.dir) < -0.05f;
             if (!transversal) continue;
         }
-        detail::must_hit_both(bvh, r, t);
+        detail::must_hit_both(bvh, r, t, hits);
     }
     return t;
 }

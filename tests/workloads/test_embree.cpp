@@ -234,8 +234,9 @@ InstancedAgreement compare_instanced(const InstancedScene& s, const EmbreeInstan
         const bool any = i % 4 == 3;
         if (any) r.tmax = 30.0f * (0.1f + 0.9f * (u(rng) * 0.5f + 0.5f));
         ++a.rays;
-        uint32_t oi, ti;
-        const Hit ours = trace_ray(two, r, any ? HitQuery::Any : HitQuery::Closest, &oi, mask);
+        uint32_t ti;
+        const Hit ours = trace_ray(two, r, any ? HitQuery::Any : HitQuery::Closest, mask);
+        const uint32_t oi = ours.instance;
         if (any) {
             const bool theirs = e.occluded(r, mask);
             if (ours.valid() != theirs) {
