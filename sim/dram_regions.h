@@ -1,5 +1,6 @@
-// DRAM traffic by what it carries: BVH node records, triangles, spilled stacks, ray records
-// (treelet queues in memory) and hit records, read and written. The treelet study needs it:
+// DRAM traffic by what it carries: BVH node records, triangles, instance records (two-level
+// scenes), spilled stacks, ray records (treelet queues in memory) and hit records, read and
+// written. The treelet study needs it:
 // queues cut BVH traffic and add ray-record traffic, and only the split shows which wins.
 #pragma once
 
@@ -16,15 +17,26 @@ namespace rtsim {
 // Sits between the L2 and the DRAM model (or its other fronts), forwarding everything.
 class DramRegions final : public DramModel {
   public:
-    enum Region { kNodes, kTriangles, kStack, kRayRecords, kHitRecords, kOther, kRegions };
-    static constexpr const char* kNames[kRegions] = {"nodes",       "triangles",   "stack",
-                                                     "ray_records", "hit_records", "other"};
+    enum Region {
+        kNodes,
+        kTriangles,
+        kInstances,
+        kStack,
+        kRayRecords,
+        kHitRecords,
+        kOther,
+        kRegions
+    };
+    static constexpr const char* kNames[kRegions] = {
+        "nodes", "triangles", "instances", "stack", "ray_records", "hit_records", "other"};
     DramRegions(DramModel& inner, const BvhLayout& layout)
         : inner_(inner),
           node_begin_(layout.node_addr(0)),
           node_end_(layout.node_addr(layout.inner_node_count)),
           tri_begin_(layout.tri_addr(0)),
-          tri_end_(layout.tri_addr(layout.triangle_count)) {}
+          tri_end_(layout.tri_addr(layout.triangle_count)),
+          instance_begin_(layout.instance_base_addr),
+          instance_end_(layout.instance_base_addr + layout.instance_bytes_total()) {}
 
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override {
@@ -74,13 +86,14 @@ class DramRegions final : public DramModel {
     Region region(uint64_t addr) const {
         if (addr >= node_begin_ && addr < node_end_) return kNodes;
         if (addr >= tri_begin_ && addr < tri_end_) return kTriangles;
+        if (addr >= instance_begin_ && addr < instance_end_) return kInstances;
         if (addr >= kHitRecordBase) return kHitRecords;
         if (addr >= kRayRecordBase) return kRayRecords;
         if (addr >= kStackRegionBase) return kStack;
         return kOther;
     }
     DramModel& inner_;
-    uint64_t node_begin_, node_end_, tri_begin_, tri_end_;
+    uint64_t node_begin_, node_end_, tri_begin_, tri_end_, instance_begin_, instance_end_;
 };
 
 }  // namespace rtsim

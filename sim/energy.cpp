@@ -170,6 +170,14 @@ EnergyFigures energy_of(const Params& P, const EnergyInputs& in) {
                  tri_ops = in.sum_blocks("triangle_unit", ".ops");
     if (box_ops > 0) blocks["box_unit"] = box_ops * P.unit[box].width * box_pj;
     if (tri_ops > 0) blocks["triangle_unit"] = tri_ops * tri_pj;
+    // An instance transform: a 3x4 matrix on the origin (9 multiplies, 9 adds) and the
+    // direction (9 multiplies, 6 adds). Only two-level scenes have any.
+    const double xf_ops = in.sum_blocks("transform_unit", ".ops");
+    if (xf_ops > 0) {
+        const double xf_pj = 18 * e.fp32_mul_pj + 15 * e.fp32_add_pj;
+        per_access["transform_pj"] = xf_pj;
+        blocks["transform_unit"] = xf_ops * xf_pj;
+    }
     // DRAM: the command-level model's own figure (scaled to a sampled run's estimated reads),
     // else bytes times a cost per byte.
     const double dram_bytes = in.counter("dram.bytes");

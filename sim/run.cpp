@@ -75,6 +75,9 @@ struct Workload {
     MeshCacheStatus mesh_cache;
     BvhCacheStatus bvh_cache;
     std::unique_ptr<Bvh> bvh;
+    std::unique_ptr<InstancedScene> instanced;  // a scene file: these instead of scene and bvh
+    std::unique_ptr<TwoLevelBvh> two;
+    double scene_file_s = 0, two_level_build_s = 0;
     std::unique_ptr<RayGenerator> gen;
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
@@ -82,7 +85,9 @@ struct Workload {
     std::shared_ptr<const SampleDesign> design;  // a sampled run's skip design: its sample
     std::unique_ptr<Reference> reference;        // --reference
     std::string cache_dir;                       // meshes, BVHs, profiles (empty: none)
-    const BvhLayout& layout() const { return bvh ? bvh->layout : reader->layout(); }
+    const BvhLayout& layout() const {
+        return bvh ? bvh->layout : two ? two->layout : reader->layout();
+    }
 };
 
 // A sampled run's plan from the config (the seed defaults to the workload's).
@@ -113,6 +118,36 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     return sp;
 }
 
+// A scene file (workloads/scene_file.h): its meshes' BLASes and the TLAS over its instances,
+// built as the config's bvh section says, traced on the fly. What two-level scenes do not have
+// yet is refused before anything runs.
+void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
+                       const SamplingParams* sampling, Workload& w) {
+    const std::string& file = opt.workload.scene;
+    if (sampling)
+        throw InputError(fmt::format(
+            "sim.sampled: {} is a scene of instances; sampled runs take one-level scenes so far",
+            file));
+    if (TraversalModeRegistry::at(cfg.typed.traversal.mode).packets)
+        throw InputError(
+            fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level",
+                        cfg.typed.traversal.mode, file));
+    const auto t0 = std::chrono::steady_clock::now();
+    w.instanced = std::make_unique<InstancedScene>(load_scene_file(file));
+    const auto t1 = std::chrono::steady_clock::now();
+    BvhLayout sizes;
+    sizes.node_size_bytes = cfg.typed.node_size_bytes;
+    sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
+    w.two = std::make_unique<TwoLevelBvh>(build_two_level(*w.instanced, cfg.typed.bvh, sizes));
+    w.scene_file_s = std::chrono::duration<double>(t1 - t0).count();
+    w.two_level_build_s = seconds_since(t1);
+    w.gen = std::make_unique<RayGenerator>(*w.instanced, *w.two, opt.workload.gen);
+    w.meta = {{"scene", scene_summary(*w.instanced)},
+              {"bvh", bvh_summary(*w.two)},
+              {"workload", workload_summary(opt.workload.gen, w.gen->ao_length())}};
+    w.source = std::make_unique<GeneratedWorkSource>(*w.two, *w.gen, progress, opt.tracer_threads);
+}
+
 // `sampling`: a sampled run's plan; in the skip design the frame's tile count is filled in, and
 // the source generates only the tiles the design wants.
 Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progress,
@@ -134,11 +169,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     const RayGenOptions& rg = opt.workload.gen;
     // Meshes, BVHs and frame profiles share one cache folder.
     const std::string cache_dir = w.cache_dir = resolve_bvh_cache_dir(opt.bvh_cache);
-    if (is_scene_file(opt.workload.scene))
-        throw InputError(fmt::format(
-            "{}: a scene of instances; the timing models simulate one-level scenes (one mesh) "
-            "so far: `rtsim trace` traces it",
-            opt.workload.scene));
+    if (is_scene_file(opt.workload.scene)) {
+        prepare_two_level(opt, cfg, progress, sampling, w);
+        return w;
+    }
     w.scene =
         std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
     w.bvh = std::make_unique<Bvh>(
@@ -427,6 +461,10 @@ int run_command(const RunOptions& opt) {
         host.bvh_cache = bvh_cache_outcome_name(w.bvh_cache.outcome);
         host.scene_load_s = w.mesh_cache.seconds;
         host.mesh_cache = w.mesh_cache.outcome;
+    }
+    if (w.two) {
+        host.bvh_build_s = w.two_level_build_s;
+        host.scene_load_s = w.scene_file_s;
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);

@@ -78,6 +78,16 @@ void check_trace_options(const TraceOptions& opt) {
         throw InputError("--packet: a trace records single-ray traversal; drop --packet with -o");
 }
 
+// A recorded two-level ray's work, from its steps as trace_ray counts it: a node step is a
+// visit and its boxes' tests, an instance entered tests its BLAS root's box.
+void count_work(const std::vector<Step>& steps, TraceCounters& c) {
+    for (const Step& s : steps) {
+        c.nodes += s.kind == StepKind::Node;
+        c.box_tests += s.kind == StepKind::Node ? s.count : s.kind == StepKind::Transform;
+        c.tri_tests += s.kind == StepKind::Triangle;
+    }
+}
+
 // One batch of rays to trace: from a ray file or the generator.
 struct Batch {
     std::vector<Ray> rays;
@@ -150,11 +160,6 @@ class TraceJob {
     // is refused before anything is written.
     void load_instanced() {
         const std::string& file = opt_.workload.scene;
-        if (!opt_.trace_out.empty())
-            throw InputError(
-                fmt::format("-o: {} is an instanced scene; trace files of instanced scenes are not "
-                            "recorded yet (write hits with --hits)",
-                            file));
         if (opt_.packet > 0)
             throw InputError(
                 fmt::format("--packet: {} is an instanced scene; packets trace one level", file));
@@ -166,7 +171,10 @@ class TraceJob {
         const auto t0 = SteadyClock::now();
         iscene_ = load_scene_file(file);
         const auto t1 = SteadyClock::now();
-        two_ = build_two_level(iscene_, cfg_.typed.bvh);
+        BvhLayout sizes;
+        sizes.node_size_bytes = cfg_.typed.node_size_bytes;
+        sizes.tri_size_bytes = cfg_.typed.triangle_size_bytes;
+        two_ = build_two_level(iscene_, cfg_.typed.bvh, sizes);
         load_seconds_ = std::chrono::duration<double>(t1 - t0).count();
         build_seconds_ = seconds_since(t1);
     }
@@ -180,9 +188,10 @@ class TraceJob {
         if (!opt_.write_rays.empty())
             rays_out_ = std::make_unique<AtomicOutputFile>(opt_.write_rays);
         if (opt_.trace_out.empty()) return;
-        nlohmann::json meta = {{"rtsim_version", RTSIM_VERSION},
-                               {"scene", scene_summary(scene_)},
-                               {"bvh", bvh_summary(bvh_, true)}};
+        nlohmann::json meta = {
+            {"rtsim_version", RTSIM_VERSION},
+            {"scene", instanced_ ? scene_summary(iscene_) : scene_summary(scene_)},
+            {"bvh", instanced_ ? bvh_summary(two_) : bvh_summary(bvh_, true)}};
         if (reader_)
             meta["workload"] = {{"rays_file", opt_.rays_file},
                                 {"query", opt_.any_hit ? "any" : "closest"}};
@@ -225,10 +234,16 @@ class TraceJob {
                 for (size_t i = b; i < e; ++i) {
                     std::vector<Step>* steps = trace_out_ ? &records_[i].steps : nullptr;
                     if (steps) steps->clear();
-                    results_[i] = instanced_ ? trace_ray(two_, batch_.rays[i], batch_.queries[i],
-                                                         0xff, &counters_[i])
-                                             : trace_ray(bvh_, batch_.rays[i], batch_.queries[i],
-                                                         steps, &counters_[i]);
+                    if (!instanced_)
+                        results_[i] = trace_ray(bvh_, batch_.rays[i], batch_.queries[i], steps,
+                                                &counters_[i]);
+                    else if (steps) {
+                        results_[i] =
+                            trace_ray_recorded(two_, batch_.rays[i], batch_.queries[i], *steps);
+                        count_work(*steps, counters_[i]);
+                    } else
+                        results_[i] =
+                            trace_ray(two_, batch_.rays[i], batch_.queries[i], 0xff, &counters_[i]);
                 }
             });
         }

@@ -32,7 +32,7 @@ std::string bucket_label(int b) {
 }
 
 struct KindStats {
-    uint64_t rays = 0, hits = 0, nodes = 0, tris = 0;
+    uint64_t rays = 0, hits = 0, nodes = 0, tris = 0, transforms = 0;
     uint64_t crossings = 0;  // steps into another treelet than the step before
     std::array<uint64_t, kBuckets> node_hist{}, tri_hist{};
 };
@@ -51,7 +51,11 @@ int trace_info_command(const std::string& path, bool as_json) {
             KindStats& s = kinds[int(r.kind)];
             uint64_t nodes = 0, tris = 0;
             for (size_t i = 0; i < r.steps.size(); ++i) {
-                (r.steps[i].kind == StepKind::Node ? nodes : tris)++;
+                const StepKind kind = r.steps[i].kind;
+                if (kind == StepKind::Transform)
+                    s.transforms++;
+                else
+                    (kind == StepKind::Node ? nodes : tris)++;
                 if (i > 0 && r.steps[i].treelet != r.steps[i - 1].treelet) s.crossings++;
             }
             s.rays++;
@@ -90,6 +94,8 @@ int trace_info_command(const std::string& path, bool as_json) {
                                               {"treelet_crossings", s.crossings},
                                               {"nodes_per_ray_histogram", nh},
                                               {"triangles_per_ray_histogram", th}};
+        // Two-level scenes only: the instance records entered.
+        if (s.transforms) by_kind[ray_kind_name(RayKind(k))]["transform_steps"] = s.transforms;
     }
     out["by_kind"] = by_kind;
     if (as_json) {
@@ -102,6 +108,13 @@ int trace_info_command(const std::string& path, bool as_json) {
                reader.version(), reader.file_bytes(), reader.chunk_count());
     fmt::print("  scene     {} ({} triangles, hash {})\n", sc.value("name", std::string("?")),
                sc.value("triangles", 0), sc.value("hash", std::string("?")));
+    if (sc.contains("instances"))
+        fmt::print(
+            "  instances {} of {} meshes, {} instanced triangles; {} instance records of {} "
+            "bytes\n",
+            sc.value("instances", 0), sc.value("meshes", 0),
+            sc.value("instanced_triangles", uint64_t(0)), bv["layout"].value("instance_count", 0),
+            bv["layout"].value("instance_size_bytes", 0));
     fmt::print("  bvh       {} BVH{} {}, {} node records of {} bytes, triangles of {} bytes\n",
                bv.value("builder", std::string("?")), bv.value("width", 0),
                bv.value("node_format", std::string("?")), bv["layout"].value("inner_node_count", 0),
@@ -120,6 +133,8 @@ int trace_info_command(const std::string& path, bool as_json) {
         fmt::print("  {:10} {} rays, {} hits, {:.2f} nodes and {:.2f} triangles per ray", name,
                    s["rays"].get<uint64_t>(), s["hits"].get<uint64_t>(),
                    s["node_steps"].get<double>() / rays, s["triangle_steps"].get<double>() / rays);
+        if (s.contains("transform_steps"))
+            fmt::print(", {:.2f} instances entered", s["transform_steps"].get<double>() / rays);
         if (treelets)
             fmt::print(", {:.2f} treelet crossings", s["treelet_crossings"].get<double>() / rays);
         fmt::print("\n");

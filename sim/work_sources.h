@@ -280,7 +280,7 @@ class GeneratedWorkSource : public PrefetchingSource {
     GeneratedWorkSource(const Bvh& bvh, RayGenerator& gen, bool progress, int packet_size = 0,
                         int threads = 1, std::function<bool(int)> want_tile = {})
         : PrefetchingSource(progress, "tiles"),
-          bvh_(bvh),
+          bvh_(&bvh),
           gen_(gen),
           packet_size_(packet_size),
           record_tiles_(bool(want_tile)),
@@ -291,6 +291,17 @@ class GeneratedWorkSource : public PrefetchingSource {
                   : [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); },
               std::move(want_tile)) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
+        prefetch();
+    }
+    // Over a two-level scene (single rays: packets trace one level).
+    GeneratedWorkSource(const TwoLevelBvh& bvh, RayGenerator& gen, bool progress, int threads = 1)
+        : PrefetchingSource(progress, "tiles"),
+          gen_(gen),
+          packet_size_(0),
+          record_tiles_(false),
+          tiles_(gen, threads,
+                 [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }) {
+        gen_.set_record_steps(true);
         prefetch();
     }
     ~GeneratedWorkSource() override { stop_helper(); }
@@ -345,7 +356,7 @@ class GeneratedWorkSource : public PrefetchingSource {
             TraceRecord r;
             r.ray_id = rays[i].id;
             r.kind = rays[i].kind;
-            trace_packet(bvh_, packet, n, rays[i].query, hits, po, ps, &r.steps);
+            trace_packet(*bvh_, packet, n, rays[i].query, hits, po, ps, &r.steps);
             uint32_t hit_count = 0;
             for (int k = 0; k < n; ++k) hit_count += hits[k].valid();
             b.records.push_back(std::move(r));
@@ -354,7 +365,7 @@ class GeneratedWorkSource : public PrefetchingSource {
         }
     }
 
-    const Bvh& bvh_;
+    const Bvh* bvh_ = nullptr;  // packets only
     RayGenerator& gen_;
     int packet_size_;
     bool record_tiles_;

@@ -95,6 +95,17 @@ json scene_summary(const Scene& scene, uint64_t content_hash) {
             {"bounds", aabb_json(scene.bounds())}};
 }
 
+json scene_summary(const InstancedScene& scene) {
+    return {{"name", scene.name},
+            {"source", scene.source},
+            {"triangles", scene.unique_triangle_count()},
+            {"meshes", scene.meshes.size()},
+            {"instances", scene.instances.size()},
+            {"instanced_triangles", scene.instanced_triangle_count()},
+            {"hash", fmt::format("{:016x}", scene.content_hash())},
+            {"bounds", aabb_json(scene.bounds())}};
+}
+
 json workload_summary(const RayGenOptions& rg, float ao_length) {
     return {{"rays", ray_kinds_to_string(rg.kinds)},
             {"resolution", fmt::format("{}x{}", rg.width, rg.height)},

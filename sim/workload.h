@@ -52,6 +52,8 @@ void add_bvh_cache_option(CLI::App* cmd, std::string& dir);
 nlohmann::json scene_summary(const Scene& scene);
 // The same with the scene's content hash already known (BvhCacheStatus::scene_hash).
 nlohmann::json scene_summary(const Scene& scene, uint64_t content_hash);
+// A scene file's: "triangles" are its meshes' (unique), "instanced_triangles" every instance's.
+nlohmann::json scene_summary(const InstancedScene& scene);
 nlohmann::json workload_summary(const RayGenOptions& rg, float ao_length);
 // A trace's header metadata, checked to be an RTSim trace's (the reader has set its layout
 // from it). Throws InputError.

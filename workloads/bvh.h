@@ -67,6 +67,11 @@ struct BvhLayout {
     uint32_t tri_size_bytes = 48;
     uint32_t inner_node_count = 0;
     uint32_t triangle_count = 0;
+    // Two-level scenes (workloads/instances.h): the instance records, one per instance in TLAS
+    // leaf order. None in a one-level layout.
+    uint64_t instance_base_addr = 0;
+    uint32_t instance_size_bytes = 64;
+    uint32_t instance_count = 0;
 
     uint64_t node_addr(uint32_t node) const {
         return node_base_addr + uint64_t(node) * node_size_bytes;
@@ -76,10 +81,17 @@ struct BvhLayout {
     }
     uint64_t node_bytes_total() const { return uint64_t(inner_node_count) * node_size_bytes; }
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
-    // [begin, end) of the bytes traversal fetches: the node records and the triangles.
-    uint64_t fetch_begin() const { return std::min(node_base_addr, tri_base_addr); }
+    uint64_t instance_bytes_total() const { return uint64_t(instance_count) * instance_size_bytes; }
+    // [begin, end) of the bytes traversal fetches: the node records, the triangles and the
+    // instance records.
+    uint64_t fetch_begin() const {
+        const uint64_t b = std::min(node_base_addr, tri_base_addr);
+        return instance_count ? std::min(b, instance_base_addr) : b;
+    }
     uint64_t fetch_end() const {
-        return std::max(node_base_addr + node_bytes_total(), tri_base_addr + tri_bytes_total());
+        const uint64_t e =
+            std::max(node_base_addr + node_bytes_total(), tri_base_addr + tri_bytes_total());
+        return instance_count ? std::max(e, instance_base_addr + instance_bytes_total()) : e;
     }
 
     // Treelets (Aila & Karras 2010): the tree cut into connected pieces of at most
@@ -112,11 +124,16 @@ struct BvhLayout {
     };
     // The records of a step kind (a new kind adds its own here).
     Records records(StepKind kind) const {
-        return kind == StepKind::Node
-                   ? Records{node_base_addr, node_size_bytes, inner_node_count,
-                             node_treelet_.empty() ? nullptr : node_treelet_.data()}
-                   : Records{tri_base_addr, tri_size_bytes, triangle_count,
-                             tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
+        switch (kind) {
+            case StepKind::Node:
+                return {node_base_addr, node_size_bytes, inner_node_count,
+                        node_treelet_.empty() ? nullptr : node_treelet_.data()};
+            case StepKind::Triangle:
+                return {tri_base_addr, tri_size_bytes, triangle_count,
+                        tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
+            default:  // instance records are not cut into treelets
+                return {instance_base_addr, instance_size_bytes, instance_count, nullptr};
+        }
     }
     // The step on record `id` (below r.count) of `kind`, testing `items` (a node's children; 1
     // for a triangle): every Step from a layout is made here.
@@ -133,6 +150,9 @@ struct BvhLayout {
     }
     Step tri_step(uint32_t slot) const {
         return step(records(StepKind::Triangle), StepKind::Triangle, slot, 1);
+    }
+    Step transform_step(uint32_t record) const {
+        return step(records(StepKind::Transform), StepKind::Transform, record, 1);
     }
 
   private:

@@ -45,6 +45,46 @@ json bvh_summary(const Bvh& bvh, bool treelet_tables) {
     return out;
 }
 
+json bvh_summary(const TwoLevelBvh& two) {
+    json out = bvh_summary(two.tlas);
+    out["tlas"] = {{"sah_cost", two.tlas.quality.sah_cost},
+                   {"inner_nodes", two.tlas.quality.inner_count},
+                   {"leaves", two.tlas.quality.leaf_count},
+                   {"max_depth", two.tlas.quality.max_depth}};
+    uint64_t nodes = two.tlas.quality.node_count, inner = two.tlas.quality.inner_count,
+             leaves = two.tlas.quality.leaf_count;
+    uint32_t blas_depth = 0;
+    for (const Bvh& b : two.blas) {
+        nodes += b.quality.node_count;
+        inner += b.quality.inner_count;
+        leaves += b.quality.leaf_count;
+        blas_depth = std::max(blas_depth, b.quality.max_depth);
+    }
+    const BvhLayout& L = two.layout;
+    out["levels"] = 2;
+    out["blas"] = two.blas.size();
+    out["instances"] = two.instances.size();
+    out["nodes"] = nodes;
+    out["inner_nodes"] = inner;
+    out["leaves"] = leaves;
+    out["max_depth"] = two.tlas.quality.max_depth + blas_depth;  // a path through both levels
+    out.erase("mean_leaf_size");
+    out.erase("mean_children");
+    out["bytes"] = L.node_bytes_total() + L.tri_bytes_total() + L.instance_bytes_total();
+    out["layout"] = {{"node_base_addr", L.node_base_addr},
+                     {"node_size_bytes", L.node_size_bytes},
+                     {"inner_node_count", L.inner_node_count},
+                     {"triangle_base_addr", L.tri_base_addr},
+                     {"triangle_size_bytes", L.tri_size_bytes},
+                     {"triangle_count", L.triangle_count},
+                     {"instance_base_addr", L.instance_base_addr},
+                     {"instance_size_bytes", L.instance_size_bytes},
+                     {"instance_count", L.instance_count},
+                     {"treelet_bytes", 0},
+                     {"treelets", 0}};
+    return out;
+}
+
 BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
     try {
         const json& l = bvh.at("layout");
@@ -55,6 +95,10 @@ BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
         L.tri_base_addr = l.at("triangle_base_addr").get<uint64_t>();
         L.tri_size_bytes = l.at("triangle_size_bytes").get<uint32_t>();
         L.triangle_count = l.at("triangle_count").get<uint32_t>();
+        // One-level layouts (and traces from before instances) have no instance records.
+        L.instance_base_addr = l.value("instance_base_addr", uint64_t(0));
+        L.instance_size_bytes = l.value("instance_size_bytes", 64u);
+        L.instance_count = l.value("instance_count", 0u);
         // Traces from before treelets carry no treelet fields: a layout without treelets.
         L.treelet_bytes = l.value("treelet_bytes", 0u);
         L.treelet_node_start = l.value("treelet_node_start", std::vector<uint32_t>());

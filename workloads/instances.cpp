@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "workloads/cache_entry.h"
 #include "workloads/error.h"
 
 namespace rtsim {
@@ -86,6 +87,20 @@ AABB InstancedScene::bounds() const {
     return b;
 }
 
+uint64_t InstancedScene::content_hash() const {
+    uint64_t h = kFnvOffset;
+    for (const Scene& m : meshes) {
+        const uint64_t mh = m.content_hash();
+        h = fnv1a(h, &mh, sizeof mh);
+    }
+    for (const Instance& i : instances) {
+        h = fnv1a(h, i.object_to_world.m.data(), sizeof(float) * 12);
+        const uint32_t rest[3] = {i.mesh, i.mask, i.opaque};
+        h = fnv1a(h, rest, sizeof rest);
+    }
+    return h;
+}
+
 void InstancedScene::validate() const {
     const std::string& name = source.empty() ? this->name : source;  // errors name the file
     if (instances.empty()) throw InputError(fmt::format("{}: the scene has no instances", name));
@@ -105,7 +120,8 @@ void InstancedScene::validate() const {
     }
 }
 
-TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options) {
+TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
+                            const BvhLayout& layout_sizes) {
     scene.validate();
     if (options.treelet_bytes != 0)
         throw InputError(fmt::format(
@@ -114,7 +130,8 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     TwoLevelBvh two;
     two.options = options;
     two.instances = scene.instances;
-    for (const Scene& mesh : scene.meshes) two.blas.push_back(build_bvh(mesh, options));
+    for (const Scene& mesh : scene.meshes)
+        two.blas.push_back(build_bvh(mesh, options, layout_sizes));
     // The TLAS is built by the same builders over a proxy scene whose triangle k spans instance
     // k's world box exactly (corners lo and hi), so its leaves' slots name instances.
     Scene proxy;
@@ -133,7 +150,7 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     }
     proxy.vertices = std::move(corners);
     proxy.triangles = std::move(tris);
-    BvhLayout tlas_layout;
+    BvhLayout tlas_layout = layout_sizes;
     tlas_layout.tri_size_bytes = two.instance_size_bytes;
     two.tlas = build_bvh(proxy, options, tlas_layout);
     // One address space: the TLAS's nodes, then each BLAS's; the instance records where the
@@ -161,6 +178,17 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
         L.node_base_addr = node_base + uint64_t(two.blas_node_offset[k]) * node_bytes;
         L.tri_base_addr = tri_base + uint64_t(two.blas_tri_offset[k]) * L.tri_size_bytes;
     }
+    BvhLayout& G = two.layout;
+    G = two.tlas.layout;
+    G.inner_node_count = uint32_t(nodes);
+    G.tri_base_addr = tri_base;
+    G.tri_size_bytes =
+        two.blas.empty() ? layout_sizes.tri_size_bytes : two.blas[0].layout.tri_size_bytes;
+    G.triangle_count = uint32_t(tris_total);
+    G.instance_base_addr = two.instance_base_addr;
+    G.instance_size_bytes = two.instance_size_bytes;
+    G.instance_count = uint32_t(scene.instances.size());
+    G.index_treelets();
     return two;
 }
 

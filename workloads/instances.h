@@ -61,6 +61,8 @@ struct InstancedScene {
     uint64_t unique_triangle_count() const;
     uint64_t instanced_triangle_count() const;  // every instance's mesh, counted per instance
     AABB bounds() const;                        // of the instances' world boxes
+    // FNV-1a over every mesh's content hash and every instance (transform, mesh, mask, flag).
+    uint64_t content_hash() const;
     // Throws InputError (naming the scene) for an instance of no mesh, an empty mesh, or a
     // transform that is singular or not finite.
     void validate() const;
@@ -81,12 +83,19 @@ struct TwoLevelBvh {
     uint32_t tlas_node_count = 0;
     uint64_t instance_base_addr = 0;
     uint32_t instance_size_bytes = 64;
+    // The whole address space as one layout: node records [0, tlas_node_count) are the TLAS's,
+    // then each BLAS's from its blas_node_offset; triangle slots from each BLAS's
+    // blas_tri_offset; instance records in TLAS slot order. Steps of either level are made
+    // from it, so the timing models, traces and caches see one layout.
+    BvhLayout layout;
     const AABB& bounds() const { return tlas.bounds(); }
 };
 
 // Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size;
-// treelets are not cut across two levels yet: treelet_bytes must be 0).
-TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options);
+// treelets are not cut across two levels yet: treelet_bytes must be 0); `layout_sizes` gives the
+// node and triangle record sizes, as build_bvh's.
+TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
+                            const BvhLayout& layout_sizes = BvhLayout());
 
 // Traces one ray through both levels: hit.prim is the triangle's index in its mesh and
 // hit.instance the instance's (kNoInstance on a miss). `mask`: instances whose mask shares no
@@ -94,5 +103,12 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
 // (each instance entered counts one box test, its BLAS root's box, kept in its record).
 Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint8_t mask = 0xff,
               TraceCounters* counters = nullptr);
+
+// trace_ray with its steps in `steps` (replaced), in bvh.layout's numbering: the TLAS's node
+// steps, an instance's transform step (its record fetched, the ray moved into object space) for
+// each instance entered, then that BLAS's node and triangle steps. A step's stack depth counts
+// both levels' stacks (the TLAS's entries stay while a BLAS is traversed).
+Hit trace_ray_recorded(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query,
+                       std::vector<Step>& steps, uint8_t mask = 0xff);
 
 }  // namespace rtsim

@@ -233,14 +233,6 @@ void RayGenerator::init(const std::string& name, const AABB& b) {
     tiles_y_ = (opt_.height + opt_.tile_size - 1) / opt_.tile_size;
 }
 
-void RayGenerator::set_record_steps(bool record) {
-    if (record && two_)
-        throw InputError(fmt::format(
-            "{}: step streams of instanced scenes are not recorded yet (trace it without -o)",
-            instanced_->name));
-    record_steps_ = record;
-}
-
 bool RayGenerator::surface_point(const Ray& r, const Hit& h, uint64_t stream,
                                  SurfacePoint& out) const {
     Vec3 v0, v1, v2;
@@ -283,9 +275,10 @@ uint32_t RayGenerator::generate_tile(int index, std::vector<GeneratedRay>& out) 
     // Traces a ray whose hit starts further rays; an emitted one keeps the trace when asked.
     auto trace_for_hit = [&](const Ray& r, bool emitted) {
         GeneratedRay* g = emitted && record_steps_ ? &out.back() : nullptr;
-        const Hit h = two_ ? trace_ray(*two_, r, HitQuery::Closest)
-                      : g  ? trace_ray_recorded(*bvh_, r, HitQuery::Closest, g->steps)
-                           : trace_ray(*bvh_, r, HitQuery::Closest);
+        const Hit h = two_ ? (g ? trace_ray_recorded(*two_, r, HitQuery::Closest, g->steps)
+                                : trace_ray(*two_, r, HitQuery::Closest))
+                           : (g ? trace_ray_recorded(*bvh_, r, HitQuery::Closest, g->steps)
+                                : trace_ray(*bvh_, r, HitQuery::Closest));
         if (g) {
             g->traced = true;
             g->prim = h.prim;

@@ -88,8 +88,7 @@ struct GeneratedRay {
 class RayGenerator {
   public:
     RayGenerator(const Scene& scene, const Bvh& bvh, const RayGenOptions& options);
-    // Over a two-level scene: the same rays, traced through its instances (rays it traces keep
-    // no step streams: set_record_steps is refused).
+    // Over a two-level scene: the same rays, traced through its instances.
     RayGenerator(const InstancedScene& scene, const TwoLevelBvh& bvh, const RayGenOptions& options);
     // Appends tile `index`'s rays (0 <= index < tile_count()) to out, their ids numbered from 0
     // within the tile (TileQueue, workloads/tile_queue.h, hands tiles on in order and numbers ids
@@ -97,7 +96,7 @@ class RayGenerator {
     // tiles at once.
     uint32_t generate_tile(int index, std::vector<GeneratedRay>& out) const;
     // Rays the generator traces to find hits keep their step streams (see GeneratedRay).
-    void set_record_steps(bool record);
+    void set_record_steps(bool record) { record_steps_ = record; }
     int tile_count() const { return tiles_x_ * tiles_y_; }
     const Camera& camera() const { return camera_; }
     float ao_length() const { return ao_length_; }

@@ -13,10 +13,12 @@ namespace rtsim {
 // instance-transform unit) is local: a value here, its row of kStepKindInfo (below),
 // its records in the BVH layout, and its unit's schema section and binding rows.
 enum class StepKind : uint8_t {
-    Node = 0,      // fetch an inner-node record, then one box test of `count` child boxes
-    Triangle = 1,  // fetch one triangle, then one ray-triangle test (`count` 1)
+    Node = 0,       // fetch an inner-node record, then one box test of `count` child boxes
+    Triangle = 1,   // fetch one triangle, then one ray-triangle test (`count` 1)
+    Transform = 2,  // fetch an instance record, then move the ray into the instance's object
+                    // space (two-level scenes, workloads/instances.h; `count` 1)
 };
-constexpr int kStepKinds = 2;
+constexpr int kStepKinds = 3;
 
 struct StepKindInfo {
     const char* name;  // "node"
@@ -28,6 +30,7 @@ struct StepKindInfo {
 inline constexpr StepKindInfo kStepKindInfo[kStepKinds] = {
     {"node", "box_unit"},
     {"triangle", "triangle_unit"},
+    {"transform", "transform_unit"},
 };
 constexpr const StepKindInfo& step_kind_info(StepKind kind) {
     return kStepKindInfo[int(kind)];
@@ -38,7 +41,7 @@ constexpr const StepKindInfo& step_kind_info(int kind) {
 
 struct Step {
     uint64_t addr;        // byte address in the BVH layout
-    uint32_t id;          // inner-node record index, or leaf slot of the triangle
+    uint32_t id;          // inner-node record index, leaf slot of the triangle, or instance record
     uint16_t size_bytes;  // bytes fetched
     StepKind kind;
     uint8_t count;         // items the unit tests: a node's child boxes, 1 for a triangle

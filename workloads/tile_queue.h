@@ -25,6 +25,15 @@ inline void trace_untraced(const Bvh& bvh, std::vector<GeneratedRay>& rays) {
         }
 }
 
+// The same over a two-level scene.
+inline void trace_untraced(const TwoLevelBvh& bvh, std::vector<GeneratedRay>& rays) {
+    for (GeneratedRay& g : rays)
+        if (!g.traced) {
+            g.prim = trace_ray_recorded(bvh, g.ray, g.query, g.steps).prim;
+            g.traced = true;
+        }
+}
+
 class TileQueue {
   public:
     // `per_tile` (optional) runs on the generating thread on each tile's rays, before they are

@@ -18,6 +18,9 @@ struct NullSink {
     void at_stack(int, bool) {}
     void node(const BvhLayout&, uint32_t, uint8_t) {}
     void tri(const BvhLayout&, uint32_t) {}
+    void transform(uint32_t) {}
+    void enter_blas(uint32_t, uint32_t) {}
+    void leave_blas() {}
 };
 
 // Records the steps with the stack as each was fetched: a leaf's first triangle carries the
@@ -34,6 +37,47 @@ struct VectorSink {
         out->push_back(L.tri_step(slot));
         out->back().stack = stack;
         stack &= uint8_t(~kStackPopped);
+    }
+};
+
+// Records a two-level traversal's steps in the two-level layout's numbering: a BLAS's records
+// are offset into the global ranges while it is traversed, and its stack depths sit on top of
+// the TLAS's.
+struct GlobalSink {
+    std::vector<Step>* out;
+    const BvhLayout* global;
+    uint32_t node_offset = 0, tri_offset = 0;
+    int base_depth = 0, tlas_depth = 0;
+    bool in_blas = false;
+    uint8_t stack = 0;
+    void at_stack(int depth, bool popped) {
+        if (!in_blas) tlas_depth = depth;
+        stack = stack_byte(unsigned(base_depth + depth), popped);
+    }
+    void node(const BvhLayout&, uint32_t index, uint8_t children) {
+        out->push_back(global->node_step(index + node_offset, children));
+        out->back().stack = stack;
+    }
+    void tri(const BvhLayout&, uint32_t slot) {
+        out->push_back(global->tri_step(slot + tri_offset));
+        out->back().stack = stack;
+        stack &= uint8_t(~kStackPopped);
+    }
+    void transform(uint32_t record) {
+        out->push_back(global->transform_step(record));
+        out->back().stack = stack;
+        stack &= uint8_t(~kStackPopped);
+    }
+    void enter_blas(uint32_t nodes, uint32_t tris) {
+        node_offset = nodes;
+        tri_offset = tris;
+        base_depth = tlas_depth;
+        in_blas = true;
+    }
+    void leave_blas() {
+        node_offset = tri_offset = 0;
+        base_depth = 0;
+        in_blas = false;
     }
 };
 
@@ -337,6 +381,7 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
             const uint32_t id = two.tlas.prim_order[slot];
             const Instance& inst = two.instances[id];
             if (!(inst.mask & mask)) continue;
+            sink.transform(slot);  // the instance record, then the ray moved
             const Affine3x4& w2o = two.world_to_object[id];
             Ray local;
             local.org = w2o.point(ray.org);
@@ -354,8 +399,10 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
             found.t = h.t;  // the bound: only a nearer hit replaces `h`
             TriangleLeaf tris;
             const uint32_t outer_stack = c.max_stack;
+            sink.enter_blas(two.blas_node_offset[inst.mesh], two.blas_tri_offset[inst.mesh]);
             found = dispatch_width<Reduced>(blas, local, lrp, q, Entry{0, 0, root_t}, found, sink,
                                             c, tris);
+            sink.leave_blas();
             c.max_stack = std::max(outer_stack, c.max_stack);
             if (!found.valid()) continue;
             h = found;
@@ -433,6 +480,28 @@ Hit trace_ray(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint8_t ma
               ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, c)
               : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, c);
     if (!hit.valid()) hit = Hit{};
+    return hit;
+}
+
+Hit trace_ray_recorded(const TwoLevelBvh& two, const Ray& ray, HitQuery query,
+                       std::vector<Step>& steps, uint8_t mask) {
+    thread_local std::vector<Step> scratch;
+    scratch.clear();
+    Hit hit;
+    hit.t = ray.tmax;
+    const RayPrecomp rp(ray);
+    float root_t;
+    if (!two.instances.empty() && finite_ray(ray) &&
+        intersect_box_bits(rp, two.bounds(), ray.tmin, ray.tmax, root_t, two.options, ray.tmin)) {
+        GlobalSink sink{&scratch, &two.layout};
+        NoCounters none;
+        const Entry root = {0, 0, root_t};
+        hit = two.options.box_mantissa_bits < kFullMantissaBits
+                  ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, none)
+                  : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, none);
+    }
+    if (!hit.valid()) hit = Hit{};
+    steps.assign(scratch.begin(), scratch.end());
     return hit;
 }
 

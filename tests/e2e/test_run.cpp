@@ -1539,17 +1539,55 @@ TEST(Trace, SceneFileHitsNameTheirInstance) {
     EXPECT_EQ(slurp(csv),
               "ray,t,prim,u,v,instance\n0,1,0,0.25,0.25,0\n1,3,0,0.25,0.5,11\n"
               "2,inf,-1,0,0,-1\n");
-    // What the two-level tracer does not record yet, and `run`, refuse it in one line, writing
-    // nothing.
-    const fs::path rtt = dir / "grid.rtt";
+    // What two-level scenes do not have yet is refused in one line, writing nothing.
+    const fs::path bin = dir / "grid_hits.bin";
     expect_one_line_error(
-        run_rtsim(fmt::format("trace --scene '{}' -o '{}'", scene.string(), rtt.string())),
-        "is an instanced scene; trace files of instanced scenes are not recorded yet");
-    EXPECT_FALSE(fs::exists(rtt));
-    expect_one_line_error(run_rtsim(fmt::format("run --scene '{}' --res 8x8 -o '{}'",
-                                                scene.string(), (dir / "grid_out").string())),
-                          "grid.json: a scene of instances");
+        run_rtsim(fmt::format("trace --scene '{}' --hits-bin '{}'", scene.string(), bin.string())),
+        "is an instanced scene; its hits carry an instance");
+    EXPECT_FALSE(fs::exists(bin));
+    expect_one_line_error(
+        run_rtsim(fmt::format("run --scene '{}' --res 8x8 --set sim.sampled=true -o '{}'",
+                              scene.string(), (dir / "grid_out").string())),
+        "sim.sampled: " + scene.string() + " is a scene of instances");
     EXPECT_FALSE(fs::exists(dir / "grid_out" / "stats.json"));
+}
+
+// A scene file simulated: every instance entered is one transform-unit operation (counted by
+// the functional trace's transform steps), its records are DRAM traffic of their own region,
+// and a replay of the recorded trace gives the on-the-fly run's counters, every one.
+TEST(Run, SceneFileRunsTheTransformUnitAndReplaysExactly) {
+    const fs::path dir = work_dir();
+    const fs::path scene = dir / "copies.json";
+    std::ofstream(scene) << R"({"meshes": {"c": "builtin:cornell", "s": "builtin:sphere"},
+        "instances": [{"mesh": "c", "scale": [1, 0.2, 1]},
+                      {"mesh": "s", "scale": 0.1, "grid": {"count": [4, 1, 4],
+                       "spacing": [0.2, 0, 0.2]}, "translate": [-0.3, 0.3, -0.3]}]})";
+    const std::string w = "--rays primary,ao --res 48x48 --scene '" + scene.string() + "'";
+    const fs::path rtt = dir / "copies.rtt";
+    ASSERT_EQ(run_rtsim("trace -q " + w + " -o '" + rtt.string() + "'").status, 0);
+    const Result ti = run_rtsim("trace-info --json '" + rtt.string() + "'");
+    ASSERT_EQ(ti.status, 0) << ti.err;
+    uint64_t transforms = 0;
+    const nlohmann::json info_json = nlohmann::json::parse(ti.out);
+    for (const auto& [kind, k] : info_json["by_kind"].items())
+        transforms += k.value("transform_steps", uint64_t(0));
+    ASSERT_GT(transforms, 1000u);
+    const fs::path direct = dir / "copies_direct", replay = dir / "copies_replay";
+    ASSERT_EQ(run_rtsim("run -q " + w + " -o '" + direct.string() + "'").status, 0);
+    ASSERT_EQ(
+        run_rtsim("run -q --trace '" + rtt.string() + "' -o '" + replay.string() + "'").status, 0);
+    const nlohmann::json a = nlohmann::json::parse(slurp(direct / "stats.json")),
+                         b = nlohmann::json::parse(slurp(replay / "stats.json"));
+    uint64_t ops = 0;
+    for (const auto& [name, v] : a["counters"].items())
+        if (name.rfind("transform_unit[", 0) == 0 && name.find(".ops") != std::string::npos)
+            ops += v.get<uint64_t>();
+    EXPECT_EQ(ops, transforms);
+    EXPECT_EQ(a["counters"], b["counters"]);
+    EXPECT_EQ(a["scene"]["instances"], 17);
+    EXPECT_GT(a["bandwidth"]["dram"]["by_region"]["instances"]["read_bytes"].get<uint64_t>(), 0u);
+    EXPECT_LE(a["bandwidth"]["dram"]["by_region"]["instances"]["read_bytes"].get<uint64_t>(),
+              17u * 64);  // each record fetched from DRAM once at most (the L2 keeps 1 KiB)
 }
 
 TEST(Trace, PacketsReportUtilisationAndKeepHits) {

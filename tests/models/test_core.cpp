@@ -154,6 +154,40 @@ TEST(Core, SingleSlotLatenciesAdd) {
               0u);
 }
 
+// A ray through a two-level scene, one slot: TLAS node, instance transform, BLAS node,
+// triangle. Each step costs its issue I, memory M and its own unit's latency (box B, transform
+// X, triangle T), and the transform's wait is charged to the transform unit.
+TEST(Core, InstanceTransformStepRunsOnItsOwnUnit) {
+    const Cycle M = 30, B = 8, X = 5, T = 18, I = 2;
+    test::FixedLatencyMemory mem(M);
+    PipelinedUnit box("box", UnitParams{1, B, 1}), tri("tri", UnitParams{1, T, 1}),
+        xf("xf", UnitParams{1, X, 1});
+    struct TwoLevelRay : RayWorkSource {
+        bool given = false;
+        bool next(RayWork& w, Cycle) override {
+            if (given) return false;
+            given = true;
+            w.steps = {{0, 0, 64, StepKind::Node, 2},
+                       {4096, 0, 64, StepKind::Transform, 1},
+                       {64, 1, 64, StepKind::Node, 2},
+                       {8192, 0, 48, StepKind::Triangle, 1}};
+            return true;
+        }
+    } src;
+    CoreParams cp;
+    cp.ray_slots = 1;
+    cp.issue_latency_cycles = I;
+    Core core("core", cp, {&mem, &mem, &mem}, {&box, &tri, &xf}, &src);
+    CoreScheduler sched("sched", {&core});
+    sc_core::sc_start();
+    EXPECT_EQ(core.last_cycle, I + (I + M + B) + (I + M + X) + (I + M + B) + (I + M + T));
+    EXPECT_EQ(xf.ops, 1u);
+    EXPECT_EQ(box.ops, 2u);
+    EXPECT_EQ(tri.ops, 1u);
+    EXPECT_EQ(core.stall_cycles[Core::kUnitStall + int(StepKind::Transform)], X);
+    EXPECT_EQ(mem.addrs.size(), 4u);
+}
+
 // Issue width 1 serialises step issue across slots: K slots of one-step rays with free memory
 // and a unit of latency 1 finish at ~2K (setup issue + step issue per ray).
 TEST(Core, IssueWidthLimitsThroughput) {

@@ -1,0 +1,90 @@
+// Two-level step streams (workloads/instances.h) on cases small enough to write out by hand.
+#include <gtest/gtest.h>
+
+#include "workloads/instances.h"
+
+using namespace rtsim;
+
+namespace {
+
+// Two copies of one triangle (0,0,0), (1,0,0), (0,1,0): one at z = 0, one moved to z = -5; one
+// instance per TLAS leaf, so the TLAS root has the two as children.
+InstancedScene two_copies() {
+    InstancedScene s;
+    s.name = "two copies";
+    Scene tri;
+    tri.vertices = std::vector<Vec3>{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    tri.triangles = std::vector<std::array<uint32_t, 3>>{{0, 1, 2}};
+    s.meshes.push_back(tri);
+    Instance near, far;
+    far.object_to_world.m[11] = -5;
+    s.instances = {near, far};
+    return s;
+}
+
+BvhBuildOptions one_per_leaf() {
+    BvhBuildOptions o;
+    o.max_leaf_size = 1;
+    return o;
+}
+
+}  // namespace
+
+TEST(Instances, StepsFollowTheNearestInstanceThenCullTheOther) {
+    const TwoLevelBvh two = build_two_level(two_copies(), one_per_leaf());
+    const BvhLayout& L = two.layout;
+    ASSERT_EQ(two.tlas_node_count, 1u);  // a root with two leaf children
+    ASSERT_EQ(L.inner_node_count, 2u);   // and the BLAS's one record
+    ASSERT_EQ(L.triangle_count, 1u);
+    ASSERT_EQ(L.instance_count, 2u);
+    for (const float dz : {-1.0f, 1.0f}) {
+        Ray r;
+        r.org = Vec3(0.2f, 0.2f, dz > 0 ? -10.0f : 10.0f);
+        r.dir = Vec3(0, 0, dz);
+        std::vector<Step> steps;
+        const Hit h = trace_ray_recorded(two, r, HitQuery::Closest, steps);
+        // From above the z = 0 copy is hit at t = 10; from below the z = -5 one at t = 5.
+        const uint32_t want = dz < 0 ? 0u : 1u;
+        ASSERT_TRUE(h.valid());
+        EXPECT_EQ(h.instance, want);
+        EXPECT_FLOAT_EQ(h.t, dz < 0 ? 10.0f : 5.0f);
+        EXPECT_EQ(h.instance, trace_ray(two, r, HitQuery::Closest).instance);
+        // The TLAS root; the nearer instance's record; the BLAS's root record (global node 1)
+        // and its triangle (global slot 0). The farther instance is culled: its entry distance
+        // lies beyond the hit.
+        ASSERT_EQ(steps.size(), 4u);
+        EXPECT_EQ(steps[0].kind, StepKind::Node);
+        EXPECT_EQ(steps[0].id, 0u);
+        EXPECT_EQ(steps[1].kind, StepKind::Transform);
+        EXPECT_EQ(two.tlas.prim_order[steps[1].id], want);  // the record is in TLAS slot order
+        EXPECT_EQ(steps[1].addr, two.instance_base_addr + uint64_t(steps[1].id) * 64);
+        EXPECT_EQ(steps[1].size_bytes, 64);
+        EXPECT_EQ(steps[2].kind, StepKind::Node);
+        EXPECT_EQ(steps[2].id, 1u);
+        EXPECT_EQ(steps[2].addr, L.node_base_addr + L.node_size_bytes);
+        EXPECT_EQ(steps[3].kind, StepKind::Triangle);
+        EXPECT_EQ(steps[3].id, 0u);
+        EXPECT_EQ(steps[3].addr, L.tri_base_addr);
+        // The TLAS keeps the farther leaf on its stack while the BLAS runs: depth 1 under it.
+        EXPECT_EQ(stack_depth(steps[0]), 0u);
+        EXPECT_EQ(stack_depth(steps[1]), 1u);
+        EXPECT_EQ(stack_depth(steps[2]), 1u);
+    }
+}
+
+TEST(Instances, MaskedInstancesAreNeitherFetchedNorHit) {
+    InstancedScene s = two_copies();
+    s.instances[0].mask = 2;
+    const TwoLevelBvh two = build_two_level(s, one_per_leaf());
+    Ray r;
+    r.org = Vec3(0.2f, 0.2f, 10.0f);
+    r.dir = Vec3(0, 0, -1);
+    std::vector<Step> steps;
+    const Hit h = trace_ray_recorded(two, r, HitQuery::Closest, steps, /*mask=*/1);
+    ASSERT_TRUE(h.valid());
+    EXPECT_EQ(h.instance, 1u);  // through the masked-out copy to the one behind
+    EXPECT_FLOAT_EQ(h.t, 15.0f);
+    int transforms = 0;
+    for (const Step& st : steps) transforms += st.kind == StepKind::Transform;
+    EXPECT_EQ(transforms, 1);
+}
