@@ -17,6 +17,7 @@
 
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
+#include "workloads/memory_limit.h"
 
 namespace rtsim {
 
@@ -205,6 +206,11 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     };
     if (dir.empty()) {
         st.outcome = BvhCacheOutcome::Off;
+        check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
+                             scene.triangle_count(), 0);
+        check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
+                             scene.triangle_count(),
+                             0);  // a build (not a hit) is what needs the memory
         Bvh b = build_bvh(scene, options, layout_sizes);
         st.seconds = seconds();
         return b;

@@ -6,6 +6,7 @@
 
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
+#include "workloads/memory_limit.h"
 
 namespace rtsim {
 
@@ -123,6 +124,8 @@ void InstancedScene::validate() const {
 TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
                             const BvhLayout& layout_sizes) {
     scene.validate();
+    check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
+                         scene.unique_triangle_count(), scene.instances.size());
     if (options.treelet_bytes != 0)
         throw InputError(fmt::format(
             "{}: treelets (bvh.treelet_bytes) are not cut across two-level BVHs yet; set it to 0",

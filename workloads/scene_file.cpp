@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "workloads/error.h"
+#include "workloads/memory_limit.h"
 
 namespace rtsim {
 
@@ -191,6 +192,12 @@ InstancedScene load_scene_file(const std::string& path) {
         if (e.contains("grid") && e.contains("scatter"))
             rd.fail(where, "'grid' and 'scatter' both given; use one");
         const uint64_t room = kMaxSceneFileInstances - scene.instances.size();
+        // Copies are checked against memory before they are made.
+        auto reserve = [&](uint64_t copies) {
+            check_prepare_memory(path, scene.unique_triangle_count(),
+                                 scene.instances.size() + copies);
+            scene.instances.reserve(scene.instances.size() + copies);
+        };
         if (e.contains("grid")) {
             const json& g = e["grid"];
             rd.only(g, where + ".grid", {"count", "spacing"});
@@ -204,6 +211,7 @@ InstancedScene load_scene_file(const std::string& path) {
                                     n[0] * n[1] * n[2], kMaxSceneFileInstances));
             if (!g.contains("spacing")) rd.fail(where + ".grid.spacing", "missing");
             const Vec3 d = rd.vec3(g["spacing"], where + ".grid.spacing");
+            reserve(n[0] * n[1] * n[2]);
             for (uint64_t z = 0; z < n[2]; ++z)
                 for (uint64_t y = 0; y < n[1]; ++y)
                     for (uint64_t x = 0; x < n[0]; ++x) {
@@ -244,6 +252,7 @@ InstancedScene load_scene_file(const std::string& path) {
             }
             // One generator per entry, seeded by its seed: a copy's placement depends on the
             // entry alone, not on the entries before it.
+            reserve(n);
             std::mt19937_64 rng(seed);
             std::uniform_real_distribution<double> u01(0.0, 1.0);
             for (uint64_t c = 0; c < n; ++c) {

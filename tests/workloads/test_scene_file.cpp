@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
 #include "support/input_error.h"
 #include "support/scratch_dir.h"
+#include "workloads/memory_limit.h"
 #include "workloads/scene_file.h"
 
 namespace fs = std::filesystem;
@@ -164,4 +166,23 @@ TEST(SceneFile, SharedMeshesAreOneBlasWithManyInstances) {
     EXPECT_NEAR(h.t, 1.0f, 1e-6f);
     EXPECT_NEAR(h.u, 0.2f, 1e-5f);
     EXPECT_NEAR(h.v, 0.2f, 1e-5f);
+}
+
+TEST(SceneFile, ScenesThatWouldNotFitAreRefusedBeforeTheyAreMade) {
+    one_triangle();
+    const std::string path = write_scene(
+        "big.json", R"({"meshes": {"t": "tri.off"}, "instances": [{"mesh": "t",
+                        "grid": {"count": [100, 100, 10], "spacing": [1, 1, 1]}}]})");
+    // 100,000 copies at 600 bytes each (60 MB) against a 16 MiB limit.
+    ::setenv("RTSIM_MEMORY_LIMIT", "16M", 1);
+    test::expect_input_error([&] { load_scene_file(path); }, path,
+                             "100000 instances at 600 bytes), above the 0.0 GiB limit "
+                             "(RTSIM_MEMORY_LIMIT)");
+    EXPECT_EQ(memory_limit_bytes(), uint64_t(16) << 20);
+    ::setenv("RTSIM_MEMORY_LIMIT", "2GiB", 1);
+    EXPECT_EQ(memory_limit_bytes(), uint64_t(2) << 30);
+    EXPECT_EQ(load_scene_file(path).instances.size(), 100000u);
+    ::setenv("RTSIM_MEMORY_LIMIT", "12Q", 1);
+    test::expect_input_error([&] { memory_limit_bytes(); }, "RTSIM_MEMORY_LIMIT", "got '12Q'");
+    ::unsetenv("RTSIM_MEMORY_LIMIT");
 }
