@@ -23,18 +23,7 @@ class EmbreeScene {
         device_ =
             rtcNewDevice(threads > 0 ? ("threads=" + std::to_string(threads)).c_str() : nullptr);
         const auto t0 = std::chrono::steady_clock::now();
-        scene_ = rtcNewScene(device_);
-        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, s.vertices.size()));
-        std::memcpy(v, s.vertices.data(), s.vertices.size() * 12);
-        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, s.triangles.size()));
-        std::memcpy(idx, s.triangles.data(), s.triangles.size() * 12);
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(scene_, g);
-        rtcReleaseGeometry(g);
-        rtcCommitScene(scene_);
+        scene_ = mesh_scene(device_, s);
         build_seconds =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     }
@@ -73,6 +62,22 @@ class EmbreeScene {
     double build_seconds = 0;
 
   private:
+    // A committed Embree scene of one triangle geometry holding the mesh.
+    static RTCScene mesh_scene(RTCDevice device, const Scene& s) {
+        RTCScene scene = rtcNewScene(device);
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, s.vertices.size()));
+        std::memcpy(v, s.vertices.data(), s.vertices.size() * 12);
+        auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, s.triangles.size()));
+        std::memcpy(idx, s.triangles.data(), s.triangles.size() * 12);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(scene, g);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(scene);
+        return scene;
+    }
     static void fill(RTCRay& e, const Ray& r) {
         e.org_x = r.org.x;
         e.org_y = r.org.y;
@@ -99,21 +104,7 @@ class EmbreeInstancedScene {
   public:
     explicit EmbreeInstancedScene(const InstancedScene& s) {
         device_ = rtcNewDevice(nullptr);
-        for (const Scene& m : s.meshes) {
-            RTCScene ms = rtcNewScene(device_);
-            RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
-            auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-                g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, m.vertices.size()));
-            std::memcpy(v, m.vertices.data(), m.vertices.size() * 12);
-            auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-                g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, m.triangles.size()));
-            std::memcpy(idx, m.triangles.data(), m.triangles.size() * 12);
-            rtcCommitGeometry(g);
-            rtcAttachGeometry(ms, g);
-            rtcReleaseGeometry(g);
-            rtcCommitScene(ms);
-            meshes_.push_back(ms);
-        }
+        for (const Scene& m : s.meshes) meshes_.push_back(EmbreeScene::mesh_scene(device_, m));
         top_ = rtcNewScene(device_);
         for (size_t k = 0; k < s.instances.size(); ++k) {
             const Instance& inst = s.instances[k];
