@@ -62,7 +62,8 @@ void WorkloadOptions::resolve() {
 
 void add_workload_options(CLI::App* cmd, WorkloadOptions& w) {
     cmd->add_option("--scene", w.scene,
-                    "Mesh file (OBJ, PLY, OFF, STL, ...) or builtin:NAME (cornell, sphere)")
+                    "Mesh file (OBJ, PLY, OFF, STL, ...), builtin:NAME (cornell, sphere), or a "
+                    "scene file of instances (.json, docs/scenes.md)")
         ->capture_default_str();
     cmd->add_option("--rays", w.rays,
                     "Comma list of ray kinds: primary, shadow, ao, diffuse, reflection")
