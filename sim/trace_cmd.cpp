@@ -78,16 +78,6 @@ void check_trace_options(const TraceOptions& opt) {
         throw InputError("--packet: a trace records single-ray traversal; drop --packet with -o");
 }
 
-// A recorded two-level ray's work, from its steps as trace_ray counts it: a node step is a
-// visit and its boxes' tests, an instance entered tests its BLAS root's box.
-void count_work(const std::vector<Step>& steps, TraceCounters& c) {
-    for (const Step& s : steps) {
-        c.nodes += s.kind == StepKind::Node;
-        c.box_tests += s.kind == StepKind::Node ? s.count : s.kind == StepKind::Transform;
-        c.tri_tests += s.kind == StepKind::Triangle;
-    }
-}
-
 // One batch of rays to trace: from a ray file or the generator.
 struct Batch {
     std::vector<Ray> rays;
@@ -237,11 +227,10 @@ class TraceJob {
                     if (!instanced_)
                         results_[i] = trace_ray(bvh_, batch_.rays[i], batch_.queries[i], steps,
                                                 &counters_[i]);
-                    else if (steps) {
-                        results_[i] =
-                            trace_ray_recorded(two_, batch_.rays[i], batch_.queries[i], *steps);
-                        count_work(*steps, counters_[i]);
-                    } else
+                    else if (steps)
+                        results_[i] = trace_ray_recorded(two_, batch_.rays[i], batch_.queries[i],
+                                                         *steps, 0xff, &counters_[i]);
+                    else
                         results_[i] =
                             trace_ray(two_, batch_.rays[i], batch_.queries[i], 0xff, &counters_[i]);
                 }

@@ -100,7 +100,8 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
 // Traces one ray through both levels: hit.prim is the triangle's index in its mesh and
 // hit.instance the instance's (kNoInstance on a miss). `mask`: instances whose mask shares no
 // bit with it are skipped, as DXR's InstanceInclusionMask. counters add the work of both levels
-// (each instance entered counts one box test, its BLAS root's box, kept in its record).
+// (each instance entered counts one box test, its BLAS root's box, kept in its record);
+// max_stack is the TLAS's deepest stack (a BLAS's sits on top of it, as the steps' depths say).
 Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint8_t mask = 0xff,
               TraceCounters* counters = nullptr);
 
@@ -109,6 +110,7 @@ Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint8_t ma
 // each instance entered, then that BLAS's node and triangle steps. A step's stack depth counts
 // both levels' stacks (the TLAS's entries stay while a BLAS is traversed).
 Hit trace_ray_recorded(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query,
-                       std::vector<Step>& steps, uint8_t mask = 0xff);
+                       std::vector<Step>& steps, uint8_t mask = 0xff,
+                       TraceCounters* counters = nullptr);
 
 }  // namespace rtsim

@@ -17,16 +17,9 @@ namespace rtsim {
 
 // Traces the rays of a tile the generator did not trace already (for their hits), so that every
 // ray has its steps: the per_tile work of a TileQueue that feeds timing models.
-inline void trace_untraced(const Bvh& bvh, std::vector<GeneratedRay>& rays) {
-    for (GeneratedRay& g : rays)
-        if (!g.traced) {
-            g.prim = trace_ray_recorded(bvh, g.ray, g.query, g.steps).prim;
-            g.traced = true;
-        }
-}
-
-// The same over a two-level scene.
-inline void trace_untraced(const TwoLevelBvh& bvh, std::vector<GeneratedRay>& rays) {
+// `Accel`: a Bvh, or a TwoLevelBvh.
+template <class Accel>
+void trace_untraced(const Accel& bvh, std::vector<GeneratedRay>& rays) {
     for (GeneratedRay& g : rays)
         if (!g.traced) {
             g.prim = trace_ray_recorded(bvh, g.ray, g.query, g.steps).prim;

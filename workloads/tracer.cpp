@@ -398,12 +398,10 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
             Hit found;
             found.t = h.t;  // the bound: only a nearer hit replaces `h`
             TriangleLeaf tris;
-            const uint32_t outer_stack = c.max_stack;
             sink.enter_blas(two.blas_node_offset[inst.mesh], two.blas_tri_offset[inst.mesh]);
             found = dispatch_width<Reduced>(blas, local, lrp, q, Entry{0, 0, root_t}, found, sink,
                                             c, tris);
             sink.leave_blas();
-            c.max_stack = std::max(outer_stack, c.max_stack);
             if (!found.valid()) continue;
             h = found;
             h.instance = id;
@@ -412,6 +410,25 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
         return false;
     };
     return dispatch_width<Reduced>(two.tlas, ray, rp, q, start, hit, sink, c, instances);
+}
+
+// A two-level trace from the TLAS's root box (kept on chip, as one level's), as trace_ray and
+// trace_ray_recorded make it.
+template <class Sink, class Counters>
+Hit trace_two_level_from_root(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint8_t mask,
+                              Sink& sink, Counters& c) {
+    Hit hit;
+    hit.t = ray.tmax;
+    const RayPrecomp rp(ray);
+    float root_t;
+    if (!two.instances.empty() && finite_ray(ray) &&
+        intersect_box_bits(rp, two.bounds(), ray.tmin, ray.tmax, root_t, two.options, ray.tmin)) {
+        const Entry root = {0, 0, root_t};
+        hit = two.options.box_mantissa_bits < kFullMantissaBits
+                  ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, c)
+                  : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, c);
+    }
+    return hit.valid() ? hit : Hit{};
 }
 
 }  // namespace
@@ -463,44 +480,19 @@ void trace_subtree(const Bvh& bvh, const Ray& ray, HitQuery query, uint32_t chil
 
 Hit trace_ray(const TwoLevelBvh& two, const Ray& ray, HitQuery query, uint8_t mask,
               TraceCounters* counters) {
-    Hit hit;
-    hit.t = ray.tmax;
-    const RayPrecomp rp(ray);
-    float root_t;
-    if (two.instances.empty() || !finite_ray(ray) ||
-        !intersect_box_bits(rp, two.bounds(), ray.tmin, ray.tmax, root_t, two.options, ray.tmin)) {
-        hit.t = std::numeric_limits<float>::infinity();
-        return hit;
-    }
     NullSink sink;
     TraceCounters local;
-    TraceCounters& c = counters ? *counters : local;
-    const Entry root = {0, 0, root_t};
-    hit = two.options.box_mantissa_bits < kFullMantissaBits
-              ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, c)
-              : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, c);
-    if (!hit.valid()) hit = Hit{};
-    return hit;
+    return trace_two_level_from_root(two, ray, query, mask, sink, counters ? *counters : local);
 }
 
 Hit trace_ray_recorded(const TwoLevelBvh& two, const Ray& ray, HitQuery query,
-                       std::vector<Step>& steps, uint8_t mask) {
+                       std::vector<Step>& steps, uint8_t mask, TraceCounters* counters) {
     thread_local std::vector<Step> scratch;
     scratch.clear();
-    Hit hit;
-    hit.t = ray.tmax;
-    const RayPrecomp rp(ray);
-    float root_t;
-    if (!two.instances.empty() && finite_ray(ray) &&
-        intersect_box_bits(rp, two.bounds(), ray.tmin, ray.tmax, root_t, two.options, ray.tmin)) {
-        GlobalSink sink{&scratch, &two.layout};
-        NoCounters none;
-        const Entry root = {0, 0, root_t};
-        hit = two.options.box_mantissa_bits < kFullMantissaBits
-                  ? trace_two_level<true>(two, ray, rp, query, root, hit, mask, sink, none)
-                  : trace_two_level<false>(two, ray, rp, query, root, hit, mask, sink, none);
-    }
-    if (!hit.valid()) hit = Hit{};
+    GlobalSink sink{&scratch, &two.layout};
+    NoCounters none;  // counting compiled out unless asked for, as one level's fast path
+    const Hit hit = counters ? trace_two_level_from_root(two, ray, query, mask, sink, *counters)
+                             : trace_two_level_from_root(two, ray, query, mask, sink, none);
     steps.assign(scratch.begin(), scratch.end());
     return hit;
 }
