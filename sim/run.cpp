@@ -135,10 +135,7 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
     const auto t0 = std::chrono::steady_clock::now();
     w.instanced = std::make_unique<InstancedScene>(load_scene_file(file));
     const auto t1 = std::chrono::steady_clock::now();
-    BvhLayout sizes;
-    sizes.node_size_bytes = cfg.typed.node_size_bytes;
-    sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
-    w.two = std::make_unique<TwoLevelBvh>(build_two_level(*w.instanced, cfg.typed.bvh, sizes));
+    w.two = std::make_unique<TwoLevelBvh>(build_two_level_from_config(cfg, *w.instanced));
     w.scene_file_s = std::chrono::duration<double>(t1 - t0).count();
     w.two_level_build_s = seconds_since(t1);
     w.gen = std::make_unique<RayGenerator>(*w.instanced, *w.two, opt.workload.gen);
@@ -192,9 +189,7 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         w.gen->set_record_steps(true);
         // Keyed by what the rays' steps depend on: the scene's content and the BVH build (the
         // BVH cache's key), the tree as laid out and traversed, and the generator's settings.
-        BvhLayout sizes;
-        sizes.node_size_bytes = cfg.typed.node_size_bytes;
-        sizes.tri_size_bytes = cfg.typed.triangle_size_bytes;
+        const BvhLayout sizes = layout_sizes_from_config(cfg);
         const std::string key = fmt::format(
             "v1 bvh={:016x} {} {}",
             cached ? w.bvh_cache.key : bvh_cache_key(scene_hash, *w.scene, cfg.typed.bvh, sizes),

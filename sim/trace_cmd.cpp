@@ -161,10 +161,7 @@ class TraceJob {
         const auto t0 = SteadyClock::now();
         iscene_ = load_scene_file(file);
         const auto t1 = SteadyClock::now();
-        BvhLayout sizes;
-        sizes.node_size_bytes = cfg_.typed.node_size_bytes;
-        sizes.tri_size_bytes = cfg_.typed.triangle_size_bytes;
-        two_ = build_two_level(iscene_, cfg_.typed.bvh, sizes);
+        two_ = build_two_level_from_config(cfg_, iscene_);
         load_seconds_ = std::chrono::duration<double>(t1 - t0).count();
         build_seconds_ = seconds_since(t1);
     }

@@ -35,10 +35,19 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
 
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,
                           BvhCacheStatus* status, std::optional<uint64_t> scene_hash) {
+    return build_bvh_cached(scene, cfg.typed.bvh, layout_sizes_from_config(cfg), cache_dir, status,
+                            scene_hash);
+}
+
+BvhLayout layout_sizes_from_config(const Config& cfg) {
     BvhLayout layout;
     layout.node_size_bytes = cfg.typed.node_size_bytes;
     layout.tri_size_bytes = cfg.typed.triangle_size_bytes;
-    return build_bvh_cached(scene, cfg.typed.bvh, layout, cache_dir, status, scene_hash);
+    return layout;
+}
+
+TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene) {
+    return build_two_level(scene, cfg.typed.bvh, layout_sizes_from_config(cfg));
 }
 
 std::string resolve_bvh_cache_dir(const std::string& option) {

@@ -10,6 +10,7 @@
 #include "workloads/bvh.h"
 #include "workloads/bvh_cache.h"
 #include "workloads/bvh_summary.h"
+#include "workloads/instances.h"
 #include "workloads/raygen.h"
 #include "workloads/scene.h"
 
@@ -38,6 +39,10 @@ void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
 // "WxH" -> width, height. Throws InputError naming `what`.
 void parse_resolution(const std::string& text, const std::string& what, int& width, int& height);
 
+// The record sizes the config gives a BVH's layout (bvh.node_size_bytes, triangle_size_bytes).
+BvhLayout layout_sizes_from_config(const Config& cfg);
+// A scene file's two levels as the config's "bvh" section asks for (not cached).
+TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene);
 // The BVH the config's "bvh" section asks for, through the BVH cache in `cache_dir` (empty:
 // none; workloads/bvh_cache.h). `scene_hash`: the scene's content hash if known.
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,
