@@ -330,10 +330,13 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
         AccessBreakdown bd;
         Cycle fetched;
         Cache* cache = cache_by_kind_[kind];
+        // A step that reads nothing (an any-hit shader without alpha data) has its data at once.
         const bool local =
-            !s.fetch_is_shared &&
-            (cache ? cache->access_local(st.addr, st.size_bytes, issued, fetched, &bd)
-                   : mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd));
+            st.size_bytes == 0
+                ? (fetched = issued, true)
+                : !s.fetch_is_shared &&
+                      (cache ? cache->access_local(st.addr, st.size_bytes, issued, fetched, &bd)
+                             : mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd));
         if (!local) {
             // The request leaves the core at `issued`: that is its place in the global order.
             // (Resumed, the slot is still this core's earliest and the port the same, so it

@@ -45,7 +45,7 @@ struct CoreParams {
     Cycle issue_latency_cycles = 1;  // pipeline depth from the last issued instruction to the fetch
     // Per StepKind, control instructions issued before the step's fetch (a node step's traversal
     // control, a triangle step's intersection control).
-    int step_instructions[kStepKinds] = {1, 1, 1};
+    int step_instructions[kStepKinds] = {1, 1, 1, 8};
     int ray_setup_instructions = 1;  // instructions to start a ray
     bool units_shared = false;       // units serve several cores: every step synchronises
     // Packet mode: a work item is a packet and its box and triangle operations occupy this

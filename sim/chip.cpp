@@ -14,12 +14,10 @@ std::string indexed(const char* kind, int i) {
     return fmt::format("{}[{}]", kind, i);
 }
 
-// Every fetch lies in the layout's node records or triangles: the caches' tags need only reach
-// the end of them.
+// Every fetch lies in the layout's records (nodes, triangles, instances, alpha data): the
+// caches' tags need only reach the end of them.
 uint64_t address_limit(const BvhLayout& layout) {
-    return std::max(layout.node_addr(layout.inner_node_count),
-                    layout.tri_addr(layout.triangle_count)) +
-           1;
+    return layout.fetch_end() + 1;
 }
 
 }  // namespace

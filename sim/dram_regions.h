@@ -1,7 +1,7 @@
 // DRAM traffic by what it carries: BVH node records, triangles, instance records (two-level
-// scenes), spilled stacks, ray records (treelet queues in memory) and hit records, read and
-// written. The treelet study needs it:
-// queues cut BVH traffic and add ray-record traffic, and only the split shows which wins.
+// scenes), alpha data (any-hit shaders' reads), spilled stacks, ray records (treelet queues in
+// memory) and hit records, read and written. The treelet study needs it: queues cut BVH traffic and
+// add ray-record traffic, and only the split shows which wins.
 #pragma once
 
 #include <array>
@@ -21,6 +21,7 @@ class DramRegions final : public DramModel {
         kNodes,
         kTriangles,
         kInstances,
+        kAlpha,
         kStack,
         kRayRecords,
         kHitRecords,
@@ -28,7 +29,7 @@ class DramRegions final : public DramModel {
         kRegions
     };
     static constexpr const char* kNames[kRegions] = {
-        "nodes", "triangles", "instances", "stack", "ray_records", "hit_records", "other"};
+        "nodes", "triangles", "instances", "alpha", "stack", "ray_records", "hit_records", "other"};
     DramRegions(DramModel& inner, const BvhLayout& layout)
         : inner_(inner),
           node_begin_(layout.node_addr(0)),
@@ -36,7 +37,9 @@ class DramRegions final : public DramModel {
           tri_begin_(layout.tri_addr(0)),
           tri_end_(layout.tri_addr(layout.triangle_count)),
           instance_begin_(layout.instance_base_addr),
-          instance_end_(layout.instance_base_addr + layout.instance_bytes_total()) {}
+          instance_end_(layout.instance_base_addr + layout.instance_bytes_total()),
+          alpha_begin_(layout.alpha_base_addr),
+          alpha_end_(layout.alpha_base_addr + layout.alpha_bytes_total()) {}
 
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override {
@@ -87,13 +90,15 @@ class DramRegions final : public DramModel {
         if (addr >= node_begin_ && addr < node_end_) return kNodes;
         if (addr >= tri_begin_ && addr < tri_end_) return kTriangles;
         if (addr >= instance_begin_ && addr < instance_end_) return kInstances;
+        if (addr >= alpha_begin_ && addr < alpha_end_) return kAlpha;
         if (addr >= kHitRecordBase) return kHitRecords;
         if (addr >= kRayRecordBase) return kRayRecords;
         if (addr >= kStackRegionBase) return kStack;
         return kOther;
     }
     DramModel& inner_;
-    uint64_t node_begin_, node_end_, tri_begin_, tri_end_, instance_begin_, instance_end_;
+    uint64_t node_begin_, node_end_, tri_begin_, tri_end_, instance_begin_, instance_end_,
+        alpha_begin_, alpha_end_;
 };
 
 }  // namespace rtsim

@@ -178,6 +178,15 @@ EnergyFigures energy_of(const Params& P, const EnergyInputs& in) {
         per_access["transform_pj"] = xf_pj;
         blocks["transform_unit"] = xf_ops * xf_pj;
     }
+    // An any-hit shader call's arithmetic: the hit's texture coordinates interpolated from the
+    // triangle's (4 multiplies, 4 adds) and the alpha compare (1 add); its reads are counted by
+    // the caches and DRAM. Only scenes with non-opaque instances call it.
+    const double ah_calls = in.sum_blocks("any_hit_shader", ".ops");
+    if (ah_calls > 0) {
+        const double ah_pj = 4 * e.fp32_mul_pj + 5 * e.fp32_add_pj;
+        per_access["any_hit_pj"] = ah_pj;
+        blocks["any_hit_shader"] = ah_calls * ah_pj;
+    }
     // DRAM: the command-level model's own figure (scaled to a sampled run's estimated reads),
     // else bytes times a cost per byte.
     const double dram_bytes = in.counter("dram.bytes");

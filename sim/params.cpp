@@ -105,6 +105,7 @@ std::vector<FieldBinding> make_bindings() {
         field("core.node_step_instructions", M(core.step_instructions[0])),
         field("core.triangle_step_instructions", M(core.step_instructions[1])),
         field("core.transform_step_instructions", M(core.step_instructions[2])),
+        field("core.any_hit_step_instructions", M(core.step_instructions[3])),
         field("core.ray_setup_instructions", M(core.ray_setup_instructions)),
         field("core.short_stack_entries", M(core.short_stack_entries)),
         field("core.stack_entry_bytes", M(core.stack_entry_bytes)),
@@ -115,6 +116,8 @@ std::vector<FieldBinding> make_bindings() {
     add_unit_rows(t, StepKind::Node, true, /*width=*/true);
     add_unit_rows(t, StepKind::Triangle, kNotMirrored, /*width=*/false);
     add_unit_rows(t, StepKind::Transform, kNotMirrored, /*width=*/false);
+    add_unit_rows(t, StepKind::AnyHit, kNotMirrored, /*width=*/false);
+    t.push_back(field("any_hit_shader.alpha_read_bytes", M(alpha_read_bytes), 1, kNotMirrored));
     t.push_back(field("box_unit.mantissa_bits", M(bvh.box_mantissa_bits)));
     t.push_back(field("box_unit.translate_origin", M(bvh.box_translate_origin)));
     add_cache_rows(t, "l1", &Params::l1, true);

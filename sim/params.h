@@ -77,6 +77,7 @@ struct Params {
     BvhBuildOptions bvh;
     uint32_t node_size_bytes = 0;  // 0: the stated size for the width and format
     uint32_t triangle_size_bytes = 0;
+    uint32_t alpha_read_bytes = 16;  // the alpha data an any-hit shader call reads (0: none)
     TraversalParams traversal;
     RayBufferParams ray_buffer;  // ray_buffer.*, and traversal's treelet scheduler and batches
     SimParams sim;

@@ -32,7 +32,7 @@ std::string bucket_label(int b) {
 }
 
 struct KindStats {
-    uint64_t rays = 0, hits = 0, nodes = 0, tris = 0, transforms = 0;
+    uint64_t rays = 0, hits = 0, nodes = 0, tris = 0, transforms = 0, any_hits = 0;
     uint64_t crossings = 0;  // steps into another treelet than the step before
     std::array<uint64_t, kBuckets> node_hist{}, tri_hist{};
 };
@@ -54,6 +54,8 @@ int trace_info_command(const std::string& path, bool as_json) {
                 const StepKind kind = r.steps[i].kind;
                 if (kind == StepKind::Transform)
                     s.transforms++;
+                else if (kind == StepKind::AnyHit)
+                    s.any_hits++;
                 else
                     (kind == StepKind::Node ? nodes : tris)++;
                 if (i > 0 && r.steps[i].treelet != r.steps[i - 1].treelet) s.crossings++;
@@ -96,6 +98,8 @@ int trace_info_command(const std::string& path, bool as_json) {
                                               {"triangles_per_ray_histogram", th}};
         // Two-level scenes only: the instance records entered.
         if (s.transforms) by_kind[ray_kind_name(RayKind(k))]["transform_steps"] = s.transforms;
+        // ...and of them, scenes with non-opaque instances: the any-hit shader calls.
+        if (s.any_hits) by_kind[ray_kind_name(RayKind(k))]["any_hit_steps"] = s.any_hits;
     }
     out["by_kind"] = by_kind;
     if (as_json) {
@@ -135,6 +139,8 @@ int trace_info_command(const std::string& path, bool as_json) {
                    s["node_steps"].get<double>() / rays, s["triangle_steps"].get<double>() / rays);
         if (s.contains("transform_steps"))
             fmt::print(", {:.2f} instances entered", s["transform_steps"].get<double>() / rays);
+        if (s.contains("any_hit_steps"))
+            fmt::print(", {:.2f} any-hit calls", s["any_hit_steps"].get<double>() / rays);
         if (treelets)
             fmt::print(", {:.2f} treelet crossings", s["treelet_crossings"].get<double>() / rays);
         fmt::print("\n");

@@ -43,6 +43,7 @@ BvhLayout layout_sizes_from_config(const Config& cfg) {
     BvhLayout layout;
     layout.node_size_bytes = cfg.typed.node_size_bytes;
     layout.tri_size_bytes = cfg.typed.triangle_size_bytes;
+    layout.alpha_size_bytes = cfg.typed.alpha_read_bytes;
     return layout;
 }
 

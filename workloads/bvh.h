@@ -72,6 +72,12 @@ struct BvhLayout {
     uint64_t instance_base_addr = 0;
     uint32_t instance_size_bytes = 64;
     uint32_t instance_count = 0;
+    // Non-opaque geometry (workloads/alpha.h): per triangle slot, the alpha data an any-hit
+    // shader reads (texture coordinates and alpha), alpha_size_bytes each (0: the shader reads
+    // nothing). None (alpha_count 0) when every instance is opaque.
+    uint64_t alpha_base_addr = 0;
+    uint32_t alpha_size_bytes = 16;
+    uint32_t alpha_count = 0;
 
     uint64_t node_addr(uint32_t node) const {
         return node_base_addr + uint64_t(node) * node_size_bytes;
@@ -82,16 +88,19 @@ struct BvhLayout {
     uint64_t node_bytes_total() const { return uint64_t(inner_node_count) * node_size_bytes; }
     uint64_t tri_bytes_total() const { return uint64_t(triangle_count) * tri_size_bytes; }
     uint64_t instance_bytes_total() const { return uint64_t(instance_count) * instance_size_bytes; }
-    // [begin, end) of the bytes traversal fetches: the node records, the triangles and the
-    // instance records.
+    uint64_t alpha_bytes_total() const { return uint64_t(alpha_count) * alpha_size_bytes; }
+    // [begin, end) of the bytes traversal fetches: the node records, the triangles, the
+    // instance records and the alpha data.
     uint64_t fetch_begin() const {
-        const uint64_t b = std::min(node_base_addr, tri_base_addr);
-        return instance_count ? std::min(b, instance_base_addr) : b;
+        uint64_t b = std::min(node_base_addr, tri_base_addr);
+        if (instance_count) b = std::min(b, instance_base_addr);
+        return alpha_bytes_total() ? std::min(b, alpha_base_addr) : b;
     }
     uint64_t fetch_end() const {
-        const uint64_t e =
+        uint64_t e =
             std::max(node_base_addr + node_bytes_total(), tri_base_addr + tri_bytes_total());
-        return instance_count ? std::max(e, instance_base_addr + instance_bytes_total()) : e;
+        if (instance_count) e = std::max(e, instance_base_addr + instance_bytes_total());
+        return alpha_bytes_total() ? std::max(e, alpha_base_addr + alpha_bytes_total()) : e;
     }
 
     // Treelets (Aila & Karras 2010): the tree cut into connected pieces of at most
@@ -131,8 +140,10 @@ struct BvhLayout {
             case StepKind::Triangle:
                 return {tri_base_addr, tri_size_bytes, triangle_count,
                         tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
-            default:  // instance records are not cut into treelets
+            case StepKind::Transform:  // instance records are not cut into treelets
                 return {instance_base_addr, instance_size_bytes, instance_count, nullptr};
+            default:  // alpha data follows its triangles' slots, but is not cut into treelets
+                return {alpha_base_addr, alpha_size_bytes, alpha_count, nullptr};
         }
     }
     // The step on record `id` (below r.count) of `kind`, testing `items` (a node's children; 1
@@ -153,6 +164,9 @@ struct BvhLayout {
     }
     Step transform_step(uint32_t record) const {
         return step(records(StepKind::Transform), StepKind::Transform, record, 1);
+    }
+    Step any_hit_step(uint32_t slot) const {
+        return step(records(StepKind::AnyHit), StepKind::AnyHit, slot, 1);
     }
 
   private:

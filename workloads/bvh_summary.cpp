@@ -70,7 +70,10 @@ json bvh_summary(const TwoLevelBvh& two) {
     out["max_depth"] = two.tlas.quality.max_depth + blas_depth;  // a path through both levels
     out.erase("mean_leaf_size");
     out.erase("mean_children");
-    out["bytes"] = L.node_bytes_total() + L.tri_bytes_total() + L.instance_bytes_total();
+    out["bytes"] = L.node_bytes_total() + L.tri_bytes_total() + L.instance_bytes_total() +
+                   L.alpha_bytes_total();
+    out["non_opaque_instances"] = std::count_if(two.instances.begin(), two.instances.end(),
+                                                [](const Instance& i) { return !i.opaque; });
     out["layout"] = {{"node_base_addr", L.node_base_addr},
                      {"node_size_bytes", L.node_size_bytes},
                      {"inner_node_count", L.inner_node_count},
@@ -80,6 +83,9 @@ json bvh_summary(const TwoLevelBvh& two) {
                      {"instance_base_addr", L.instance_base_addr},
                      {"instance_size_bytes", L.instance_size_bytes},
                      {"instance_count", L.instance_count},
+                     {"alpha_base_addr", L.alpha_base_addr},
+                     {"alpha_size_bytes", L.alpha_size_bytes},
+                     {"alpha_count", L.alpha_count},
                      {"treelet_bytes", 0},
                      {"treelets", 0}};
     return out;
@@ -99,6 +105,10 @@ BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
         L.instance_base_addr = l.value("instance_base_addr", uint64_t(0));
         L.instance_size_bytes = l.value("instance_size_bytes", 64u);
         L.instance_count = l.value("instance_count", 0u);
+        // ...nor alpha data (nor do scenes whose instances are all opaque).
+        L.alpha_base_addr = l.value("alpha_base_addr", uint64_t(0));
+        L.alpha_size_bytes = l.value("alpha_size_bytes", 16u);
+        L.alpha_count = l.value("alpha_count", 0u);
         // Traces from before treelets carry no treelet fields: a layout without treelets.
         L.treelet_bytes = l.value("treelet_bytes", 0u);
         L.treelet_node_start = l.value("treelet_node_start", std::vector<uint32_t>());

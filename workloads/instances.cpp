@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "workloads/cache_entry.h"
@@ -99,6 +100,11 @@ uint64_t InstancedScene::content_hash() const {
         const uint32_t rest[3] = {i.mesh, i.mask, i.opaque};
         h = fnv1a(h, rest, sizeof rest);
     }
+    for (const AlphaMask& a : alpha) {  // (none: the hash of a scene without masks)
+        const uint32_t fields[3] = {uint32_t(a.pattern), a.seed, a.cells};
+        h = fnv1a(h, fields, sizeof fields);
+        h = fnv1a(h, &a.keep, sizeof a.keep);
+    }
     return h;
 }
 
@@ -133,6 +139,7 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     TwoLevelBvh two;
     two.options = options;
     two.instances = scene.instances;
+    for (uint32_t m = 0; m < scene.meshes.size(); ++m) two.alpha.push_back(scene.mesh_alpha(m));
     for (const Scene& mesh : scene.meshes)
         two.blas.push_back(build_bvh(mesh, options, layout_sizes));
     // The TLAS is built by the same builders over a proxy scene whose triangle k spans instance
@@ -191,6 +198,13 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     G.instance_base_addr = two.instance_base_addr;
     G.instance_size_bytes = two.instance_size_bytes;
     G.instance_count = uint32_t(scene.instances.size());
+    // Alpha data after the triangles, in the same slot order, when any-hit shaders may read it.
+    const bool any_non_opaque = std::any_of(scene.instances.begin(), scene.instances.end(),
+                                            [](const Instance& i) { return !i.opaque; });
+    G.alpha_size_bytes = layout_sizes.alpha_size_bytes;
+    G.alpha_count = any_non_opaque ? G.triangle_count : 0;
+    G.alpha_base_addr =
+        any_non_opaque ? (tri_base + G.tri_bytes_total() + page - 1) / page * page : 0;
     G.index_treelets();
     return two;
 }

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "workloads/alpha.h"
 #include "workloads/bvh.h"
 #include "workloads/geometry.h"
 #include "workloads/scene.h"
@@ -49,6 +50,9 @@ struct Instance {
     Affine3x4 object_to_world;
     uint32_t mesh = 0;  // index into InstancedScene::meshes
     uint8_t mask = 0xff;
+    // false: every candidate hit on the instance runs the any-hit shader with its mesh's alpha
+    // mask (a mesh without one accepts all, the shader's cost still paid); true: hits are
+    // committed at once (as DXR's FORCE_OPAQUE), whatever the mesh's mask.
     bool opaque = true;
 };
 
@@ -57,11 +61,17 @@ struct InstancedScene {
     std::string source;  // its path
     std::vector<Scene> meshes;
     std::vector<Instance> instances;
+    // Per mesh, its alpha mask (workloads/alpha.h); meshes past its end have none.
+    std::vector<AlphaMask> alpha;
 
+    AlphaMask mesh_alpha(uint32_t mesh) const {
+        return mesh < alpha.size() ? alpha[mesh] : AlphaMask();
+    }
     uint64_t unique_triangle_count() const;
     uint64_t instanced_triangle_count() const;  // every instance's mesh, counted per instance
     AABB bounds() const;                        // of the instances' world boxes
-    // FNV-1a over every mesh's content hash and every instance (transform, mesh, mask, flag).
+    // FNV-1a over every mesh's content hash, every instance (transform, mesh, mask, flag) and
+    // the alpha masks.
     uint64_t content_hash() const;
     // Throws InputError (naming the scene) for an instance of no mesh, an empty mesh, or a
     // transform that is singular or not finite.
@@ -69,8 +79,9 @@ struct InstancedScene {
 };
 
 // The two levels, with one address space: every inner node (the TLAS's first, then each BLAS's
-// in mesh order) is numbered in one node range of the layout, every triangle in one slot range,
-// and the instance records (the world-to-object transform, the BLAS root and the flags: 64 bytes,
+// in mesh order) is numbered in one node range of the layout, every triangle in one slot range
+// (with its alpha data, when any instance is not opaque, in a range of the same slots), and the
+// instance records (the world-to-object transform, the BLAS root and the flags: 64 bytes,
 // one per instance, in TLAS leaf order) have a region of their own, so a step's record index and
 // address mean the same whichever BLAS it is in.
 struct TwoLevelBvh {
@@ -79,6 +90,7 @@ struct TwoLevelBvh {
     std::vector<Bvh> blas;  // per mesh
     std::vector<Affine3x4> world_to_object;                   // per instance id
     std::vector<Instance> instances;                          // per instance id
+    std::vector<AlphaMask> alpha;                             // per mesh
     std::vector<uint32_t> blas_node_offset, blas_tri_offset;  // per mesh, in the global ranges
     uint32_t tlas_node_count = 0;
     uint64_t instance_base_addr = 0;
@@ -93,21 +105,25 @@ struct TwoLevelBvh {
 
 // Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size;
 // treelets are not cut across two levels yet: treelet_bytes must be 0); `layout_sizes` gives the
-// node and triangle record sizes, as build_bvh's.
+// node and triangle record sizes, as build_bvh's, and the alpha data's per triangle.
 TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
                             const BvhLayout& layout_sizes = BvhLayout());
 
 // Traces one ray through both levels: hit.prim is the triangle's index in its mesh and
 // hit.instance the instance's (kNoInstance on a miss). `mask`: instances whose mask shares no
-// bit with it are skipped, as DXR's InstanceInclusionMask. counters add the work of both levels
-// (each instance entered counts one box test, its BLAS root's box, kept in its record);
-// max_stack is the TLAS's deepest stack (a BLAS's sits on top of it, as the steps' depths say).
+// bit with it are skipped, as DXR's InstanceInclusionMask. On a non-opaque instance, each
+// triangle hit nearer than the best so far is a candidate its mesh's alpha mask accepts or
+// ignores (counted in counters.any_hits), in traversal order and a leaf's slot order. counters add
+// the work of both levels (each instance entered counts one box test, its BLAS root's box, kept in
+// its record); max_stack is the TLAS's deepest stack (a BLAS's sits on top of it, as the steps'
+// depths say).
 Hit trace_ray(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query, uint8_t mask = 0xff,
               TraceCounters* counters = nullptr);
 
 // trace_ray with its steps in `steps` (replaced), in bvh.layout's numbering: the TLAS's node
 // steps, an instance's transform step (its record fetched, the ray moved into object space) for
-// each instance entered, then that BLAS's node and triangle steps. A step's stack depth counts
+// each instance entered, then that BLAS's node and triangle steps, each candidate's triangle
+// step followed by its any-hit step. A step's stack depth counts
 // both levels' stacks (the TLAS's entries stay while a BLAS is traversed).
 Hit trace_ray_recorded(const TwoLevelBvh& bvh, const Ray& ray, HitQuery query,
                        std::vector<Step>& steps, uint8_t mask = 0xff,

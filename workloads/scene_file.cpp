@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -54,6 +55,31 @@ class Reader {
   private:
     std::string file_;
 };
+
+// An alpha mask: {"pattern": "triangles", "keep": 0.5, "seed": 1} or
+// {"pattern": "checker", "cells": 4}.
+AlphaMask alpha_mask(const Reader& rd, const json& j, const std::string& where) {
+    rd.only(j, where, {"pattern", "keep", "seed", "cells"});
+    AlphaMask a;
+    const std::string pattern = j.value("pattern", std::string());
+    if (pattern == "triangles") {
+        a.pattern = AlphaPattern::Triangles;
+        rd.only(j, where, {"pattern", "keep", "seed"});
+        if (j.contains("keep")) {
+            a.keep = rd.number(j["keep"], where + ".keep");
+            if (a.keep < 0 || a.keep > 1)
+                rd.fail(where + ".keep", "expected a fraction from 0 to 1");
+        }
+        if (j.contains("seed")) a.seed = uint32_t(rd.count(j["seed"], where + ".seed", UINT32_MAX));
+    } else if (pattern == "checker") {
+        a.pattern = AlphaPattern::Checker;
+        rd.only(j, where, {"pattern", "cells"});
+        if (j.contains("cells")) a.cells = uint32_t(rd.count(j["cells"], where + ".cells", 4096));
+    } else {
+        rd.fail(where + ".pattern", "expected \"triangles\" or \"checker\"");
+    }
+    return a;
+}
 
 Affine3x4 translation(Vec3 t) {
     Affine3x4 a;
@@ -159,14 +185,30 @@ InstancedScene load_scene_file(const std::string& path) {
     const fs::path folder = fs::path(path).parent_path();
     for (const auto& item : doc["meshes"].items()) {
         const std::string where = "meshes." + item.key();
-        if (!item.value().is_string()) rd.fail(where, "expected a mesh file or builtin:NAME");
-        std::string spec = item.value().get<std::string>();
+        // "name": "file", or "name": {"file": "file", "alpha": {...}}
+        const json* file = &item.value();
+        AlphaMask alpha;
+        if (item.value().is_object()) {
+            rd.only(item.value(), where, {"file", "alpha"});
+            if (!item.value().contains("file"))
+                rd.fail(where + ".file", "expected a mesh file or builtin:NAME");
+            file = &item.value()["file"];
+            if (item.value().contains("alpha"))
+                alpha = alpha_mask(rd, item.value()["alpha"], where + ".alpha");
+        }
+        if (!file->is_string()) rd.fail(where, "expected a mesh file or builtin:NAME");
+        std::string spec = file->get<std::string>();
         if (spec.rfind("builtin:", 0) != 0 && fs::path(spec).is_relative())
             spec = (folder / spec).string();
         if (is_scene_file(spec)) rd.fail(where, "a scene file cannot be a mesh");
         mesh_index[item.key()] = uint32_t(scene.meshes.size());
         scene.meshes.push_back(load_scene(spec));
+        scene.alpha.push_back(alpha);
     }
+    // Without a mask anywhere, no alpha table (a scene of opaque meshes hashes as before).
+    if (std::all_of(scene.alpha.begin(), scene.alpha.end(),
+                    [](const AlphaMask& a) { return a.pattern == AlphaPattern::None; }))
+        scene.alpha.clear();
 
     const json& list = doc["instances"];
     for (size_t k = 0; k < list.size(); ++k) {
@@ -184,6 +226,8 @@ InstancedScene load_scene_file(const std::string& path) {
         Instance base;
         base.mesh = m->second;
         base.object_to_world = placement(rd, e, where);
+        // Instances of a masked mesh run its any-hit shader unless the file says opaque.
+        base.opaque = scene.mesh_alpha(base.mesh).pattern == AlphaPattern::None;
         if (e.contains("mask")) base.mask = uint8_t(rd.count(e["mask"], where + ".mask", 255));
         if (e.contains("opaque")) {
             if (!e["opaque"].is_boolean()) rd.fail(where + ".opaque", "expected true or false");

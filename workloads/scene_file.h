@@ -12,6 +12,10 @@
 //
 // A placement is translate * rotate (axis, degrees) * scale, or a row-major 3x4 "transform";
 // a grid or scatter copy adds its own offset (and a scatter its yaw and scale) after it.
+// A mesh may carry an alpha mask (workloads/alpha.h), which makes its instances non-opaque
+// unless they say "opaque": true:
+//
+//   "meshes": {"leaves": {"file": "leaves.off", "alpha": {"pattern": "checker", "cells": 4}}}
 #pragma once
 
 #include <string>

@@ -17,8 +17,11 @@ enum class StepKind : uint8_t {
     Triangle = 1,   // fetch one triangle, then one ray-triangle test (`count` 1)
     Transform = 2,  // fetch an instance record, then move the ray into the instance's object
                     // space (two-level scenes, workloads/instances.h; `count` 1)
+    AnyHit = 3,     // a candidate hit on non-opaque geometry handed back to the core: its any-hit
+                    // shader's instructions, its read of the triangle's alpha data (none when the
+                    // record is 0 bytes), and the shader's latency (workloads/alpha.h; `count` 1)
 };
-constexpr int kStepKinds = 3;
+constexpr int kStepKinds = 4;
 
 struct StepKindInfo {
     const char* name;  // "node"
@@ -31,6 +34,7 @@ inline constexpr StepKindInfo kStepKindInfo[kStepKinds] = {
     {"node", "box_unit"},
     {"triangle", "triangle_unit"},
     {"transform", "transform_unit"},
+    {"any_hit", "any_hit_shader"},
 };
 constexpr const StepKindInfo& step_kind_info(StepKind kind) {
     return kStepKindInfo[int(kind)];

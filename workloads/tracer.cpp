@@ -19,6 +19,7 @@ struct NullSink {
     void node(const BvhLayout&, uint32_t, uint8_t) {}
     void tri(const BvhLayout&, uint32_t) {}
     void transform(uint32_t) {}
+    void any_hit(const BvhLayout&, uint32_t) {}
     void enter_blas(uint32_t, uint32_t) {}
     void leave_blas() {}
 };
@@ -67,6 +68,10 @@ struct GlobalSink {
         out->push_back(global->transform_step(record));
         out->back().stack = stack;
         stack &= uint8_t(~kStackPopped);
+    }
+    void any_hit(const BvhLayout&, uint32_t slot) {
+        out->push_back(global->any_hit_step(slot + tri_offset));
+        out->back().stack = stack;
     }
     void enter_blas(uint32_t nodes, uint32_t tris) {
         node_offset = nodes;
@@ -264,20 +269,65 @@ inline bool test_leaf(const Bvh& bvh, const RayPrecomp& rp, const Ray& ray, bool
     return false;
 }
 
+// A leaf of a non-opaque instance's triangles (slots first .. first+count-1), tested one by one
+// in slot order: each triangle hit nearer than the best hit so far is a candidate for the
+// any-hit shader (a triangle step, then an any-hit step), which commits it if the alpha mask
+// accepts it (ending an any-hit query) and otherwise lets traversal go on. Returns true when an
+// any-hit query found its hit. The four-wide test gives the same hits as the scalar one, so the
+// candidates are those of testing one triangle at a time.
+template <class Sink, class Counters>
+inline bool test_leaf_alpha(const Bvh& bvh, const RayPrecomp& rp, const Ray& ray, bool any,
+                            uint32_t first, uint32_t count, Hit& hit, Sink& sink, Counters& c,
+                            const AlphaMask& alpha) {
+    uint32_t block = bvh.leaf_block[first];
+    for (uint32_t base = 0; base < count; base += 4, ++block) {
+        const int lanes = int(std::min<uint32_t>(4, count - base));
+        alignas(16) float t[4], u[4], v[4];
+        const int mask = intersect_tri4(rp, bvh.tri4[block], lanes, ray.tmin, hit.t, t, u, v);
+        for (int l = 0; l < lanes; ++l) {
+            const uint32_t slot = first + base + l;
+            sink.tri(bvh.layout, slot);
+            c.tri_tests++;
+            Hit candidate = hit;
+            if (mask < 0) {  // a lane on an edge: the scalar test decides
+                const auto& tv = bvh.tri_verts[slot];
+                if (!intersect_triangle(rp, tv[0], tv[1], tv[2], ray.tmin, candidate)) continue;
+            } else {
+                if (!((mask >> l) & 1) || !(t[l] < hit.t)) continue;
+                candidate.t = t[l];
+                candidate.u = u[l];
+                candidate.v = v[l];
+            }
+            const uint32_t prim = bvh.prim_order[slot];
+            sink.any_hit(bvh.layout, slot);
+            c.any_hits++;
+            if (!alpha.accepts(prim, candidate.u, candidate.v)) continue;
+            candidate.prim = prim;
+            hit = candidate;
+            if (any) return true;
+        }
+    }
+    return false;
+}
+
 struct TriangleLeaf {};
+struct AlphaLeaf {
+    const AlphaMask* alpha;
+};
 
 // Counting is compiled out of the fastest path (no counters requested).
 struct NoCounters {
-    uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0;  // never read: optimised away
+    // never read: optimised away
+    uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0, any_hits = 0;
 };
 
 // Traverses from `start` (the root record, or any subtree) with `hit` holding the best hit so far.
 // Reduced: the box unit's reduced-precision datapath (a template argument, so the fp32 path
 // carries no test of it).
-// Leaves of triangles (the one-level tree, and every BLAS) are tested in place; any other `leaf`
-// is called as leaf(first, count, hit) (a TLAS's instances) and returns true when an any-hit
-// query is done. (In place, not through a closure: a closure's references cost the one-level
-// path 2-4% of its speed.)
+// Leaves of triangles (the one-level tree, and every BLAS: TriangleLeaf, or AlphaLeaf for a
+// non-opaque instance's) are tested in place; any other `leaf` is called as
+// leaf(first, count, hit) (a TLAS's instances) and returns true when an any-hit query is done. (In
+// place, not through a closure: a closure's references cost the one-level path 2-4% of its speed.)
 template <int W, bool Reduced, class Sink, class Counters, class Leaf>
 Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery query, Entry start,
              Hit hit, Sink& sink, Counters& c, Leaf& leaf) {
@@ -298,6 +348,9 @@ Hit traverse(const Bvh& bvh, const Ray& ray, const RayPrecomp& rp, HitQuery quer
             bool done;
             if constexpr (std::is_same_v<Leaf, TriangleLeaf>)
                 done = test_leaf(bvh, rp, ray, any, cur.child, cur.count, hit, sink, c);
+            else if constexpr (std::is_same_v<Leaf, AlphaLeaf>)
+                done = test_leaf_alpha(bvh, rp, ray, any, cur.child, cur.count, hit, sink, c,
+                                       *leaf.alpha);
             else
                 done = leaf(cur.child, cur.count, hit);
             if (done) {
@@ -397,10 +450,15 @@ Hit trace_two_level(const TwoLevelBvh& two, const Ray& ray, const RayPrecomp& rp
                 continue;
             Hit found;
             found.t = h.t;  // the bound: only a nearer hit replaces `h`
-            TriangleLeaf tris;
             sink.enter_blas(two.blas_node_offset[inst.mesh], two.blas_tri_offset[inst.mesh]);
-            found = dispatch_width<Reduced>(blas, local, lrp, q, Entry{0, 0, root_t}, found, sink,
-                                            c, tris);
+            const Entry root{0, 0, root_t};
+            if (inst.opaque) {
+                TriangleLeaf tris;
+                found = dispatch_width<Reduced>(blas, local, lrp, q, root, found, sink, c, tris);
+            } else {
+                AlphaLeaf tris{&two.alpha[inst.mesh]};
+                found = dispatch_width<Reduced>(blas, local, lrp, q, root, found, sink, c, tris);
+            }
             sink.leave_blas();
             if (!found.valid()) continue;
             h = found;

@@ -19,6 +19,7 @@ enum class HitQuery : uint8_t {
 
 struct TraceCounters {
     uint32_t nodes = 0, box_tests = 0, tri_tests = 0, max_stack = 0;
+    uint32_t any_hits = 0;  // any-hit shader calls (candidate hits on non-opaque instances)
 };
 
 // Traces one ray. steps (optional) receives the ordered step stream; counters (optional) the

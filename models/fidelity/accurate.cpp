@@ -698,6 +698,11 @@ void ReferenceScheduler::read_local(uint32_t c, uint32_t i, MemoryPort* port, ui
 // A request reaches its block at t.
 void ReferenceScheduler::arrive(uint32_t a, Cycle t) {
     Access& A = accesses_[a];
+    if (A.size_bytes == 0) {  // reads nothing (an any-hit shader without alpha data): done now
+        A.lines_left = 1;
+        schedule(t, kIdealDone, a);
+        return;
+    }
     if (auto* cache = dynamic_cast<Cache*>(A.node)) {
         A.first_line = cache->arrive(A.addr, A.size_bytes, t, lookup_scratch_);
         A.lines_left = uint32_t(lookup_scratch_.size());

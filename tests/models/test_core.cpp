@@ -188,6 +188,41 @@ TEST(Core, InstanceTransformStepRunsOnItsOwnUnit) {
     EXPECT_EQ(mem.addrs.size(), 4u);
 }
 
+// A candidate hit on non-opaque geometry: its triangle step, then an any-hit step that issues
+// the shader's N instructions on the core's port, reads the alpha record (memory M) and waits the
+// shader's latency S; a second call whose record is 0 bytes reads nothing. The shader's waits
+// are charged to the any-hit shader, and only the reads that have bytes reach memory.
+TEST(Core, AnyHitStepIssuesTheShaderAndWaitsItsLatency) {
+    const Cycle M = 30, T = 18, S = 20, I = 2;
+    const int N = 6;
+    test::FixedLatencyMemory mem(M);
+    PipelinedUnit box("box", UnitParams{1, 8, 1}), tri("tri", UnitParams{1, T, 1}),
+        xf("xf", UnitParams{1, 4, 1}), shader("shader", UnitParams{1, S, 1});
+    struct AlphaRay : RayWorkSource {
+        bool given = false;
+        bool next(RayWork& w, Cycle) override {
+            if (given) return false;
+            given = true;
+            w.steps = {{8192, 0, 48, StepKind::Triangle, 1},
+                       {12288, 0, 16, StepKind::AnyHit, 1},
+                       {12304, 1, 0, StepKind::AnyHit, 1}};
+            return true;
+        }
+    } src;
+    CoreParams cp;
+    cp.ray_slots = 1;
+    cp.issue_latency_cycles = I;
+    cp.step_instructions[int(StepKind::AnyHit)] = N;
+    Core core("core", cp, {&mem, &mem, &mem, &mem}, {&box, &tri, &xf, &shader}, &src);
+    CoreScheduler sched("sched", {&core});
+    sc_core::sc_start();
+    EXPECT_EQ(core.last_cycle, I + (I + M + T) + (N - 1 + I + M + S) + (N - 1 + I + S));
+    EXPECT_EQ(shader.ops, 2u);
+    EXPECT_EQ(tri.ops, 1u);
+    EXPECT_EQ(core.stall_cycles[Core::kUnitStall + int(StepKind::AnyHit)], 2 * S);
+    EXPECT_EQ(mem.addrs.size(), 2u);
+}
+
 // Issue width 1 serialises step issue across slots: K slots of one-step rays with free memory
 // and a unit of latency 1 finish at ~2K (setup issue + step issue per ray).
 TEST(Core, IssueWidthLimitsThroughput) {

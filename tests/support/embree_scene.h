@@ -62,8 +62,21 @@ class EmbreeScene {
     double build_seconds = 0;
 
   private:
-    // A committed Embree scene of one triangle geometry holding the mesh.
-    static RTCScene mesh_scene(RTCDevice device, const Scene& s) {
+    // Embree's any-hit callback: a candidate the alpha mask (the geometry's user data) does
+    // not accept is rejected, and traversal goes on.
+    static void alpha_filter(const RTCFilterFunctionNArguments* args) {
+        const auto* alpha = static_cast<const AlphaMask*>(args->geometryUserPtr);
+        for (unsigned i = 0; i < args->N; ++i) {
+            if (args->valid[i] != -1) continue;
+            const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+            if (!alpha->accepts(prim, RTCHitN_u(args->hit, args->N, i),
+                                RTCHitN_v(args->hit, args->N, i)))
+                args->valid[i] = 0;
+        }
+    }
+    // A committed Embree scene of one triangle geometry holding the mesh; with `alpha`, its
+    // candidates go through alpha_filter for both closest-hit and occlusion queries.
+    static RTCScene mesh_scene(RTCDevice device, const Scene& s, const AlphaMask* alpha = nullptr) {
         RTCScene scene = rtcNewScene(device);
         RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
         auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
@@ -72,6 +85,11 @@ class EmbreeScene {
         auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
             g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, s.triangles.size()));
         std::memcpy(idx, s.triangles.data(), s.triangles.size() * 12);
+        if (alpha) {
+            rtcSetGeometryUserData(g, const_cast<AlphaMask*>(alpha));
+            rtcSetGeometryIntersectFilterFunction(g, alpha_filter);
+            rtcSetGeometryOccludedFilterFunction(g, alpha_filter);
+        }
         rtcCommitGeometry(g);
         rtcAttachGeometry(scene, g);
         rtcReleaseGeometry(g);
@@ -99,17 +117,25 @@ class EmbreeScene {
 
 // The same through Embree's instancing API: one Embree scene per mesh, and a top scene of
 // instance geometries (geometry id = instance id) with each instance's row-major 3x4 transform
-// and mask.
+// and mask. A non-opaque instance uses a second scene of its mesh whose geometry has an
+// intersection filter (Embree's any-hit callback) that rejects what the mesh's alpha mask
+// rejects, at Embree's own barycentrics.
 class EmbreeInstancedScene {
   public:
     explicit EmbreeInstancedScene(const InstancedScene& s) {
         device_ = rtcNewDevice(nullptr);
-        for (const Scene& m : s.meshes) meshes_.push_back(EmbreeScene::mesh_scene(device_, m));
+        alpha_.reserve(s.meshes.size());  // filters keep pointers to these
+        for (uint32_t m = 0; m < s.meshes.size(); ++m) {
+            meshes_.push_back(EmbreeScene::mesh_scene(device_, s.meshes[m]));
+            alpha_.push_back(s.mesh_alpha(m));
+            filtered_.push_back(EmbreeScene::mesh_scene(device_, s.meshes[m], &alpha_.back()));
+        }
         top_ = rtcNewScene(device_);
         for (size_t k = 0; k < s.instances.size(); ++k) {
             const Instance& inst = s.instances[k];
             RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-            rtcSetGeometryInstancedScene(g, meshes_[inst.mesh]);
+            rtcSetGeometryInstancedScene(g,
+                                         inst.opaque ? meshes_[inst.mesh] : filtered_[inst.mesh]);
             rtcSetGeometryTimeStepCount(g, 1);
             rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
                                     inst.object_to_world.m.data());
@@ -123,6 +149,7 @@ class EmbreeInstancedScene {
     ~EmbreeInstancedScene() {
         rtcReleaseScene(top_);
         for (RTCScene m : meshes_) rtcReleaseScene(m);
+        for (RTCScene m : filtered_) rtcReleaseScene(m);
         rtcReleaseDevice(device_);
     }
     EmbreeInstancedScene(const EmbreeInstancedScene&) = delete;
@@ -160,7 +187,8 @@ class EmbreeInstancedScene {
 
   private:
     RTCDevice device_;
-    std::vector<RTCScene> meshes_;
+    std::vector<RTCScene> meshes_, filtered_;
+    std::vector<AlphaMask> alpha_;
     RTCScene top_;
 };
 

@@ -88,3 +88,50 @@ TEST(Instances, MaskedInstancesAreNeitherFetchedNorHit) {
     for (const Step& st : steps) transforms += st.kind == StepKind::Transform;
     EXPECT_EQ(transforms, 1);
 }
+
+// A non-opaque copy whose alpha mask cuts its triangle out: the ray from above tests it (triangle
+// step), hands the candidate to the any-hit shader (any-hit step on the triangle's alpha record),
+// which ignores it, and goes on to the opaque copy behind, which it hits at once (no any-hit
+// step). Made opaque again, the near copy is hit with no shader call.
+TEST(Instances, AnIgnoredCandidateLetsTraversalGoOnBehindIt) {
+    InstancedScene s = two_copies();
+    AlphaMask cut_out;
+    cut_out.pattern = AlphaPattern::Triangles;
+    cut_out.keep = 0;  // no triangle solid
+    s.alpha = {cut_out};
+    s.instances[0].opaque = false;
+    BvhLayout sizes;
+    sizes.alpha_size_bytes = 16;
+    const TwoLevelBvh two = build_two_level(s, one_per_leaf(), sizes);
+    const BvhLayout& L = two.layout;
+    ASSERT_EQ(L.alpha_count, 1u);  // one triangle slot, one alpha record
+    EXPECT_GE(L.alpha_base_addr, L.tri_base_addr + L.tri_size_bytes);
+    Ray r;
+    r.org = Vec3(0.2f, 0.2f, 10.0f);
+    r.dir = Vec3(0, 0, -1);
+    for (const HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
+        std::vector<Step> steps;
+        TraceCounters c;
+        const Hit h = trace_ray_recorded(two, r, q, steps, 0xff, &c);
+        ASSERT_TRUE(h.valid());
+        EXPECT_EQ(h.instance, 1u);
+        EXPECT_FLOAT_EQ(h.t, 15.0f);
+        EXPECT_EQ(c.any_hits, 1u);
+        std::vector<StepKind> kinds;
+        for (const Step& st : steps) kinds.push_back(st.kind);
+        const std::vector<StepKind> want = {
+            StepKind::Node,   StepKind::Transform, StepKind::Node, StepKind::Triangle,
+            StepKind::AnyHit, StepKind::Transform, StepKind::Node, StepKind::Triangle};
+        EXPECT_EQ(kinds, want);
+        EXPECT_EQ(steps[4].addr, L.alpha_base_addr);
+        EXPECT_EQ(steps[4].size_bytes, 16);
+        EXPECT_EQ(two.tlas.prim_order[steps[1].id], 0u);  // the near copy first
+    }
+    s.instances[0].opaque = true;
+    const TwoLevelBvh solid = build_two_level(s, one_per_leaf(), sizes);
+    EXPECT_EQ(solid.layout.alpha_count, 0u);  // no shader can run: no alpha region
+    TraceCounters c;
+    const Hit h = trace_ray(solid, r, HitQuery::Closest, 0xff, &c);
+    EXPECT_EQ(h.instance, 0u);
+    EXPECT_EQ(c.any_hits, 0u);
+}

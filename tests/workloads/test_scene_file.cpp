@@ -127,6 +127,17 @@ TEST(SceneFile, BadFilesGiveOneLineNamingTheField) {
          "missing.off: scene file not found"},
         {R"({"meshes": {}, "instances": [{"mesh": "t"}]})", "meshes: expected an object"},
         {R"({"meshes": {"t": "tri.off"}, "instances": [{"mesh": "t"},)", "not valid JSON"},
+        {R"({"meshes": {"t": {"file": "tri.off", "alpha": {"pattern": "stripes"}}},
+             "instances": [{"mesh": "t"}]})",
+         "meshes.t.alpha.pattern: expected \"triangles\" or \"checker\""},
+        {R"({"meshes": {"t": {"file": "tri.off", "alpha": {"pattern": "triangles",
+             "keep": 1.5}}}, "instances": [{"mesh": "t"}]})",
+         "meshes.t.alpha.keep: expected a fraction from 0 to 1"},
+        {R"({"meshes": {"t": {"file": "tri.off", "alpha": {"pattern": "triangles",
+             "cells": 4}}}, "instances": [{"mesh": "t"}]})",
+         "meshes.t.alpha: unknown field 'cells'"},
+        {R"({"meshes": {"t": {"alpha": {"pattern": "checker"}}}, "instances": [{"mesh": "t"}]})",
+         "meshes.t.file: expected a mesh file"},
     };
     int k = 0;
     for (const auto& [text, fragment] : cases) {
@@ -170,8 +181,8 @@ TEST(SceneFile, SharedMeshesAreOneBlasWithManyInstances) {
 
 TEST(SceneFile, ScenesThatWouldNotFitAreRefusedBeforeTheyAreMade) {
     one_triangle();
-    const std::string path = write_scene(
-        "big.json", R"({"meshes": {"t": "tri.off"}, "instances": [{"mesh": "t",
+    const std::string path =
+        write_scene("big.json", R"({"meshes": {"t": "tri.off"}, "instances": [{"mesh": "t",
                         "grid": {"count": [100, 100, 10], "spacing": [1, 1, 1]}}]})");
     // 100,000 copies at 600 bytes each (60 MB) against a 16 MiB limit.
     ::setenv("RTSIM_MEMORY_LIMIT", "16M", 1);
@@ -185,4 +196,36 @@ TEST(SceneFile, ScenesThatWouldNotFitAreRefusedBeforeTheyAreMade) {
     ::setenv("RTSIM_MEMORY_LIMIT", "12Q", 1);
     test::expect_input_error([&] { memory_limit_bytes(); }, "RTSIM_MEMORY_LIMIT", "got '12Q'");
     ::unsetenv("RTSIM_MEMORY_LIMIT");
+}
+
+// A mesh with an alpha mask makes its instances non-opaque unless they say otherwise; a mesh
+// without one keeps them opaque unless they say otherwise.
+TEST(SceneFile, AlphaMasksMakeTheirMeshesInstancesNonOpaque) {
+    one_triangle();
+    const InstancedScene s = load_scene_file(write_scene("alpha.json", R"({"meshes": {
+            "leaf": {"file": "tri.off", "alpha": {"pattern": "checker", "cells": 8}},
+            "hole": {"file": "tri.off", "alpha": {"pattern": "triangles", "keep": 0.25,
+                                                  "seed": 9}},
+            "plain": "tri.off"},
+        "instances": [{"mesh": "leaf"}, {"mesh": "leaf", "opaque": true}, {"mesh": "hole"},
+                      {"mesh": "plain"}, {"mesh": "plain", "opaque": false}]})"));
+    ASSERT_EQ(s.alpha.size(), 3u);
+    EXPECT_EQ(s.alpha[0].pattern, AlphaPattern::Checker);
+    EXPECT_EQ(s.alpha[0].cells, 8u);
+    EXPECT_EQ(s.alpha[1].pattern, AlphaPattern::Triangles);
+    EXPECT_EQ(s.alpha[1].keep, 0.25);
+    EXPECT_EQ(s.alpha[1].seed, 9u);
+    EXPECT_EQ(s.alpha[2].pattern, AlphaPattern::None);
+    const bool opaque[] = {false, true, false, true, false};
+    for (size_t k = 0; k < 5; ++k) EXPECT_EQ(s.instances[k].opaque, opaque[k]) << k;
+    // The masks are part of the scene's content (BVH caches, traces): another cell count is
+    // another scene.
+    const InstancedScene t = load_scene_file(write_scene("alpha2.json", R"({"meshes": {
+            "leaf": {"file": "tri.off", "alpha": {"pattern": "checker", "cells": 4}},
+            "hole": {"file": "tri.off", "alpha": {"pattern": "triangles", "keep": 0.25,
+                                                  "seed": 9}},
+            "plain": "tri.off"},
+        "instances": [{"mesh": "leaf"}, {"mesh": "leaf", "opaque": true}, {"mesh": "hole"},
+                      {"mesh": "plain"}, {"mesh": "plain", "opaque": false}]})"));
+    EXPECT_NE(s.content_hash(), t.content_hash());
 }
