@@ -5,8 +5,14 @@ N*N copies (one BVH over all of it), on the same rays and chip. Per grid: prepar
 peak memory, cycles, DRAM bytes per ray (and the instance records' share), L2 hit rate, box and
 transform unit utilisation.
 
+Then the alpha-tested case: the --alpha-grid grid with its mesh cut out by a checker alpha mask
+(so every candidate hit runs the any-hit shader), against the same instances opaque, with the
+shader's latency swept (--shader-latencies) and once without an alpha read: any-hit calls per
+ray, hits, cycles over the opaque run, the shader's share of ray-slot stalls and alpha DRAM bytes.
+
     scripts/bench_instancing.py [--rtsim build/rtsim] [--mesh armadillo] [--grids 2,4,8]
         [--res 256x256] [--rays primary,ao] [--set KEY=VALUE] [--out bench/results]
+        [--alpha-grid 4] [--shader-latencies 5,20,80,320]
 
 Writes bench/results/instancing.md (every run's figures to out/bench/instancing.json).
 """
@@ -48,6 +54,20 @@ def grid_files(mesh_path, n, folder):
     return scene, flat, len(faces)
 
 
+def alpha_grid_file(mesh_path, n, folder, opaque):
+    """The n x n grid as a scene file whose mesh carries a checker alpha mask (2 x 2 squares per
+    triangle: half of every triangle cut out); `opaque` makes the instances skip the shader."""
+    scene, _, tris = grid_files(mesh_path, n, folder)
+    with open(scene) as f:
+        doc = json.load(f)
+    doc["meshes"]["m"] = {"file": mesh_path, "alpha": {"pattern": "checker", "cells": 2}}
+    doc["instances"][0]["opaque"] = opaque
+    path = os.path.join(folder, f"alpha{n}_{'opaque' if opaque else 'masked'}.json")
+    with open(path, "w") as f:
+        json.dump(doc, f)
+    return path, tris
+
+
 def figures(s):
     rays = s["rays"]["total"]
     by = s["bandwidth"]["dram"]["by_region"]
@@ -60,6 +80,9 @@ def figures(s):
             "l2_hit_rate": s["caches"]["l2"]["hit_rate"],
             "box_util": units["box_unit_total"]["utilization"],
             "transform_util": units.get("transform_unit_total", {}).get("utilization", 0.0),
+            "any_hit_calls": units.get("any_hit_shader_total", {}).get("ops", 0),
+            "any_hit_stall_share": s["stalls"]["total"]["share"].get("any_hit_shader", 0.0),
+            "alpha_bytes_per_ray": by.get("alpha", {}).get("read_bytes", 0) / rays,
             "prepare_s": s["host"]["prepare_s"], "peak_rss_mib": s["host"]["peak_rss_mib"]}
 
 
@@ -72,6 +95,8 @@ def main():
     ap.add_argument("--rays", default="primary,ao")
     ap.add_argument("--set", action="append", default=[])
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
+    ap.add_argument("--alpha-grid", type=int, default=4)
+    ap.add_argument("--shader-latencies", default="5,20,80,320")
     a = ap.parse_args()
     mesh = SCENES.get(a.mesh, a.mesh)
     if not mesh.endswith(".off"):
@@ -101,15 +126,48 @@ def main():
                         f" | {100 * i['box_util']:.1f}% / {100 * f['box_util']:.1f}%"
                         f" | {100 * i['transform_util']:.2f}% |")
             print(rows[-1], flush=True)
+        # The alpha-tested grid: opaque, then masked at each shader latency, then without reads.
+        n = a.alpha_grid
+        opaque_scene, tris = alpha_grid_file(mesh, n, tmp, True)
+        masked_scene, _ = alpha_grid_file(mesh, n, tmp, False)
+        runs = [("opaque", opaque_scene, [])]
+        for lat in (int(x) for x in a.shader_latencies.split(",")):
+            runs.append((f"latency {lat}", masked_scene,
+                         ["--set", f"any_hit_shader.latency_cycles={lat}"]))
+        runs.append(("latency 20, no alpha read", masked_scene,
+                     ["--set", "any_hit_shader.alpha_read_bytes=0"]))
+        alpha_rows, base = [], None
+        for label, path, extra in runs:
+            s = run_stats(a.rtsim, common + ["--scene", path] + extra,
+                          os.path.join(tmp, "alpha_" + label.replace(" ", "_").replace(",", "")),
+                          "bench_instancing")
+            f = figures(s)
+            cells.append({"alpha_grid": n, "case": label, **f})
+            base = base or f
+            alpha_rows.append(
+                f"| {label} | {f['any_hit_calls'] / f['rays']:.2f} | {f['hits']}"
+                f" | {f['cycles']:,} | {f['cycles'] / base['cycles']:.3f}"
+                f" | {100 * f['any_hit_stall_share']:.1f}%"
+                f" | {f['alpha_bytes_per_ray']:.2f} | {f['dram_bytes_per_ray']:.1f} |")
+            print(alpha_rows[-1], flush=True)
     text = (f"# Instanced against flattened (scripts/bench_instancing.py)\n\n"
             f"{a.mesh} in N x N grids, {a.res}, rays {a.rays}, default chip"
             f"{' with ' + ' '.join(a.set) if a.set else ''}; each pair of figures is instanced / "
             f"flattened (one mesh of all the copies). Prepare: scene reading and BVH builds, "
             f"no cache. Cycles: instanced over flattened.\n\n"
-            "| grid | triangles (flattened) | hits | steps/ray | prepare s | peak MiB | cycles ratio | "
+            "| grid | triangles (flattened) | hits | steps/ray | prepare s | peak MiB "
+            "| cycles ratio | "
             "DRAM B/ray | instance records B/ray | L2 hit rate | box unit busy | "
             "transform unit busy |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-            + "\n".join(rows) + "\n")
+            + "\n".join(rows) + "\n\n"
+            f"## Alpha-tested ({a.mesh} {n}x{n}, {tris * n * n:,} instanced triangles)\n\n"
+            "The grid's mesh cut out by a checker alpha mask (2 x 2 squares per triangle in "
+            "barycentric space), so every candidate hit runs the any-hit shader "
+            "(core.any_hit_step_instructions 8, a 16-byte alpha read, then the shader's latency), "
+            "against the same instances opaque. Cycles ratio: over the opaque run.\n\n"
+            "| case | any-hit calls/ray | hits | cycles | cycles ratio | any-hit shader stall share"
+            " | alpha DRAM B/ray | DRAM B/ray |\n|---|---|---|---|---|---|---|---|\n"
+            + "\n".join(alpha_rows) + "\n")
     write_results(a.out, "instancing", text, cells)
 
 

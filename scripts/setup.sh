@@ -58,6 +58,25 @@ if [ ! -f "$mesh_dir/.done" ]; then
     touch "$mesh_dir/.done"
 fi
 
+# assimp-testmodels ships glTF assets whose nodes share meshes (the milk truck's wheels, an
+# engine of 115 placed parts): the instancing tests and bench read them. Unpacked likewise, and
+# only those files kept.
+model_dir=".cache/meshes/assimp"
+if [ ! -f "$model_dir/.done" ]; then
+    echo "[setup] fetching assimp-testmodels glTF assets into $model_dir"
+    tmp="$(mktemp -d)"
+    (cd "$tmp" && apt-get download assimp-testmodels >/dev/null 2>&1) ||
+        { apt_update_once && (cd "$tmp" && apt-get download assimp-testmodels >/dev/null 2>&1); } ||
+        { echo "[setup] cannot download assimp-testmodels (needed for the glTF tests)" >&2; exit 1; }
+    dpkg -x "$tmp"/assimp-testmodels_*.deb "$tmp/x"
+    models="$tmp/x/usr/share/assimp/models"
+    mkdir -p "$model_dir"
+    cp "$models"/glTF/CesiumMilkTruck/CesiumMilkTruck.{gltf,bin} "$model_dir"/
+    cp "$models"/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb "$model_dir"/
+    rm -rf "$tmp"
+    touch "$model_dir/.done"
+fi
+
 cmake -S . -B "$build_dir" -DCMAKE_BUILD_TYPE=Release -DRTSIM_SANITIZE="${RTSIM_SANITIZE:-OFF}" >/dev/null
 # A user who only runs needs the simulator (and its assimp module), not the test programs.
 targets=()

@@ -118,11 +118,13 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     return sp;
 }
 
-// A scene file (workloads/scene_file.h): its meshes' BLASes and the TLAS over its instances,
+// A scene of instances (a scene file, workloads/scene_file.h, or a mesh file whose nodes share
+// meshes: `loaded`, read in `loaded_s`): its meshes' BLASes and the TLAS over its instances,
 // built as the config's bvh section says, traced on the fly. What two-level scenes do not have
 // yet is refused before anything runs.
 void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
-                       const SamplingParams* sampling, Workload& w) {
+                       const SamplingParams* sampling, Workload& w,
+                       std::unique_ptr<InstancedScene> loaded = nullptr, double loaded_s = 0) {
     const std::string& file = opt.workload.scene;
     if (sampling)
         throw InputError(fmt::format(
@@ -133,10 +135,11 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
             fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level",
                         cfg.typed.traversal.mode, file));
     const auto t0 = std::chrono::steady_clock::now();
-    w.instanced = std::make_unique<InstancedScene>(load_scene_file(file));
+    w.instanced =
+        loaded ? std::move(loaded) : std::make_unique<InstancedScene>(load_scene_file(file));
     const auto t1 = std::chrono::steady_clock::now();
     w.two = std::make_unique<TwoLevelBvh>(build_two_level_from_config(cfg, *w.instanced));
-    w.scene_file_s = std::chrono::duration<double>(t1 - t0).count();
+    w.scene_file_s = std::chrono::duration<double>(t1 - t0).count() + loaded_s;
     w.two_level_build_s = seconds_since(t1);
     w.gen = std::make_unique<RayGenerator>(*w.instanced, *w.two, opt.workload.gen);
     w.meta = {{"scene", scene_summary(*w.instanced)},
@@ -170,8 +173,15 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
         prepare_two_level(opt, cfg, progress, sampling, w);
         return w;
     }
-    w.scene =
-        std::make_unique<Scene>(load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache));
+    auto shared_meshes = std::make_unique<InstancedScene>();
+    w.scene = std::make_unique<Scene>(
+        load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache, shared_meshes.get()));
+    if (!shared_meshes->instances.empty()) {  // a glTF's shared meshes: kept as instances
+        w.scene.reset();
+        prepare_two_level(opt, cfg, progress, sampling, w, std::move(shared_meshes),
+                          w.mesh_cache.seconds);
+        return w;
+    }
     w.bvh = std::make_unique<Bvh>(
         build_bvh_from_config(cfg, *w.scene, cache_dir, &w.bvh_cache, w.mesh_cache.scene_hash));
     w.gen = std::make_unique<RayGenerator>(*w.scene, *w.bvh, rg);

@@ -106,10 +106,12 @@ class TraceJob {
         : opt_(opt),
           cfg_(load_config(opt.config_path, opt.sets)),
           reader_(opt.rays_file.empty() ? nullptr : std::make_unique<RayFileReader>(opt.rays_file)),
-          instanced_(is_scene_file(opt.workload.scene)),
-          scene_(instanced_
+          scene_file_(is_scene_file(opt.workload.scene)),
+          scene_(scene_file_
                      ? Scene()
-                     : load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache))),
+                     : load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache),
+                                         &mesh_status_, &iscene_)),
+          instanced_(scene_file_ || !iscene_.instances.empty()),
           bvh_(instanced_
                    ? Bvh()
                    : build_bvh_from_config(cfg_, scene_, resolve_bvh_cache_dir(opt.bvh_cache))),
@@ -159,10 +161,11 @@ class TraceJob {
                 "--hits (CSV)",
                 file));
         const auto t0 = SteadyClock::now();
-        iscene_ = load_scene_file(file);
+        if (scene_file_) iscene_ = load_scene_file(file);  // (else read with the mesh)
         const auto t1 = SteadyClock::now();
         two_ = build_two_level_from_config(cfg_, iscene_);
-        load_seconds_ = std::chrono::duration<double>(t1 - t0).count();
+        load_seconds_ = std::chrono::duration<double>(t1 - t0).count() +
+                        (scene_file_ ? 0.0 : mesh_status_.seconds);
         build_seconds_ = seconds_since(t1);
     }
 
@@ -306,10 +309,11 @@ class TraceJob {
                                      ray_kind_name(RayKind(k)), by_kind_[k]);
         if (instanced_)
             fmt::print(
-                "rtsim trace  scene {} ({} meshes, {} triangles; {} instances, {} instanced "
+                "rtsim trace  scene {} ({} mesh{}, {} triangles; {} instances, {} instanced "
                 "triangles), read in {:.3f} s; {} BVH{} over two levels, built in {:.3f} s\n",
-                iscene_.name, iscene_.meshes.size(), iscene_.unique_triangle_count(),
-                iscene_.instances.size(), iscene_.instanced_triangle_count(), load_seconds_,
+                iscene_.name, iscene_.meshes.size(), iscene_.meshes.size() == 1 ? "" : "es",
+                iscene_.unique_triangle_count(), iscene_.instances.size(),
+                iscene_.instanced_triangle_count(), load_seconds_,
                 bvh_builder_name(two_.options.builder), two_.options.width, build_seconds_);
         else
             fmt::print(
@@ -357,10 +361,13 @@ class TraceJob {
     const TraceOptions& opt_;
     const Config cfg_;
     std::unique_ptr<RayFileReader> reader_;
-    const bool instanced_;  // a scene file: iscene_ and two_ instead of scene_ and bvh_
-    const Scene scene_;
-    const Bvh bvh_;
+    const bool scene_file_;
+    MeshCacheStatus mesh_status_;
+    // A scene of instances (a scene file, or a mesh file whose nodes share meshes).
     InstancedScene iscene_;
+    const Scene scene_;
+    const bool instanced_;  // iscene_ and two_ instead of scene_ and bvh_
+    const Bvh bvh_;
     TwoLevelBvh two_;
     double load_seconds_ = 0, build_seconds_ = 0;
     const int threads_;

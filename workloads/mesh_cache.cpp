@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // 4: arrays on 64-byte boundaries, mapped on a hit.
-constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '4'};
+constexpr char kMagic[8] = {'R', 'T', 'S', 'M', 'E', 'S', 'H', '5'};
 
 // A 64-bit hash of the file's bytes, 8 at a time (FNV-1a's step on words: a few MB hash in a
 // millisecond, where the byte-wise step takes several).
@@ -69,7 +69,8 @@ void deserialize(std::string_view bytes, uint64_t file_hash, uint64_t file_size,
 
 }  // namespace
 
-Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCacheStatus* status) {
+Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCacheStatus* status,
+                        InstancedScene* instanced) {
     const auto t0 = std::chrono::steady_clock::now();
     MeshCacheStatus local;
     MeshCacheStatus& st = status ? *status : local;
@@ -87,7 +88,7 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
     if (builtin || dir.empty() || (mapped.view().empty() && !read)) {
         // Built-in scenes are made, not read; an unreadable file gets load_scene's own error.
         st.outcome = builtin ? "builtin" : "off";
-        return done(load_scene(spec));
+        return done(load_scene(spec, instanced, nullptr));
     }
     const std::string_view bytes = read ? std::string_view(*read) : mapped.view();
     const uint64_t hash = hash_bytes(bytes), size = bytes.size();
@@ -112,7 +113,12 @@ Scene load_scene_cached(const std::string& spec, const std::string& dir, MeshCac
                              spec));
         }
     }
-    Scene s = load_scene(spec);
+    bool shared = false;
+    Scene s = load_scene(spec, instanced, &shared);
+    if (shared) {  // instances, or a flattening of them: not what an entry holds
+        st.outcome = instanced ? "instanced (not cached)" : "off: nodes share meshes";
+        return done(std::move(s));
+    }
     st.scene_hash = s.content_hash();
     store_cache_entry(path, serialize(s, hash, size, *st.scene_hash), "mesh cache entry");
     return done(std::move(s));

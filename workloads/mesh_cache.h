@@ -25,7 +25,10 @@ struct MeshCacheStatus {
 
 // load_scene through the cache in `dir` (empty: none; built-in scenes are never cached). A
 // folder that cannot be written only costs the store (a one-line warning), never the run.
+// With `instanced`, a file whose nodes share meshes keeps its instancing there (load_scene's
+// overload; the Scene returned is then empty). Such files are never cached: an entry holds a
+// flattened mesh, so a hit always means a file without shared meshes.
 Scene load_scene_cached(const std::string& spec, const std::string& dir,
-                        MeshCacheStatus* status = nullptr);
+                        MeshCacheStatus* status = nullptr, InstancedScene* instanced = nullptr);
 
 }  // namespace rtsim

@@ -18,6 +18,7 @@
 
 #include "workloads/assimp_reader.h"
 #include "workloads/error.h"
+#include "workloads/instances.h"
 
 namespace rtsim {
 
@@ -49,6 +50,11 @@ uint64_t Scene::content_hash() const {
 }
 
 Scene load_scene(const std::string& spec) {
+    return load_scene(spec, nullptr, nullptr);
+}
+
+Scene load_scene(const std::string& spec, InstancedScene* instanced, bool* shared) {
+    if (shared) *shared = false;
     constexpr const char* kBuiltin = "builtin:";
     if (spec.rfind(kBuiltin, 0) == 0) return make_builtin_scene(spec.substr(std::strlen(kBuiltin)));
 
@@ -64,7 +70,20 @@ Scene load_scene(const std::string& spec) {
     if (ext == ".off") {
         scene = read_off(spec);
     } else {
-        read_with_assimp(spec, scene);
+        bool nodes_share = false;
+        read_with_assimp(spec, scene, instanced, &nodes_share);
+        if (shared) *shared = nodes_share;
+        if (nodes_share && instanced) {
+            instanced->name = fs::path(spec).filename().string();
+            instanced->source = spec;
+            for (const Scene& m : instanced->meshes)
+                for (const Vec3& p : m.vertices)
+                    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+                        throw InputError(fmt::format(
+                            "{}: mesh '{}' has a non-finite vertex coordinate", spec, m.name));
+            instanced->validate();
+            return scene;
+        }
     }
     scene.name = fs::path(spec).filename().string();
     scene.source = spec;
@@ -171,11 +190,15 @@ RtsimAssimpRead assimp_reader(const std::string& spec) {
 
 }  // namespace
 
-void read_with_assimp(const std::string& spec, Scene& scene) {
+void read_with_assimp(const std::string& spec, Scene& scene, InstancedScene* instanced,
+                      bool* shared) {
     const RtsimAssimpRead read = assimp_reader(spec);
     const ImportWatchdog watchdog(spec);
     std::string why;
-    if (!read(spec.c_str(), &scene, &why)) {
+    bool nodes_share = false;
+    const bool ok = read(spec.c_str(), &scene, instanced, &nodes_share, &why);
+    if (shared) *shared = nodes_share;
+    if (!ok) {
         for (char& c : why)
             if (c == '\n' || c == '\r') c = ' ';
         throw InputError(

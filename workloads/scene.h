@@ -28,14 +28,23 @@ struct Scene {
     const Vec3& v(uint32_t prim, int corner) const { return vertices[triangles[prim][corner]]; }
 };
 
-// Loads "builtin:NAME" or a mesh file (OBJ, PLY, OFF, STL, anything assimp reads).
+struct InstancedScene;
+
+// Loads "builtin:NAME" or a mesh file (OBJ, PLY, OFF, STL, anything assimp reads), flattened into
+// one triangle list (every node's meshes moved by its transform).
 // Throws InputError naming the file and the problem.
 Scene load_scene(const std::string& spec);
+// The same, except that a file whose nodes share meshes (a glTF's wheels) keeps its instancing
+// when `instanced` is given: then it is filled (one mesh per shared or placed mesh, one instance
+// per node placement; validated) and the Scene returned is empty. `shared` (optional) says
+// whether the file's nodes share meshes at all.
+Scene load_scene(const std::string& spec, InstancedScene* instanced, bool* shared);
 
 // Format readers behind load_scene. OFF has its own reader (assimp rejects inline comments);
 // everything else goes through assimp. Both keep the file's face order.
 Scene read_off(const std::string& path);
-void read_with_assimp(const std::string& path, Scene& out);
+void read_with_assimp(const std::string& path, Scene& out, InstancedScene* instanced = nullptr,
+                      bool* shared = nullptr);
 
 // Procedural scenes that need no file. Throws InputError for an unknown name.
 Scene make_builtin_scene(const std::string& name);
