@@ -175,7 +175,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     }
     auto shared_meshes = std::make_unique<InstancedScene>();
     w.scene = std::make_unique<Scene>(
-        load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache, shared_meshes.get()));
+        load_scene_cached(opt.workload.scene, cache_dir, &w.mesh_cache,
+                          opt.workload.flatten ? nullptr : shared_meshes.get()));
     if (!shared_meshes->instances.empty()) {  // a glTF's shared meshes: kept as instances
         w.scene.reset();
         prepare_two_level(opt, cfg, progress, sampling, w, std::move(shared_meshes),

@@ -110,7 +110,7 @@ class TraceJob {
           scene_(scene_file_
                      ? Scene()
                      : load_scene_cached(opt.workload.scene, resolve_bvh_cache_dir(opt.bvh_cache),
-                                         &mesh_status_, &iscene_)),
+                                         &mesh_status_, opt.workload.flatten ? nullptr : &iscene_)),
           instanced_(scene_file_ || !iscene_.instances.empty()),
           bvh_(instanced_
                    ? Bvh()

@@ -72,9 +72,13 @@ void WorkloadOptions::resolve() {
 
 void add_workload_options(CLI::App* cmd, WorkloadOptions& w) {
     cmd->add_option("--scene", w.scene,
-                    "Mesh file (OBJ, PLY, OFF, STL, ...), builtin:NAME (cornell, sphere), or a "
-                    "scene file of instances (.json, docs/scenes.md)")
+                    "Mesh file (OBJ, PLY, OFF, STL, glTF, ...; one whose nodes share meshes is "
+                    "read as instances), builtin:NAME (cornell, sphere), or a scene file of "
+                    "instances (.json, docs/scenes.md)")
         ->capture_default_str();
+    cmd->add_flag("--flatten", w.flatten,
+                  "Read a mesh file whose nodes share meshes as one flattened mesh (one BVH) "
+                  "instead of instances over two levels");
     cmd->add_option("--rays", w.rays,
                     "Comma list of ray kinds: primary, shadow, ao, diffuse, reflection")
         ->capture_default_str();

@@ -28,6 +28,7 @@ struct WorkloadOptions {
     std::string rays = "primary";  // parsed into gen.kinds
     std::string res = "128x128";   // parsed into gen.width, gen.height
     std::string light = "point";   // parsed into gen.light
+    bool flatten = false;          // a mesh file whose nodes share meshes: one flattened mesh
     RayGenOptions gen;
 
     // Parses the text options into `gen` and validates it. Throws InputError.

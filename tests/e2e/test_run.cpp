@@ -1676,6 +1676,13 @@ TEST(Run, GltfWithSharedMeshesRunsAsInstances) {
     EXPECT_EQ(a["bvh"]["levels"], 2);
     EXPECT_GT(a["units"]["transform_unit_total"]["ops"].get<uint64_t>(), 0u);
     EXPECT_EQ(a["counters"], b["counters"]);
+    // --flatten: one mesh of every placement, one level.
+    const fs::path flat = dir / "truck_flat";
+    ASSERT_EQ(run_rtsim("run -q --flatten " + w + " -o '" + flat.string() + "'").status, 0);
+    const nlohmann::json f = nlohmann::json::parse(slurp(flat / "stats.json"));
+    EXPECT_FALSE(f["scene"].contains("instances"));
+    EXPECT_EQ(f["scene"]["triangles"], a["scene"]["instanced_triangles"]);
+    EXPECT_EQ(f["units"]["transform_unit_total"]["ops"].get<uint64_t>(), 0u);
 }
 
 TEST(Trace, PacketsReportUtilisationAndKeepHits) {
