@@ -1,12 +1,17 @@
 #!/usr/bin/env python3
 """Tiles a triangle mesh (OFF) N x N on a grid in the XZ plane, as one OFF file: a scene whose
 BVH outgrows the L2 by a chosen factor while keeping the mesh's local structure (the treelet
-study, bench/results/treelets.md, uses a 3x3 grid of libcgal-demo's refined_elephant.off).
+study, bench/results/treelets.md, uses a 3x3 grid of libcgal-demo's refined_elephant.off), or a
+big scene for build and memory tests (11x11 refined elephants: 10.8M triangles). With OUT.json
+it writes the same grid as a scene file of N*N instances of the mesh instead (docs/scenes.md):
+100x100 elephants are 889M instanced triangles in a file of a few hundred bytes.
 
-    scripts/make_grid_scene.py MESH.off N OUT.off
+    scripts/make_grid_scene.py MESH.off N OUT.off|OUT.json
 
 Copies are 1.1 mesh extents apart, so rays between them see open space as well as geometry.
 """
+import json
+import os
 import sys
 
 
@@ -46,6 +51,15 @@ def main():
     lo = [min(v[a] for v in verts) for a in range(3)]
     hi = [max(v[a] for v in verts) for a in range(3)]
     step_x, step_z = 1.1 * (hi[0] - lo[0]), 1.1 * (hi[2] - lo[2])
+    if out.endswith(".json"):
+        scene = {"meshes": {"m": os.path.abspath(src)},
+                 "instances": [{"mesh": "m", "grid": {"count": [n, 1, n],
+                                                      "spacing": [step_x, 0, step_z]}}]}
+        with open(out + ".tmp", "w") as f:
+            json.dump(scene, f, indent=1)
+        os.replace(out + ".tmp", out)
+        print(f"{out}: {n}x{n} instances of {src}, {len(faces) * n * n} instanced triangles")
+        return
     lines = ["OFF", f"{len(verts) * n * n} {len(faces) * n * n} 0"]
     for i in range(n):
         for k in range(n):
@@ -57,7 +71,6 @@ def main():
     tmp = out + ".tmp"
     with open(tmp, "w") as f:
         f.write("\n".join(lines) + "\n")
-    import os
     os.replace(tmp, out)
     print(f"{out}: {n}x{n} copies of {src}, {len(faces) * n * n} triangles")
 

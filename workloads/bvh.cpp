@@ -1,5 +1,6 @@
 // Collapsing binary trees to BVH2/4/8, the memory layout, and quality figures.
 #include "workloads/bvh.h"
+#include "workloads/huge_pages.h"
 
 #include <fmt/format.h>
 #include <algorithm>
@@ -127,7 +128,7 @@ class Collapser {
 
     void run() {
         out_.clear();
-        out_.reserve(in_.nodes.size() / (W - 1) + 1);
+        reserve_huge(out_, in_.nodes.size() / (W - 1) + 1);
         if (in_.nodes[0].is_leaf()) {
             // A tree that is one leaf still gets a root record, so traversal always starts at one.
             std::vector<uint32_t> only = {0};
@@ -315,8 +316,13 @@ template <int W>
 void build_tri_blocks(const std::vector<WideNode<W>>& nodes,
                       const std::vector<std::array<Vec3, 3>>& tri_verts,
                       std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4) {
+    reserve_huge(leaf_block, tri_verts.size());
     leaf_block.assign(tri_verts.size(), 0);
     tri4.clear();
+    size_t blocks = 0;  // counted first: grown block by block, the array was copied ~20 times
+    for (const WideNode<W>& n : nodes)
+        for (int l = 0; l < n.num; ++l) blocks += (n.count[l] + 3) / 4;
+    reserve_huge(tri4, blocks);
     for (const WideNode<W>& n : nodes)
         for (int l = 0; l < n.num; ++l) {
             if (!n.count[l]) continue;
@@ -340,9 +346,14 @@ void lay_out(BinaryBvh& bin, bool quantize, const Scene& scene, MappableArray<Wi
              Bvh& bvh) {
     std::vector<WideNode<W>> nodes;
     Collapser<W>(bin, nodes, quantize).run();
+    // The binary tree is done with: freed before the triangle arrays are made, it no longer
+    // sits in the build's peak (36 bytes per node, two nodes per triangle).
+    std::vector<BinaryNode>().swap(bin.nodes);
     std::vector<uint32_t> prim_order = std::move(bin.prim_order);
     if (bvh.options.treelet_bytes > 0) cut_treelets(nodes, prim_order, bvh.layout);
-    std::vector<std::array<Vec3, 3>> tri_verts(prim_order.size());
+    std::vector<std::array<Vec3, 3>> tri_verts;
+    reserve_huge(tri_verts, prim_order.size());
+    tri_verts.resize(prim_order.size());
     for (size_t s = 0; s < prim_order.size(); ++s)
         for (int c = 0; c < 3; ++c) tri_verts[s][c] = scene.v(prim_order[s], c);
     std::vector<uint32_t> leaf_block;

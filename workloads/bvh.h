@@ -47,6 +47,8 @@ struct BvhBuildOptions {
     // boxes a traversal of this tree enters. 23 bits: fp32 (and no translation).
     int box_mantissa_bits = 23;
     bool box_translate_origin = true;
+    // Nor is this: host threads of the SAH build (0: all); the tree is the same for any count.
+    int build_threads = 0;
 };
 
 // Stated record size of an uncompressed node of `width` children: per child a 24-byte box and a

@@ -2,9 +2,12 @@
 #include <fmt/format.h>
 #include <algorithm>
 #include <cstring>
+#include <future>
 
 #include "workloads/bvh.h"
 #include "workloads/error.h"
+#include "workloads/huge_pages.h"
+#include "workloads/parallel.h"
 
 namespace rtsim {
 namespace {
@@ -13,12 +16,12 @@ namespace {
 constexpr uint32_t kMaxSahDepth = 64;
 
 // Appends two children to nodes[index] and returns the first one's index.
-uint32_t append_children(BinaryBvh& bvh, uint32_t index) {
-    const auto left = static_cast<uint32_t>(bvh.nodes.size());
-    bvh.nodes.emplace_back();
-    bvh.nodes.emplace_back();
-    bvh.nodes[index].a = left;
-    bvh.nodes[index].b = left + 1;
+uint32_t append_children(std::vector<BinaryNode>& nodes, uint32_t index) {
+    const auto left = static_cast<uint32_t>(nodes.size());
+    nodes.emplace_back();
+    nodes.emplace_back();
+    nodes[index].a = left;
+    nodes[index].b = left + 1;
     return left;
 }
 
@@ -28,9 +31,15 @@ struct BuildPrim {
     uint32_t id;
 };
 
+// Binned SAH, top-down. Large subtrees are built on threads of their own into arrays of their
+// own and spliced in the order the serial recursion numbers nodes (a node's two children
+// appended together, then the left child's subtree, then the right's), so the tree is the same
+// bit for bit for any thread count: each node's split depends only on its own primitives, and
+// the subtrees partition disjoint ranges of them.
 class SahBuilder {
   public:
     SahBuilder(const Scene& scene, const BvhBuildOptions& opt) : opt_(opt) {
+        reserve_huge(prims_, scene.triangle_count());
         prims_.resize(scene.triangle_count());
         for (uint32_t i = 0; i < prims_.size(); ++i) {
             prims_[i].box = scene.triangle_bounds(i);
@@ -41,9 +50,14 @@ class SahBuilder {
 
     void build(BinaryBvh& bvh) {
         bvh.nodes.clear();
-        bvh.nodes.reserve(2 * prims_.size());
+        reserve_huge(bvh.nodes, 2 * prims_.size());
         bvh.nodes.emplace_back();
-        build_node(bvh, 0, 0, static_cast<uint32_t>(prims_.size()), 0);
+        // Subtrees split off to threads down to this many levels: about four per host thread.
+        int levels = 0;
+        for (int t = resolve_threads(opt_.build_threads); (1 << levels) < 4 * t && t > 1;) ++levels;
+        Scratch scratch(opt_.sah_buckets);
+        build_node(bvh.nodes, 0, 0, static_cast<uint32_t>(prims_.size()), 0, scratch, levels);
+        reserve_huge(bvh.prim_order, prims_.size());
         bvh.prim_order.resize(prims_.size());
         for (size_t i = 0; i < prims_.size(); ++i) bvh.prim_order[i] = prims_[i].id;
     }
@@ -53,22 +67,35 @@ class SahBuilder {
         AABB box;
         uint32_t count = 0;
     };
+    // A node's binning tables, reused by every node one thread builds (allocated per node, they
+    // were millions of allocations in a large build).
+    struct Scratch {
+        explicit Scratch(int buckets)
+            : buckets(size_t(buckets)), right_area(size_t(buckets)), right_count(size_t(buckets)) {}
+        std::vector<Bucket> buckets;
+        std::vector<float> right_area;
+        std::vector<uint32_t> right_count;
+    };
+    // Subtrees smaller than this are not worth a thread.
+    static constexpr uint32_t kParallelPrims = 32768;
 
     void make_leaf(BinaryNode& node, uint32_t begin, uint32_t end) {
         node.a = begin;
         node.prim_count = end - begin;
     }
 
-    // Builds nodes[index] over prims_[begin, end); children are appended to bvh.nodes.
-    void build_node(BinaryBvh& bvh, uint32_t index, uint32_t begin, uint32_t end, uint32_t depth) {
+    // Builds nodes[index] over prims_[begin, end); children are appended to `nodes`. `levels`:
+    // how many more levels may hand a subtree to a thread of its own.
+    void build_node(std::vector<BinaryNode>& nodes, uint32_t index, uint32_t begin, uint32_t end,
+                    uint32_t depth, Scratch& sc, int levels) {
         AABB box, cbox;
         for (uint32_t i = begin; i < end; ++i) {
             box.grow(prims_[i].box);
             cbox.grow(prims_[i].centroid);
         }
-        bvh.nodes[index].box = box;
+        nodes[index].box = box;
         const uint32_t n = end - begin;
-        if (n == 1) return make_leaf(bvh.nodes[index], begin, end);
+        if (n == 1) return make_leaf(nodes[index], begin, end);
 
         uint32_t mid = begin;
         const int axis = max_axis(cbox.extent());
@@ -76,11 +103,12 @@ class SahBuilder {
         if (!(ext > 0.0f) || depth >= kMaxSahDepth) {
             // Centroids coincide (SAH cannot separate them) or the tree is pathologically deep:
             // split by index, which bounds both leaf size and the traversal stack.
-            if (n <= uint32_t(opt_.max_leaf_size)) return make_leaf(bvh.nodes[index], begin, end);
+            if (n <= uint32_t(opt_.max_leaf_size)) return make_leaf(nodes[index], begin, end);
             mid = begin + n / 2;
         } else {
             const int nb = opt_.sah_buckets;
-            std::vector<Bucket> buckets(nb);
+            std::vector<Bucket>& buckets = sc.buckets;
+            std::fill(buckets.begin(), buckets.end(), Bucket());
             auto bucket_of = [&](const BuildPrim& p) {
                 int b = static_cast<int>(nb * ((p.centroid[axis] - lo) / ext));
                 return std::clamp(b, 0, nb - 1);
@@ -91,8 +119,8 @@ class SahBuilder {
                 bk.box.grow(prims_[i].box);
             }
             // Sweep from the right to get suffix areas, then from the left to evaluate B-1 planes.
-            std::vector<float> right_area(nb);
-            std::vector<uint32_t> right_count(nb);
+            std::vector<float>& right_area = sc.right_area;
+            std::vector<uint32_t>& right_count = sc.right_count;
             AABB acc;
             uint32_t cnt = 0;
             for (int b = nb - 1; b > 0; --b) {
@@ -120,7 +148,7 @@ class SahBuilder {
             }
             const float leaf_cost = opt_.intersection_cost * n;
             if (n <= uint32_t(opt_.max_leaf_size) && (best_plane < 0 || leaf_cost <= best_cost))
-                return make_leaf(bvh.nodes[index], begin, end);
+                return make_leaf(nodes[index], begin, end);
             if (best_plane < 0) {
                 mid = begin + n / 2;
             } else {
@@ -131,9 +159,48 @@ class SahBuilder {
                 if (mid == begin || mid == end) mid = begin + n / 2;
             }
         }
-        const uint32_t left = append_children(bvh, index);
-        build_node(bvh, left, begin, mid, depth + 1);
-        build_node(bvh, left + 1, mid, end, depth + 1);
+        if (levels > 0 && mid - begin >= kParallelPrims && end - mid >= kParallelPrims)
+            return build_children_apart(nodes, index, begin, mid, end, depth, sc, levels - 1);
+        const uint32_t left = append_children(nodes, index);
+        build_node(nodes, left, begin, mid, depth + 1, sc, levels);
+        build_node(nodes, left + 1, mid, end, depth + 1, sc, levels);
+    }
+
+    // The two children's subtrees, the right one on a thread of its own, each into an array whose
+    // first node is its root; then appended as the serial recursion would have made them.
+    void build_children_apart(std::vector<BinaryNode>& nodes, uint32_t index, uint32_t begin,
+                              uint32_t mid, uint32_t end, uint32_t depth, Scratch& sc, int levels) {
+        std::vector<BinaryNode> lnodes, rnodes;
+        reserve_huge(lnodes, 2 * size_t(mid - begin));
+        reserve_huge(rnodes, 2 * size_t(end - mid));
+        lnodes.emplace_back();
+        rnodes.emplace_back();
+        auto right = std::async(std::launch::async, [&] {
+            Scratch own(opt_.sah_buckets);
+            build_node(rnodes, 0, mid, end, depth + 1, own, levels);
+        });
+        build_node(lnodes, 0, begin, mid, depth + 1, sc, levels);
+        right.get();
+        const uint32_t left = append_children(nodes, index);
+        const auto base = uint32_t(nodes.size());
+        const auto after_left = uint32_t(base + lnodes.size() - 1);
+        auto splice = [&nodes](const std::vector<BinaryNode>& part, uint32_t root_at,
+                               uint32_t rest_at) {
+            auto moved = [&](uint32_t k) { return k == 0 ? root_at : rest_at + k - 1; };
+            for (size_t k = 0; k < part.size(); ++k) {
+                BinaryNode node = part[k];
+                if (!node.is_leaf()) {
+                    node.a = moved(node.a);
+                    node.b = moved(node.b);
+                }
+                if (k == 0)
+                    nodes[root_at] = node;
+                else
+                    nodes.push_back(node);
+            }
+        };
+        splice(lnodes, left, base);
+        splice(rnodes, left + 1, after_left);
     }
 
     BvhBuildOptions opt_;
@@ -222,7 +289,7 @@ class LbvhBuilder {
                                      [&](uint32_t c) { return ((c >> bit) & 1u) == 0; });
             mid = static_cast<uint32_t>(it - sorted_codes_.begin());
         }
-        const uint32_t left = append_children(bvh, index);
+        const uint32_t left = append_children(bvh.nodes, index);
         build_node(bvh, left, begin, mid, depth + 1);
         build_node(bvh, left + 1, mid, end, depth + 1);
         AABB box = bvh.nodes[left].box;
