@@ -14,7 +14,7 @@ import subprocess
 import sys
 import zlib
 
-STEP_KINDS = ["node", "triangle"]  # by the step kind number (workloads/step.h)
+STEP_KINDS = ["node", "triangle", "transform", "any_hit"]  # by kind number (workloads/step.h)
 KINDS = ["primary", "shadow", "ao", "diffuse", "reflection"]
 
 
@@ -58,13 +58,15 @@ class Trace:
         if len(d) < 40 or d[:8] != b"RTSIMTRC":
             raise TraceError(f"{path}: not an RTSim trace")
         self.version, flags, meta_len = struct.unpack_from("<III", d, 8)
-        if self.version not in (1, 2, 3) or flags != 0:
+        if self.version not in (1, 2, 3, 4) or flags != 0:
             raise TraceError(f"{path}: unsupported version {self.version} or flags {flags}")
         meta = d[20:20 + meta_len]
         (crc,) = struct.unpack_from("<I", d, 20 + meta_len)
         if zlib.crc32(meta) != crc:
             raise TraceError(f"{path}: header metadata checksum mismatch")
         self.metadata = json.loads(meta)
+        layout = self.metadata.get("bvh", {}).get("layout", {})
+        self.has_instances = self.version >= 4 and layout.get("instance_count", 0) > 0
         if d[-8:] != b"RTSIMEND":
             raise TraceError(f"{path}: footer missing")
         (index_offset,) = struct.unpack_from("<Q", d, len(d) - 16)
@@ -125,6 +127,8 @@ class Trace:
             if prim:
                 (t,) = struct.unpack_from("<f", raw, pos)
                 pos += 4
+                if self.has_instances:  # version 4, two-level: the instance hit, plus one
+                    _, pos = read_varint(raw, pos)
             yield last_id, KINDS[kind], steps, prim - 1 if prim else -1, t
         if pos != len(raw):
             raise TraceError(f"chunk {k}: trailing bytes")
@@ -155,8 +159,9 @@ def main():
             k = by_kind.setdefault(kind, {"rays": 0, "hits": 0, "node_steps": 0, "triangle_steps": 0})
             k["rays"] += 1
             k["hits"] += prim >= 0
-            for s in steps:
-                k["node_steps" if s[0] == "node" else "triangle_steps"] += 1
+            for s in steps:  # as rtsim trace-info counts them (two-level kinds when present)
+                name = s[0] + "_steps"
+                k[name] = k.get(name, 0) + 1
         summary = {"format_version": t.version, "chunks": len(t.chunks), "rays": t.rays, "steps": t.steps,
                    "scene": t.metadata.get("scene", {}).get("name"), "by_kind": by_kind}
         if a.json:

@@ -187,8 +187,8 @@ class TraceJob {
                                 {"query", opt_.any_hit ? "any" : "closest"}};
         else
             meta["workload"] = workload_summary(opt_.workload.gen, gen_->ao_length());
-        trace_out_ =
-            std::make_unique<TraceWriter>(opt_.trace_out, meta.dump(), opt_.trace_chunk_rays);
+        trace_out_ = std::make_unique<TraceWriter>(opt_.trace_out, meta.dump(),
+                                                   opt_.trace_chunk_rays, 3, instanced_);
     }
 
     // The next batch of rays; false when there are none left.
@@ -279,6 +279,7 @@ class TraceJob {
                 r.kind = batch_.kinds[i];
                 r.prim = results_[i].prim;
                 r.t = results_[i].t;
+                r.instance = results_[i].instance;
                 trace_out_->add(r);
             }
             write_seconds_ += seconds_since(tw);

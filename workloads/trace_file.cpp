@@ -75,8 +75,11 @@ uint32_t crc32(const void* data, size_t size, uint32_t crc) {
 // Writer
 
 TraceWriter::TraceWriter(const std::string& path, const std::string& metadata_json,
-                         uint32_t rays_per_chunk, int zstd_level)
-    : out_(path), rays_per_chunk_(std::max(1u, rays_per_chunk)), level_(zstd_level) {
+                         uint32_t rays_per_chunk, int zstd_level, bool instances)
+    : out_(path),
+      rays_per_chunk_(std::max(1u, rays_per_chunk)),
+      level_(zstd_level),
+      instances_(instances) {
     std::string h(kHeaderMagic, 8);
     put_u32(h, kTraceVersion);
     put_u32(h, 0);  // flags, none defined yet
@@ -120,6 +123,8 @@ void TraceWriter::add(const TraceRecord& r) {
     } else {
         put_varint(raw_, uint64_t(r.prim) + 1);
         raw_.append(reinterpret_cast<const char*>(&r.t), 4);
+        // Version 4, two-level scenes: the instance hit, plus one (0: none).
+        if (instances_) put_varint(raw_, r.instance == kInvalidPrim ? 0 : uint64_t(r.instance) + 1);
     }
     total_steps_ += r.steps.size();
     ++total_rays_;
@@ -358,6 +363,7 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
     // Version 1's step byte: bit 0 the kind (node or triangle), bits 1-7 a node's children.
     const bool v1 = version_ == 1;
     const bool has_stack = version_ >= 3;
+    const bool has_instances = version_ >= 4 && layout_.instance_count > 0;
     const size_t rays = size_t(std::min<uint64_t>(max_rays, chunk_rays_left_));
     out.resize(rays);
     int64_t last_id = chunk_last_id_;
@@ -410,6 +416,7 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
                 step[i].stack = stack_byte(unsigned(depth), (v & 1) != 0);
             }
         }
+        rec.instance = kInvalidPrim;
         const uint64_t prim = varint();
         if (prim == 0) {
             rec.prim = kInvalidPrim;
@@ -419,6 +426,13 @@ size_t TraceReader::read_records(size_t max_rays, std::vector<TraceRecord>& out)
             if (end - p < 4) chunk_fail("record truncated in its hit");
             std::memcpy(&rec.t, p, 4);
             p += 4;
+            if (has_instances) {
+                const uint64_t inst = varint();
+                if (inst > layout_.instance_count)
+                    chunk_fail(fmt::format("ray {} hit instance {}, of {}", r, inst - 1,
+                                           layout_.instance_count));
+                rec.instance = inst == 0 ? kInvalidPrim : uint32_t(inst - 1);
+            }
         }
     }
     chunk_pos_ = size_t(p - raw_.data());

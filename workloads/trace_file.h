@@ -19,9 +19,10 @@
 
 namespace rtsim {
 
-// Version written. Version 1 (a step byte of 1 kind bit and 7 count bits) and version 2 (no
-// stack byte per step: such traces read with Step::stack 0) are still read.
-constexpr uint32_t kTraceVersion = 3;
+// Version written. Version 1 (a step byte of 1 kind bit and 7 count bits), version 2 (no
+// stack byte per step: such traces read with Step::stack 0) and version 3 (no instance per hit:
+// two-level traces read with TraceRecord::instance none) are still read.
+constexpr uint32_t kTraceVersion = 4;
 constexpr uint32_t kOldestTraceVersion = 1;
 // Step kinds version 2's 4-bit kind field can hold (this build knows kStepKinds of them).
 constexpr int kTraceStepKinds = 16;
@@ -33,6 +34,8 @@ struct TraceRecord {
     std::vector<Step> steps;  // addresses and sizes come from the layout in the header
     uint32_t prim = kInvalidPrim;
     float t = 0.0f;
+    // The instance hit, in a trace of a two-level scene (version 4 on); else none.
+    uint32_t instance = kInvalidPrim;
 };
 
 uint32_t crc32(const void* data, size_t size, uint32_t crc = 0);
@@ -41,8 +44,9 @@ class TraceWriter {
   public:
     // metadata_json: the header's JSON (scene, BVH layout, ray settings). rays_per_chunk bounds
     // the memory of a chunk. The file appears at `path` only when finish() succeeds.
+    // `instances`: the trace is of a two-level scene, and each hit records its instance.
     TraceWriter(const std::string& path, const std::string& metadata_json,
-                uint32_t rays_per_chunk = 4096, int zstd_level = 3);
+                uint32_t rays_per_chunk = 4096, int zstd_level = 3, bool instances = false);
     void add(const TraceRecord& record);
     void finish();
 
@@ -58,6 +62,7 @@ class TraceWriter {
     AtomicOutputFile out_;
     uint32_t rays_per_chunk_;
     int level_;
+    bool instances_;
     std::string raw_;  // encoded records of the open chunk
     uint32_t chunk_rays_ = 0;
     uint32_t last_ray_id_ = 0;

@@ -319,3 +319,38 @@ TEST(TraceFile, RefusedTracesReleaseTheirFiles) {
         }
     }
 }
+
+// Version 4: a trace of a two-level scene records each hit's instance, and reads it back; an
+// instance beyond the layout's instance records is damage, named as such.
+TEST(TraceFile, TwoLevelHitsKeepTheirInstance) {
+    std::vector<TraceRecord> recs = random_records(700, 29);
+    std::mt19937 rng(5);
+    for (TraceRecord& r : recs)
+        if (r.prim != kInvalidPrim) r.instance = rng() % 50;
+    const std::string path = temp_path("instances.rtt");
+    {
+        TraceWriter w(path, R"({"test": true})", 128, 3, /*instances=*/true);
+        for (const auto& r : recs) w.add(r);
+        w.finish();
+    }
+    BvhLayout L = test_layout();
+    L.instance_count = 50;
+    TraceReader reader(path);
+    reader.set_layout(L);
+    std::vector<TraceRecord> all, chunk;
+    for (size_t k = 0; k < reader.chunk_count(); ++k) {
+        reader.read_chunk(k, chunk);
+        all.insert(all.end(), chunk.begin(), chunk.end());
+    }
+    expect_same(recs, all);
+    size_t hits = 0;
+    for (size_t i = 0; i < recs.size(); ++i) {
+        EXPECT_EQ(all[i].instance, recs[i].instance) << i;
+        hits += recs[i].prim != kInvalidPrim;
+    }
+    EXPECT_GT(hits, 300u);
+    L.instance_count = 10;
+    TraceReader small(path);
+    small.set_layout(L);
+    test::expect_input_error([&] { small.read_chunk(0, chunk); }, path, "hit instance");
+}
