@@ -78,6 +78,7 @@ struct Workload {
     std::unique_ptr<InstancedScene> instanced;  // a scene file: these instead of scene and bvh
     std::unique_ptr<TwoLevelBvh> two;
     double scene_file_s = 0, two_level_build_s = 0;
+    size_t blas_cache_hits = 0;  // a scene of instances: BLASes read from the BVH cache
     std::unique_ptr<RayGenerator> gen;
     std::unique_ptr<TraceReader> reader;
     std::unique_ptr<CountingSource> source;
@@ -135,10 +136,11 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
             fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level",
                         cfg.typed.traversal.mode, file));
     const auto t0 = std::chrono::steady_clock::now();
-    w.instanced =
-        loaded ? std::move(loaded) : std::make_unique<InstancedScene>(load_scene_file(file));
+    w.instanced = loaded ? std::move(loaded)
+                         : std::make_unique<InstancedScene>(load_scene_file(file, w.cache_dir));
     const auto t1 = std::chrono::steady_clock::now();
-    w.two = std::make_unique<TwoLevelBvh>(build_two_level_from_config(cfg, *w.instanced));
+    w.two = std::make_unique<TwoLevelBvh>(
+        build_two_level_from_config(cfg, *w.instanced, w.cache_dir, &w.blas_cache_hits));
     w.scene_file_s = std::chrono::duration<double>(t1 - t0).count() + loaded_s;
     w.two_level_build_s = seconds_since(t1);
     w.gen = std::make_unique<RayGenerator>(*w.instanced, *w.two, opt.workload.gen);
@@ -471,6 +473,9 @@ int run_command(const RunOptions& opt) {
     if (w.two) {
         host.bvh_build_s = w.two_level_build_s;
         host.scene_load_s = w.scene_file_s;
+        host.bvh_cache = w.cache_dir.empty() ? "off"
+                                             : fmt::format("{} of {} BLASes hit", w.blas_cache_hits,
+                                                           w.two->blas.size());
     }
     if (w.reader) host.trace = opt.trace_path;
     json out = run_report(cfg, chip, w.meta, source, host);

@@ -161,9 +161,10 @@ class TraceJob {
                 "--hits (CSV)",
                 file));
         const auto t0 = SteadyClock::now();
-        if (scene_file_) iscene_ = load_scene_file(file);  // (else read with the mesh)
+        const std::string cache_dir = resolve_bvh_cache_dir(opt_.bvh_cache);
+        if (scene_file_) iscene_ = load_scene_file(file, cache_dir);  // (else read with the mesh)
         const auto t1 = SteadyClock::now();
-        two_ = build_two_level_from_config(cfg_, iscene_);
+        two_ = build_two_level_from_config(cfg_, iscene_, cache_dir);
         load_seconds_ = std::chrono::duration<double>(t1 - t0).count() +
                         (scene_file_ ? 0.0 : mesh_status_.seconds);
         build_seconds_ = seconds_since(t1);

@@ -47,8 +47,10 @@ BvhLayout layout_sizes_from_config(const Config& cfg) {
     return layout;
 }
 
-TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene) {
-    return build_two_level(scene, cfg.typed.bvh, layout_sizes_from_config(cfg));
+TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene,
+                                        const std::string& cache_dir, size_t* blas_cache_hits) {
+    return build_two_level(scene, cfg.typed.bvh, layout_sizes_from_config(cfg), cache_dir,
+                           blas_cache_hits);
 }
 
 std::string resolve_bvh_cache_dir(const std::string& option) {

@@ -42,8 +42,11 @@ void parse_resolution(const std::string& text, const std::string& what, int& wid
 
 // The record sizes the config gives a BVH's layout (bvh.node_size_bytes, triangle_size_bytes).
 BvhLayout layout_sizes_from_config(const Config& cfg);
-// A scene file's two levels as the config's "bvh" section asks for (not cached).
-TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene);
+// A scene of instances' two levels as the config's "bvh" section asks for, each BLAS through
+// the BVH cache in `cache_dir` (empty: none; the TLAS is always built).
+TwoLevelBvh build_two_level_from_config(const Config& cfg, const InstancedScene& scene,
+                                        const std::string& cache_dir = "",
+                                        size_t* blas_cache_hits = nullptr);
 // The BVH the config's "bvh" section asks for, through the BVH cache in `cache_dir` (empty:
 // none; workloads/bvh_cache.h). `scene_hash`: the scene's content hash if known.
 Bvh build_bvh_from_config(const Config& cfg, const Scene& scene, const std::string& cache_dir,

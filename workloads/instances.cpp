@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "workloads/bvh_cache.h"
 #include "workloads/cache_entry.h"
 #include "workloads/error.h"
 #include "workloads/memory_limit.h"
@@ -128,7 +129,8 @@ void InstancedScene::validate() const {
 }
 
 TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
-                            const BvhLayout& layout_sizes) {
+                            const BvhLayout& layout_sizes, const std::string& cache_dir,
+                            size_t* blas_cache_hits) {
     scene.validate();
     check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
                          scene.unique_triangle_count(), scene.instances.size());
@@ -140,8 +142,12 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     two.options = options;
     two.instances = scene.instances;
     for (uint32_t m = 0; m < scene.meshes.size(); ++m) two.alpha.push_back(scene.mesh_alpha(m));
-    for (const Scene& mesh : scene.meshes)
-        two.blas.push_back(build_bvh(mesh, options, layout_sizes));
+    if (blas_cache_hits) *blas_cache_hits = 0;
+    for (const Scene& mesh : scene.meshes) {
+        BvhCacheStatus status;
+        two.blas.push_back(build_bvh_cached(mesh, options, layout_sizes, cache_dir, &status));
+        if (blas_cache_hits && status.outcome == BvhCacheOutcome::Hit) ++*blas_cache_hits;
+    }
     // The TLAS is built by the same builders over a proxy scene whose triangle k spans instance
     // k's world box exactly (corners lo and hi), so its leaves' slots name instances.
     Scene proxy;

@@ -105,9 +105,13 @@ struct TwoLevelBvh {
 
 // Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size;
 // treelets are not cut across two levels yet: treelet_bytes must be 0); `layout_sizes` gives the
-// node and triangle record sizes, as build_bvh's, and the alpha data's per triangle.
+// node and triangle record sizes, as build_bvh's, and the alpha data's per triangle. With a
+// `cache_dir`, each BLAS goes through the BVH cache there (workloads/bvh_cache.h), so a scene
+// file's meshes are built once across runs; `blas_cache_hits` (optional) counts the BLASes
+// read from it.
 TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& options,
-                            const BvhLayout& layout_sizes = BvhLayout());
+                            const BvhLayout& layout_sizes = BvhLayout(),
+                            const std::string& cache_dir = "", size_t* blas_cache_hits = nullptr);
 
 // Traces one ray through both levels: hit.prim is the triangle's index in its mesh and
 // hit.instance the instance's (kNoInstance on a miss). `mask`: instances whose mask shares no

@@ -14,6 +14,7 @@
 
 #include "workloads/error.h"
 #include "workloads/memory_limit.h"
+#include "workloads/mesh_cache.h"
 
 namespace rtsim {
 
@@ -154,7 +155,7 @@ bool is_scene_file(const std::string& spec) {
     return ext == ".json";
 }
 
-InstancedScene load_scene_file(const std::string& path) {
+InstancedScene load_scene_file(const std::string& path, const std::string& cache_dir) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw InputError(fmt::format("{}: scene file not found", path));
     std::ifstream in(path);
@@ -202,7 +203,7 @@ InstancedScene load_scene_file(const std::string& path) {
             spec = (folder / spec).string();
         if (is_scene_file(spec)) rd.fail(where, "a scene file cannot be a mesh");
         mesh_index[item.key()] = uint32_t(scene.meshes.size());
-        scene.meshes.push_back(load_scene(spec));
+        scene.meshes.push_back(load_scene_cached(spec, cache_dir));
         scene.alpha.push_back(alpha);
     }
     // Without a mask anywhere, no alpha table (a scene of opaque meshes hashes as before).

@@ -28,9 +28,10 @@ namespace rtsim {
 // a count can ask of memory before the memory estimate is made.
 constexpr uint64_t kMaxSceneFileInstances = 100'000'000;
 
-// Reads a scene file; mesh paths are relative to the file's folder. Throws InputError naming the
-// file and the field at fault (`instances[3].grid.count`).
-InstancedScene load_scene_file(const std::string& path);
+// Reads a scene file; mesh paths are relative to the file's folder, and meshes are read through
+// the mesh cache in `cache_dir` (empty: none). Throws InputError naming the file and the field at
+// fault (`instances[3].grid.count`).
+InstancedScene load_scene_file(const std::string& path, const std::string& cache_dir = "");
 
 // Whether `spec` (a --scene value) names a scene file rather than a mesh: a .json path.
 bool is_scene_file(const std::string& spec);

@@ -1656,6 +1656,29 @@ TEST(Run, NonOpaqueInstancesRunTheAnyHitShaderInBothEngines) {
     EXPECT_EQ(alpha_dram(n), 0u);
 }
 
+// A scene file's meshes and BLASes go through the mesh and BVH caches: the second run reads
+// every BLAS back and simulates the same counters.
+TEST(Run, SceneFileBlasesAreCachedAcrossRuns) {
+    const fs::path dir = work_dir();
+    const fs::path scene = dir / "cached.json", cache = dir / "scene-cache";
+    fs::remove_all(cache);
+    std::ofstream(scene) << R"({"meshes": {"c": "builtin:cornell", "b": ")" RTSIM_BUNNY_OBJ R"("},
+        "instances": [{"mesh": "c"}, {"mesh": "b", "scale": 4, "grid": {"count": [2, 1, 2],
+                       "spacing": [0.6, 0, 0.6]}}]})";
+    json stats[2];
+    for (int k = 0; k < 2; ++k) {
+        const fs::path out = dir / ("cached" + std::to_string(k));
+        const Result r = run_rtsim("run -q --res 32x32 --rays primary,ao --scene '" +
+                                   scene.string() + "' --bvh-cache '" + cache.string() +
+                                   "' -o '" + out.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        stats[k] = stats_of(out);
+    }
+    EXPECT_EQ(stats[0]["host"]["bvh_cache"], "0 of 2 BLASes hit");
+    EXPECT_EQ(stats[1]["host"]["bvh_cache"], "2 of 2 BLASes hit");
+    EXPECT_EQ(stats[0]["counters"], stats[1]["counters"]);
+}
+
 // A glTF file whose nodes share meshes (the milk truck's two wheels) runs as instances: one
 // BLAS per shared mesh, an instance per node, transform steps timed; and replays exactly.
 TEST(Run, GltfWithSharedMeshesRunsAsInstances) {
