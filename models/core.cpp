@@ -130,9 +130,12 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
     load_.end[node] = span.node_addr + span.node_bytes;
     load_.next[tri] = span.tri_addr;
     load_.end[tri] = span.tri_addr + span.tri_bytes;
+    const size_t inst = size_t(StepKind::Transform);
+    load_.next[inst] = span.instance_addr;
+    load_.end[inst] = span.instance_addr + span.instance_bytes;
     set_ready(loader_, now);
     ++treelet_loads;
-    treelet_load_bytes += span.node_bytes + span.tri_bytes;
+    treelet_load_bytes += span.bytes();
     loaded_treelet_ = treelet;
 }
 

@@ -43,6 +43,8 @@ struct RayBufferParams {
 struct TreeletSpan {
     uint64_t node_addr = 0, node_bytes = 0;
     uint64_t tri_addr = 0, tri_bytes = 0;
+    uint64_t instance_addr = 0, instance_bytes = 0;  // a two-level TLAS treelet's instance records
+    uint64_t bytes() const { return node_bytes + tri_bytes + instance_bytes; }
 };
 
 class RayBuffer : public sc_core::sc_module, public WakeSource {

@@ -5,6 +5,10 @@ N*N copies (one BVH over all of it), on the same rays and chip. Per grid: prepar
 peak memory, cycles, DRAM bytes per ray (and the instance records' share), L2 hit rate, box and
 transform unit utilisation.
 
+The largest grid again with treelet queues (configs/treelet.json, prefetch on): the two-level
+scene cut into TLAS and BLAS treelets against the flattened mesh's, with the treelet loads and
+crossings per ray.
+
 Then the alpha-tested case: the --alpha-grid grid with its mesh cut out by a checker alpha mask
 (so every candidate hit runs the any-hit shader), against the same instances opaque, with the
 shader's latency swept (--shader-latencies) and once without an alpha read: any-hit calls per
@@ -131,6 +135,24 @@ def main():
                         f" | {100 * i['box_util']:.1f}% / {100 * f['box_util']:.1f}%"
                         f" | {100 * i['transform_util']:.2f}% |")
             print(rows[-1], flush=True)
+        # Treelet queues at the largest grid.
+        treelet_rows = []
+        n = max(int(g) for g in a.grids.split(","))
+        scene, flat, tris = grid_files(mesh, n, tmp)
+        tl = ["--config", os.path.join(ROOT, "configs", "treelet.json"),
+              "--set", "traversal.treelet_prefetch=true"]
+        for kind, path in (("instanced", scene), ("flattened", flat)):
+            s = run_stats(a.rtsim, common + tl + ["--scene", path],
+                          os.path.join(tmp, f"treelet_{kind}"), "bench_instancing")
+            f = figures(s)
+            rb = s["ray_buffer"]
+            f.update(treelets=s["bvh"]["layout"]["treelets"], loads=rb["treelet_loads"],
+                     crossings=rb["crossings_per_ray"])
+            cells.append({"treelet_grid": n, "kind": kind, **f})
+            treelet_rows.append(
+                f"| {kind} | {f['treelets']:,} | {f['hits']} | {f['cycles']:,}"
+                f" | {f['dram_bytes_per_ray']:.1f} | {f['loads']:,} | {f['crossings']:.2f} |")
+            print(treelet_rows[-1], flush=True)
         # The alpha-tested grid: opaque, then masked at each shader latency, then without reads.
         n = a.alpha_grid
         opaque_scene, tris = alpha_grid_file(mesh, n, tmp, True)
@@ -188,6 +210,12 @@ def main():
             "DRAM B/ray | instance records B/ray | L2 hit rate | box unit busy | "
             "transform unit busy |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n"
             + "\n".join(rows) + "\n\n"
+            f"## Treelet queues ({a.mesh} {max(int(g) for g in a.grids.split(','))}x"
+            f"{max(int(g) for g in a.grids.split(','))}, configs/treelet.json with prefetch)\n\n"
+            "Instanced: the TLAS and every BLAS cut into treelets of their own (the TLAS's "
+            "holding their leaves' instance records); flattened: the one mesh's tree cut.\n\n"
+            "| scene | treelets | hits | cycles | DRAM B/ray | treelet loads | crossings/ray |\n"
+            "|---|---|---|---|---|---|---|\n" + "\n".join(treelet_rows) + "\n\n"
             f"## Alpha-tested ({a.mesh} {n}x{n}, {tris * n * n:,} instanced triangles)\n\n"
             "The grid's mesh cut out by a checker alpha mask (2 x 2 squares per triangle in "
             "barycentric space), so every candidate hit runs the any-hit shader "

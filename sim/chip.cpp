@@ -22,7 +22,8 @@ uint64_t address_limit(const BvhLayout& layout) {
 
 }  // namespace
 
-// Treelet k's runs of node records and triangles as byte ranges.
+// Treelet k's runs of node records, triangles and (two-level TLAS treelets) instance records as
+// byte ranges.
 std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
     std::vector<TreeletSpan> spans(L.treelet_count());
     for (uint32_t k = 0; k < L.treelet_count(); ++k) {
@@ -33,6 +34,11 @@ std::vector<TreeletSpan> treelet_spans(const BvhLayout& L) {
         const uint32_t t1 = cut ? L.treelet_tri_start[k + 1] : L.triangle_count;
         spans[k] = {L.node_addr(n0), uint64_t(n1 - n0) * L.node_size_bytes, L.tri_addr(t0),
                     uint64_t(t1 - t0) * L.tri_size_bytes};
+        if (!L.treelet_instance_start.empty()) {
+            const uint32_t i0 = L.treelet_instance_start[k], i1 = L.treelet_instance_start[k + 1];
+            spans[k].instance_addr = L.instance_base_addr + uint64_t(i0) * L.instance_size_bytes;
+            spans[k].instance_bytes = uint64_t(i1 - i0) * L.instance_size_bytes;
+        }
     }
     return spans;
 }

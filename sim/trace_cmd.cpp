@@ -182,7 +182,7 @@ class TraceJob {
         nlohmann::json meta = {
             {"rtsim_version", RTSIM_VERSION},
             {"scene", instanced_ ? scene_summary(iscene_) : scene_summary(scene_)},
-            {"bvh", instanced_ ? bvh_summary(two_) : bvh_summary(bvh_, true)}};
+            {"bvh", instanced_ ? bvh_summary(two_, true) : bvh_summary(bvh_, true)}};
         if (reader_)
             meta["workload"] = {{"rays_file", opt_.rays_file},
                                 {"query", opt_.any_hit ? "any" : "closest"}};

@@ -445,7 +445,9 @@ Bvh build_bvh(const Scene& scene, const BvhBuildOptions& options, const BvhLayou
 bool BvhLayout::index_treelets() {
     node_treelet_.clear();
     tri_treelet_.clear();
-    if (treelet_node_start.empty() && treelet_tri_start.empty()) return true;
+    instance_treelet_.clear();
+    if (treelet_node_start.empty() && treelet_tri_start.empty())
+        return treelet_instance_start.empty();
     auto fill = [](const std::vector<uint32_t>& start, uint32_t records,
                    std::vector<uint32_t>& of) {
         if (start.size() < 2 || start.front() != 0 || start.back() != records) return false;
@@ -456,11 +458,15 @@ bool BvhLayout::index_treelets() {
             for (uint32_t i = start[k]; i < start[k + 1]; ++i) of[i] = uint32_t(k);
         return true;
     };
+    const bool instances_ok = treelet_instance_start.empty() ||
+                              (treelet_instance_start.size() == treelet_node_start.size() &&
+                               fill(treelet_instance_start, instance_count, instance_treelet_));
     if (treelet_node_start.size() != treelet_tri_start.size() ||
         !fill(treelet_node_start, inner_node_count, node_treelet_) ||
-        !fill(treelet_tri_start, triangle_count, tri_treelet_)) {
+        !fill(treelet_tri_start, triangle_count, tri_treelet_) || !instances_ok) {
         node_treelet_.clear();
         tri_treelet_.clear();
+        instance_treelet_.clear();
         return false;
     }
     return true;

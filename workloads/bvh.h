@@ -112,6 +112,9 @@ struct BvhLayout {
     // Empty when the layout has no treelets: every record is in treelet 0.
     uint32_t treelet_bytes = 0;
     std::vector<uint32_t> treelet_node_start, treelet_tri_start;
+    // Two-level layouts: treelet k also holds instance records [instance_start[k],
+    // instance_start[k+1]) (the TLAS's treelets; a BLAS's hold none). Empty otherwise.
+    std::vector<uint32_t> treelet_instance_start;
     uint32_t treelet_count() const {
         return treelet_node_start.empty() ? 1 : uint32_t(treelet_node_start.size() - 1);
     }
@@ -142,10 +145,12 @@ struct BvhLayout {
             case StepKind::Triangle:
                 return {tri_base_addr, tri_size_bytes, triangle_count,
                         tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
-            case StepKind::Transform:  // instance records are not cut into treelets
-                return {instance_base_addr, instance_size_bytes, instance_count, nullptr};
-            default:  // alpha data follows its triangles' slots, but is not cut into treelets
-                return {alpha_base_addr, alpha_size_bytes, alpha_count, nullptr};
+            case StepKind::Transform:  // in the TLAS treelet whose leaf holds the instance
+                return {instance_base_addr, instance_size_bytes, instance_count,
+                        instance_treelet_.empty() ? nullptr : instance_treelet_.data()};
+            default:  // alpha data: read in its triangle's treelet, not loaded with it
+                return {alpha_base_addr, alpha_size_bytes, alpha_count,
+                        tri_treelet_.empty() ? nullptr : tri_treelet_.data()};
         }
     }
     // The step on record `id` (below r.count) of `kind`, testing `items` (a node's children; 1
@@ -172,7 +177,7 @@ struct BvhLayout {
     }
 
   private:
-    std::vector<uint32_t> node_treelet_, tri_treelet_;
+    std::vector<uint32_t> node_treelet_, tri_treelet_, instance_treelet_;
 };
 
 // Binary tree, as builders produce it.

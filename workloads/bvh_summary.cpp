@@ -45,7 +45,7 @@ json bvh_summary(const Bvh& bvh, bool treelet_tables) {
     return out;
 }
 
-json bvh_summary(const TwoLevelBvh& two) {
+json bvh_summary(const TwoLevelBvh& two, bool treelet_tables) {
     json out = bvh_summary(two.tlas);
     out["tlas"] = {{"sah_cost", two.tlas.quality.sah_cost},
                    {"inner_nodes", two.tlas.quality.inner_count},
@@ -86,8 +86,13 @@ json bvh_summary(const TwoLevelBvh& two) {
                      {"alpha_base_addr", L.alpha_base_addr},
                      {"alpha_size_bytes", L.alpha_size_bytes},
                      {"alpha_count", L.alpha_count},
-                     {"treelet_bytes", 0},
-                     {"treelets", 0}};
+                     {"treelet_bytes", L.treelet_bytes},
+                     {"treelets", L.treelet_bytes ? L.treelet_count() : 0}};
+    if (treelet_tables && L.treelet_bytes) {
+        out["layout"]["treelet_node_start"] = L.treelet_node_start;
+        out["layout"]["treelet_tri_start"] = L.treelet_tri_start;
+        out["layout"]["treelet_instance_start"] = L.treelet_instance_start;
+    }
     return out;
 }
 
@@ -113,6 +118,7 @@ BvhLayout layout_from_summary(const json& bvh, const std::string& where) {
         L.treelet_bytes = l.value("treelet_bytes", 0u);
         L.treelet_node_start = l.value("treelet_node_start", std::vector<uint32_t>());
         L.treelet_tri_start = l.value("treelet_tri_start", std::vector<uint32_t>());
+        L.treelet_instance_start = l.value("treelet_instance_start", std::vector<uint32_t>());
         if (!L.index_treelets() || (L.treelet_bytes == 0) != L.treelet_node_start.empty())
             throw InputError(fmt::format(
                 "{}: header metadata bvh.layout has treelet tables that do not cover its {} "

@@ -16,7 +16,7 @@ nlohmann::json bvh_summary(const Bvh& bvh, bool treelet_tables = false);
 // A two-level structure's: the build settings; "levels" 2, the TLAS's figures under "tlas" and
 // its sah_cost as the top-level one; node, leaf and byte counts over both levels (instance
 // records included); the one layout, with its instance region.
-nlohmann::json bvh_summary(const TwoLevelBvh& bvh);
+nlohmann::json bvh_summary(const TwoLevelBvh& bvh, bool treelet_tables = false);
 // The layout a bvh_summary describes; throws InputError naming `where` if it is incomplete.
 BvhLayout layout_from_summary(const nlohmann::json& bvh, const std::string& where);
 

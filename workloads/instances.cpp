@@ -134,10 +134,6 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     scene.validate();
     check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
                          scene.unique_triangle_count(), scene.instances.size());
-    if (options.treelet_bytes != 0)
-        throw InputError(fmt::format(
-            "{}: treelets (bvh.treelet_bytes) are not cut across two-level BVHs yet; set it to 0",
-            scene.name));
     TwoLevelBvh two;
     two.options = options;
     two.instances = scene.instances;
@@ -211,7 +207,33 @@ TwoLevelBvh build_two_level(const InstancedScene& scene, const BvhBuildOptions& 
     G.alpha_count = any_non_opaque ? G.triangle_count : 0;
     G.alpha_base_addr =
         any_non_opaque ? (tri_base + G.tri_bytes_total() + page - 1) / page * page : 0;
-    G.index_treelets();
+    // Treelets: the TLAS's (its node records and the instance records of its leaves), then each
+    // BLAS's (its node records and triangle slots), as one table in the global numbering.
+    G.treelet_node_start.clear();
+    G.treelet_tri_start.clear();
+    G.treelet_instance_start.clear();
+    if (options.treelet_bytes > 0) {
+        const BvhLayout& T = two.tlas.layout;
+        G.treelet_node_start = {0};
+        G.treelet_tri_start = {0};
+        G.treelet_instance_start = {0};
+        for (uint32_t k = 0; k < T.treelet_count(); ++k) {
+            G.treelet_node_start.push_back(T.treelet_node_start[k + 1]);
+            G.treelet_tri_start.push_back(0);
+            G.treelet_instance_start.push_back(T.treelet_tri_start[k + 1]);
+        }
+        for (size_t b = 0; b < two.blas.size(); ++b) {
+            const BvhLayout& B = two.blas[b].layout;
+            for (uint32_t k = 0; k < B.treelet_count(); ++k) {
+                G.treelet_node_start.push_back(two.blas_node_offset[b] +
+                                               B.treelet_node_start[k + 1]);
+                G.treelet_tri_start.push_back(two.blas_tri_offset[b] + B.treelet_tri_start[k + 1]);
+                G.treelet_instance_start.push_back(G.instance_count);
+            }
+        }
+    }
+    if (!G.index_treelets())
+        throw std::logic_error("build_two_level: treelet tables do not cover the layout");
     return two;
 }
 

@@ -103,8 +103,9 @@ struct TwoLevelBvh {
     const AABB& bounds() const { return tlas.bounds(); }
 };
 
-// Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size;
-// treelets are not cut across two levels yet: treelet_bytes must be 0); `layout_sizes` gives the
+// Builds every mesh's BLAS and the TLAS with `options` (builder, width, node format, leaf size,
+// treelets: each level is cut on its own, the TLAS's treelets holding their leaves' instance
+// records, and the layout numbers them TLAS first); `layout_sizes` gives the
 // node and triangle record sizes, as build_bvh's, and the alpha data's per triangle. With a
 // `cache_dir`, each BLAS goes through the BVH cache there (workloads/bvh_cache.h), so a scene
 // file's meshes are built once across runs; `blas_cache_hits` (optional) counts the BLASes

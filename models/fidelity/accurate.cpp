@@ -386,9 +386,12 @@ void ReferenceScheduler::load_treelet(uint32_t c, uint32_t treelet, Cycle t) {
     cs.load_end[node] = span.node_addr + span.node_bytes;
     cs.load_next[tri] = span.tri_addr;
     cs.load_end[tri] = span.tri_addr + span.tri_bytes;
+    const size_t inst = size_t(StepKind::Transform);
+    cs.load_next[inst] = span.instance_addr;
+    cs.load_end[inst] = span.instance_addr + span.instance_bytes;
     schedule(t, kLoad, c, ++cs.load_generation);
     ++core.treelet_loads;
-    core.treelet_load_bytes += span.node_bytes + span.tri_bytes;
+    core.treelet_load_bytes += span.bytes();
     cs.loaded_treelet = treelet;
 }
 

@@ -1656,6 +1656,43 @@ TEST(Run, NonOpaqueInstancesRunTheAnyHitShaderInBothEngines) {
     EXPECT_EQ(alpha_dram(n), 0u);
 }
 
+// Treelet queues over a two-level scene: both engines run it with treelet loads that include
+// the TLAS treelets' instance records, the hits are those of the run without treelets, and a
+// trace (whose header carries the treelet tables, instance runs included) replays exactly.
+TEST(Run, TreeletQueuesRunOverTwoLevelScenes) {
+    const fs::path dir = work_dir();
+    const fs::path scene = dir / "treelets.json";
+    std::ofstream(scene) << R"({"meshes": {"c": "builtin:cornell", "s": "builtin:sphere"},
+        "instances": [{"mesh": "c", "scale": [1, 0.2, 1]},
+                      {"mesh": "s", "scale": 0.1, "grid": {"count": [5, 1, 5],
+                       "spacing": [0.15, 0, 0.15]}, "translate": [-0.3, 0.3, -0.3]}]})";
+    const std::string w = "--rays primary,ao --res 40x40 --scene '" + scene.string() + "'";
+    const std::string treelets = " --config '" + std::string(RTSIM_SOURCE_DIR) +
+                                 "/configs/treelet.json' --set traversal.treelet_prefetch=true";
+    const fs::path plain = dir / "tl_plain";
+    ASSERT_EQ(run_rtsim("run -q " + w + " -o '" + plain.string() + "'").status, 0);
+    const json base = stats_of(plain);
+    json fast;
+    for (const std::string engine : {"fast", "accurate"}) {
+        const fs::path out = dir / ("tl_" + engine);
+        const Result r = run_rtsim("run -q " + w + treelets + " --set sim.fidelity=" + engine +
+                                   " -o '" + out.string() + "'");
+        ASSERT_EQ(r.status, 0) << r.err;
+        const json s = stats_of(out);
+        EXPECT_GT(s["bvh"]["layout"]["treelets"].get<uint64_t>(), 2u) << engine;
+        EXPECT_GT(s["ray_buffer"]["treelet_loads"].get<uint64_t>(), 0u) << engine;
+        EXPECT_GT(s["ray_buffer"]["crossings_per_ray"].get<double>(), 0.0) << engine;
+        EXPECT_EQ(s["rays"]["hits_by_kind"], base["rays"]["hits_by_kind"]) << engine;
+        if (engine == "fast") fast = s;
+    }
+    const fs::path rtt = dir / "tl.rtt", replay = dir / "tl_replay";
+    ASSERT_EQ(run_rtsim("trace -q " + w + treelets + " -o '" + rtt.string() + "'").status, 0);
+    const Result r = run_rtsim("run -q --trace '" + rtt.string() + "'" + treelets + " -o '" +
+                               replay.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    EXPECT_EQ(stats_of(replay)["counters"], fast["counters"]);
+}
+
 // A scene file's meshes and BLASes go through the mesh and BVH caches: the second run reads
 // every BLAS back and simulates the same counters.
 TEST(Run, SceneFileBlasesAreCachedAcrossRuns) {
@@ -1668,9 +1705,9 @@ TEST(Run, SceneFileBlasesAreCachedAcrossRuns) {
     json stats[2];
     for (int k = 0; k < 2; ++k) {
         const fs::path out = dir / ("cached" + std::to_string(k));
-        const Result r = run_rtsim("run -q --res 32x32 --rays primary,ao --scene '" +
-                                   scene.string() + "' --bvh-cache '" + cache.string() +
-                                   "' -o '" + out.string() + "'");
+        const Result r =
+            run_rtsim("run -q --res 32x32 --rays primary,ao --scene '" + scene.string() +
+                      "' --bvh-cache '" + cache.string() + "' -o '" + out.string() + "'");
         ASSERT_EQ(r.status, 0) << r.err;
         stats[k] = stats_of(out);
     }

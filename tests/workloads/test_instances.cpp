@@ -1,6 +1,8 @@
 // Two-level step streams (workloads/instances.h) on cases small enough to write out by hand.
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include "workloads/instances.h"
 
 using namespace rtsim;
@@ -134,4 +136,78 @@ TEST(Instances, AnIgnoredCandidateLetsTraversalGoOnBehindIt) {
     const Hit h = trace_ray(solid, r, HitQuery::Closest, 0xff, &c);
     EXPECT_EQ(h.instance, 0u);
     EXPECT_EQ(c.any_hits, 0u);
+}
+
+// Treelets over two levels: the TLAS and every BLAS are cut on their own and numbered TLAS
+// first; each treelet's records are a run of the global layout, and every step of a recorded
+// traversal carries the treelet whose run holds its record (an instance record: its TLAS leaf's
+// treelet; an any-hit step: its triangle's). The cut only moves records, so hits do not change.
+TEST(Instances, TreeletsCutBothLevelsAndStepsCarryTheirRecordsTreelet) {
+    InstancedScene s;
+    s.name = "treelet forest";
+    s.meshes.push_back(load_scene("builtin:sphere"));
+    s.meshes.push_back(load_scene("builtin:cornell"));
+    AlphaMask holes;
+    holes.pattern = AlphaPattern::Triangles;
+    s.alpha = {holes};
+    for (int k = 0; k < 40; ++k) {
+        Instance inst;
+        inst.mesh = uint32_t(k % 2);
+        inst.opaque = k % 4 != 0;
+        inst.object_to_world.m = {
+            0.2f, 0, 0, float(k % 8) * 0.5f, 0, 0.2f, 0, float(k / 8) * 0.5f, 0, 0, 0.2f, 0};
+        s.instances.push_back(inst);
+    }
+    BvhBuildOptions plain, cut;
+    plain.width = cut.width = 4;
+    cut.treelet_bytes = 4096;
+    const TwoLevelBvh a = build_two_level(s, plain), b = build_two_level(s, cut);
+    const BvhLayout& L = b.layout;
+    ASSERT_GT(L.treelet_count(), b.tlas.layout.treelet_count());
+    const uint32_t tlas_treelets = b.tlas.layout.treelet_count();
+    ASSERT_GT(tlas_treelets, 1u);  // instance records in more than one treelet
+    ASSERT_EQ(L.treelet_instance_start.size(), L.treelet_node_start.size());
+    EXPECT_EQ(L.treelet_instance_start[tlas_treelets], L.instance_count);  // all in the TLAS's
+    EXPECT_EQ(L.treelet_tri_start[tlas_treelets], 0u);  // which hold no triangles
+    EXPECT_EQ(L.treelet_node_start[tlas_treelets], b.tlas_node_count);
+    auto holds = [](const std::vector<uint32_t>& start, uint32_t treelet, uint32_t id) {
+        return start[treelet] <= id && id < start[treelet + 1];
+    };
+    std::mt19937 rng(9);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    size_t steps_checked = 0, any_hit_steps = 0, transforms = 0;
+    for (int i = 0; i < 500; ++i) {
+        Ray r;
+        r.org = Vec3(1.75f, 2.25f, 3.0f) + Vec3(u(rng), u(rng), u(rng)) * 0.5f;
+        r.dir = normalize(Vec3(1.75f + 2 * u(rng), 2.25f + 2 * u(rng), 0) - r.org);
+        for (const HitQuery q : {HitQuery::Closest, HitQuery::Any}) {
+            std::vector<Step> steps;
+            const Hit x = trace_ray(a, r, q), y = trace_ray_recorded(b, r, q, steps);
+            ASSERT_EQ(x.valid(), y.valid());
+            if (x.valid() && q == HitQuery::Closest) {
+                EXPECT_EQ(x.t, y.t);
+                EXPECT_EQ(x.instance, y.instance);
+            }
+            for (const Step& st : steps) {
+                ++steps_checked;
+                switch (st.kind) {
+                    case StepKind::Node:
+                        EXPECT_TRUE(holds(L.treelet_node_start, st.treelet, st.id));
+                        break;
+                    case StepKind::Transform:
+                        ++transforms;
+                        EXPECT_TRUE(holds(L.treelet_instance_start, st.treelet, st.id));
+                        EXPECT_LT(st.treelet, tlas_treelets);
+                        break;
+                    default:  // a triangle, or the any-hit step on it
+                        any_hit_steps += st.kind == StepKind::AnyHit;
+                        EXPECT_TRUE(holds(L.treelet_tri_start, st.treelet, st.id));
+                        EXPECT_GE(st.treelet, tlas_treelets);
+                }
+            }
+        }
+    }
+    EXPECT_GT(steps_checked, 5000u);
+    EXPECT_GT(transforms, 500u);
+    EXPECT_GT(any_hit_steps, 50u);
 }
