@@ -46,6 +46,25 @@ json stats_of(const fs::path& dir) {
     return s;
 }
 
+// A trace's per-kind field (trace-info --json's by_kind), summed over ray kinds.
+uint64_t trace_kind_total(const fs::path& rtt, const char* field) {
+    const Result ti = run_rtsim("trace-info --json '" + rtt.string() + "'");
+    EXPECT_EQ(ti.status, 0) << ti.err;
+    uint64_t total = 0;
+    const json info = json::parse(ti.out);
+    for (const auto& [kind, k] : info["by_kind"].items()) total += k.value(field, uint64_t(0));
+    return total;
+}
+
+// Operations of every unit of a kind (`transform_unit`): the sum of its counters `kind[i].ops`.
+uint64_t unit_ops(const json& stats, const std::string& kind) {
+    uint64_t ops = 0;
+    for (const auto& [name, v] : stats["counters"].items())
+        if (name.rfind(kind + "[", 0) == 0 && name.find(".ops") != std::string::npos)
+            ops += v.get<uint64_t>();
+    return ops;
+}
+
 // The fields item 7 of the foundation issue promises.
 void expect_complete_stats(const json& s) {
     for (const char* k : {"config", "config_hash", "scene", "bvh", "rays", "total_cycles",
@@ -1565,12 +1584,7 @@ TEST(Run, SceneFileRunsTheTransformUnitAndReplaysExactly) {
     const std::string w = "--rays primary,ao --res 48x48 --scene '" + scene.string() + "'";
     const fs::path rtt = dir / "copies.rtt";
     ASSERT_EQ(run_rtsim("trace -q " + w + " -o '" + rtt.string() + "'").status, 0);
-    const Result ti = run_rtsim("trace-info --json '" + rtt.string() + "'");
-    ASSERT_EQ(ti.status, 0) << ti.err;
-    uint64_t transforms = 0;
-    const nlohmann::json info_json = nlohmann::json::parse(ti.out);
-    for (const auto& [kind, k] : info_json["by_kind"].items())
-        transforms += k.value("transform_steps", uint64_t(0));
+    const uint64_t transforms = trace_kind_total(rtt, "transform_steps");
     ASSERT_GT(transforms, 1000u);
     const fs::path direct = dir / "copies_direct", replay = dir / "copies_replay";
     ASSERT_EQ(run_rtsim("run -q " + w + " -o '" + direct.string() + "'").status, 0);
@@ -1578,11 +1592,7 @@ TEST(Run, SceneFileRunsTheTransformUnitAndReplaysExactly) {
         run_rtsim("run -q --trace '" + rtt.string() + "' -o '" + replay.string() + "'").status, 0);
     const nlohmann::json a = nlohmann::json::parse(slurp(direct / "stats.json")),
                          b = nlohmann::json::parse(slurp(replay / "stats.json"));
-    uint64_t ops = 0;
-    for (const auto& [name, v] : a["counters"].items())
-        if (name.rfind("transform_unit[", 0) == 0 && name.find(".ops") != std::string::npos)
-            ops += v.get<uint64_t>();
-    EXPECT_EQ(ops, transforms);
+    EXPECT_EQ(unit_ops(a, "transform_unit"), transforms);
     EXPECT_EQ(a["counters"], b["counters"]);
     EXPECT_EQ(a["scene"]["instances"], 17);
     EXPECT_GT(a["bandwidth"]["dram"]["by_region"]["instances"]["read_bytes"].get<uint64_t>(), 0u);
@@ -1604,20 +1614,9 @@ TEST(Run, NonOpaqueInstancesRunTheAnyHitShaderInBothEngines) {
     const std::string w = "--rays primary,ao --res 40x40 --scene '" + scene.string() + "'";
     const fs::path rtt = dir / "leaves.rtt";
     ASSERT_EQ(run_rtsim("trace -q " + w + " -o '" + rtt.string() + "'").status, 0);
-    const Result ti = run_rtsim("trace-info --json '" + rtt.string() + "'");
-    ASSERT_EQ(ti.status, 0) << ti.err;
-    uint64_t calls = 0;
-    const nlohmann::json info = nlohmann::json::parse(ti.out);
-    for (const auto& [kind, k] : info["by_kind"].items())
-        calls += k.value("any_hit_steps", uint64_t(0));
+    const uint64_t calls = trace_kind_total(rtt, "any_hit_steps");
     ASSERT_GT(calls, 300u);
-    auto shader_ops = [](const nlohmann::json& stats) {
-        uint64_t ops = 0;
-        for (const auto& [name, v] : stats["counters"].items())
-            if (name.rfind("any_hit_shader[", 0) == 0 && name.find(".ops") != std::string::npos)
-                ops += v.get<uint64_t>();
-        return ops;
-    };
+    auto shader_ops = [](const json& stats) { return unit_ops(stats, "any_hit_shader"); };
     auto alpha_dram = [](const nlohmann::json& stats) {
         return stats["bandwidth"]["dram"]["by_region"]["alpha"]["read_bytes"].get<uint64_t>();
     };

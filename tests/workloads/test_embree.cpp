@@ -154,6 +154,16 @@ namespace {
 // Meshes placed at random over a 20-unit cube, overlapping: each one's own size first brought to
 // about 2 units, then rotated (a uniform random rotation), scaled uniformly, non-uniformly or
 // mirrored (one negative axis), and given a mask of one of eight bits.
+// The meshes the instancing checks place: the bunny, the armadillo and the Cornell box (whose
+// coincident faces make ties).
+std::vector<Scene> instanced_meshes() {
+    std::vector<Scene> meshes;
+    meshes.push_back(load_scene(RTSIM_BUNNY_OBJ));
+    meshes.push_back(load_scene(std::string(RTSIM_CGAL_MESH_DIR) + "/armadillo.off"));
+    meshes.push_back(load_scene("builtin:cornell"));
+    return meshes;
+}
+
 InstancedScene random_instances(std::vector<Scene> meshes, int count, uint32_t seed) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<float> u01(0.0f, 1.0f);
@@ -300,13 +310,8 @@ InstancedAgreement compare_instanced(const InstancedScene& s, const EmbreeInstan
 }  // namespace
 
 TEST(EmbreeOracle, InstancesWithRotationsScalesAndMirrors) {
-    const std::filesystem::path dir = RTSIM_CGAL_MESH_DIR;
-    ASSERT_TRUE(std::filesystem::is_directory(dir)) << "run scripts/setup.sh";
-    std::vector<Scene> meshes;
-    meshes.push_back(load_scene(RTSIM_BUNNY_OBJ));
-    meshes.push_back(load_scene((dir / "armadillo.off").string()));
-    meshes.push_back(load_scene("builtin:cornell"));
-    const InstancedScene s = random_instances(std::move(meshes), 60, 7);
+    ASSERT_TRUE(std::filesystem::is_directory(RTSIM_CGAL_MESH_DIR)) << "run scripts/setup.sh";
+    const InstancedScene s = random_instances(instanced_meshes(), 60, 7);
     const EmbreeInstancedScene e(s);
     for (BvhBuilder builder : {BvhBuilder::Sah, BvhBuilder::Lbvh})
         for (NodeFormat format : {NodeFormat::Full, NodeFormat::Compressed})
@@ -338,13 +343,8 @@ TEST(EmbreeOracle, InstancesWithRotationsScalesAndMirrors) {
 // checker is checked against a brute-force model in test_alpha.cpp, as Embree's barycentrics
 // differ from ours by up to ~1e-2 on these instances.
 TEST(EmbreeOracle, NonOpaqueInstancesMatchAnIntersectionFilter) {
-    const std::filesystem::path dir = RTSIM_CGAL_MESH_DIR;
-    ASSERT_TRUE(std::filesystem::is_directory(dir)) << "run scripts/setup.sh";
-    std::vector<Scene> meshes;
-    meshes.push_back(load_scene(RTSIM_BUNNY_OBJ));
-    meshes.push_back(load_scene((dir / "armadillo.off").string()));
-    meshes.push_back(load_scene("builtin:cornell"));
-    InstancedScene s = random_instances(std::move(meshes), 60, 23);
+    ASSERT_TRUE(std::filesystem::is_directory(RTSIM_CGAL_MESH_DIR)) << "run scripts/setup.sh";
+    InstancedScene s = random_instances(instanced_meshes(), 60, 23);
     AlphaMask bunny, armadillo;
     bunny.pattern = armadillo.pattern = AlphaPattern::Triangles;
     bunny.keep = 0.6;

@@ -202,13 +202,19 @@ TEST(SceneFile, ScenesThatWouldNotFitAreRefusedBeforeTheyAreMade) {
 // without one keeps them opaque unless they say otherwise.
 TEST(SceneFile, AlphaMasksMakeTheirMeshesInstancesNonOpaque) {
     one_triangle();
-    const InstancedScene s = load_scene_file(write_scene("alpha.json", R"({"meshes": {
-            "leaf": {"file": "tri.off", "alpha": {"pattern": "checker", "cells": 8}},
+    // The same scene with the leaf's checker of `cells` squares.
+    auto scene = [](int cells) {
+        return load_scene_file(write_scene(
+            "alpha" + std::to_string(cells) + ".json",
+            R"({"meshes": {"leaf": {"file": "tri.off", "alpha": {"pattern": "checker", "cells": )" +
+                std::to_string(cells) + R"(}},
             "hole": {"file": "tri.off", "alpha": {"pattern": "triangles", "keep": 0.25,
                                                   "seed": 9}},
             "plain": "tri.off"},
         "instances": [{"mesh": "leaf"}, {"mesh": "leaf", "opaque": true}, {"mesh": "hole"},
                       {"mesh": "plain"}, {"mesh": "plain", "opaque": false}]})"));
+    };
+    const InstancedScene s = scene(8);
     ASSERT_EQ(s.alpha.size(), 3u);
     EXPECT_EQ(s.alpha[0].pattern, AlphaPattern::Checker);
     EXPECT_EQ(s.alpha[0].cells, 8u);
@@ -220,12 +226,5 @@ TEST(SceneFile, AlphaMasksMakeTheirMeshesInstancesNonOpaque) {
     for (size_t k = 0; k < 5; ++k) EXPECT_EQ(s.instances[k].opaque, opaque[k]) << k;
     // The masks are part of the scene's content (BVH caches, traces): another cell count is
     // another scene.
-    const InstancedScene t = load_scene_file(write_scene("alpha2.json", R"({"meshes": {
-            "leaf": {"file": "tri.off", "alpha": {"pattern": "checker", "cells": 4}},
-            "hole": {"file": "tri.off", "alpha": {"pattern": "triangles", "keep": 0.25,
-                                                  "seed": 9}},
-            "plain": "tri.off"},
-        "instances": [{"mesh": "leaf"}, {"mesh": "leaf", "opaque": true}, {"mesh": "hole"},
-                      {"mesh": "plain"}, {"mesh": "plain", "opaque": false}]})"));
-    EXPECT_NE(s.content_hash(), t.content_hash());
+    EXPECT_NE(s.content_hash(), scene(4).content_hash());
 }
