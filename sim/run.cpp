@@ -127,14 +127,16 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
                        const SamplingParams* sampling, Workload& w,
                        std::unique_ptr<InstancedScene> loaded = nullptr, double loaded_s = 0) {
     const std::string& file = opt.workload.scene;
+    // A mesh file read as instances can be flattened instead.
+    const std::string or_flatten = loaded ? " (or add --flatten to read it as one mesh)" : "";
     if (sampling)
         throw InputError(fmt::format(
-            "sim.sampled: {} is a scene of instances; sampled runs take one-level scenes so far",
-            file));
+            "sim.sampled: {} is a scene of instances; sampled runs take one-level scenes so far{}",
+            file, or_flatten));
     if (TraversalModeRegistry::at(cfg.typed.traversal.mode).packets)
         throw InputError(
-            fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level",
-                        cfg.typed.traversal.mode, file));
+            fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level{}",
+                        cfg.typed.traversal.mode, file, or_flatten));
     const auto t0 = std::chrono::steady_clock::now();
     w.instanced = loaded ? std::move(loaded)
                          : std::make_unique<InstancedScene>(load_scene_file(file, w.cache_dir));

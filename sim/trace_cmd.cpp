@@ -147,19 +147,22 @@ class TraceJob {
     }
 
   private:
-    // A JSON scene file (workloads/scene_file.h): its meshes' BLASes and the TLAS over its
-    // instances, with the config's BVH settings. What the two-level tracer does not record yet
-    // is refused before anything is written.
+    // A scene of instances (a JSON scene file, workloads/scene_file.h, or a mesh file whose
+    // nodes share meshes): its meshes' BLASes and the TLAS over its instances, with the config's
+    // BVH settings. What the two-level tracer does not record yet is refused before anything is
+    // written.
     void load_instanced() {
         const std::string& file = opt_.workload.scene;
+        const std::string or_flatten =
+            scene_file_ ? "" : " (or add --flatten to read it as one mesh)";
         if (opt_.packet > 0)
-            throw InputError(
-                fmt::format("--packet: {} is an instanced scene; packets trace one level", file));
+            throw InputError(fmt::format(
+                "--packet: {} is an instanced scene; packets trace one level{}", file, or_flatten));
         if (!opt_.hits_bin.empty())
             throw InputError(fmt::format(
                 "--hits-bin: {} is an instanced scene; its hits carry an instance, written by "
-                "--hits (CSV)",
-                file));
+                "--hits (CSV){}",
+                file, or_flatten));
         const auto t0 = SteadyClock::now();
         const std::string cache_dir = resolve_bvh_cache_dir(opt_.bvh_cache);
         if (scene_file_) iscene_ = load_scene_file(file, cache_dir);  // (else read with the mesh)

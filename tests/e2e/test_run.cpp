@@ -1742,6 +1742,9 @@ TEST(Run, GltfWithSharedMeshesRunsAsInstances) {
     EXPECT_FALSE(f["scene"].contains("instances"));
     EXPECT_EQ(f["scene"]["triangles"], a["scene"]["instanced_triangles"]);
     EXPECT_EQ(f["units"]["transform_unit_total"]["ops"].get<uint64_t>(), 0u);
+    // What two levels cannot do yet is refused in one line that names the way out.
+    expect_one_line_error(run_rtsim("trace --packet 8 " + w), "add --flatten");
+    expect_one_line_error(run_rtsim("run " + w + " --set traversal.mode=packet"), "add --flatten");
 }
 
 TEST(Trace, PacketsReportUtilisationAndKeepHits) {
