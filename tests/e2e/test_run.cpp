@@ -46,6 +46,18 @@ json stats_of(const fs::path& dir) {
     return s;
 }
 
+// A scene file at `path`: a flattened Cornell box as the floor and an n x n grid of small
+// spheres `spacing` apart above it.
+fs::path spheres_on_a_floor(const fs::path& path, int n, double spacing) {
+    std::ofstream(path) << fmt::format(
+        R"({{"meshes": {{"c": "builtin:cornell", "s": "builtin:sphere"}},
+            "instances": [{{"mesh": "c", "scale": [1, 0.2, 1]}},
+                          {{"mesh": "s", "scale": 0.1, "grid": {{"count": [{0}, 1, {0}],
+                           "spacing": [{1}, 0, {1}]}}, "translate": [-0.3, 0.3, -0.3]}}]}})",
+        n, spacing);
+    return path;
+}
+
 // A trace's per-kind field (trace-info --json's by_kind), summed over ray kinds.
 uint64_t trace_kind_total(const fs::path& rtt, const char* field) {
     const Result ti = run_rtsim("trace-info --json '" + rtt.string() + "'");
@@ -1576,11 +1588,7 @@ TEST(Trace, SceneFileHitsNameTheirInstance) {
 // and a replay of the recorded trace gives the on-the-fly run's counters, every one.
 TEST(Run, SceneFileRunsTheTransformUnitAndReplaysExactly) {
     const fs::path dir = work_dir();
-    const fs::path scene = dir / "copies.json";
-    std::ofstream(scene) << R"({"meshes": {"c": "builtin:cornell", "s": "builtin:sphere"},
-        "instances": [{"mesh": "c", "scale": [1, 0.2, 1]},
-                      {"mesh": "s", "scale": 0.1, "grid": {"count": [4, 1, 4],
-                       "spacing": [0.2, 0, 0.2]}, "translate": [-0.3, 0.3, -0.3]}]})";
+    const fs::path scene = spheres_on_a_floor(dir / "copies.json", 4, 0.2);
     const std::string w = "--rays primary,ao --res 48x48 --scene '" + scene.string() + "'";
     const fs::path rtt = dir / "copies.rtt";
     ASSERT_EQ(run_rtsim("trace -q " + w + " -o '" + rtt.string() + "'").status, 0);
@@ -1660,11 +1668,7 @@ TEST(Run, NonOpaqueInstancesRunTheAnyHitShaderInBothEngines) {
 // trace (whose header carries the treelet tables, instance runs included) replays exactly.
 TEST(Run, TreeletQueuesRunOverTwoLevelScenes) {
     const fs::path dir = work_dir();
-    const fs::path scene = dir / "treelets.json";
-    std::ofstream(scene) << R"({"meshes": {"c": "builtin:cornell", "s": "builtin:sphere"},
-        "instances": [{"mesh": "c", "scale": [1, 0.2, 1]},
-                      {"mesh": "s", "scale": 0.1, "grid": {"count": [5, 1, 5],
-                       "spacing": [0.15, 0, 0.15]}, "translate": [-0.3, 0.3, -0.3]}]})";
+    const fs::path scene = spheres_on_a_floor(dir / "treelets.json", 5, 0.15);
     const std::string w = "--rays primary,ao --res 40x40 --scene '" + scene.string() + "'";
     const std::string treelets = " --config '" + std::string(RTSIM_SOURCE_DIR) +
                                  "/configs/treelet.json' --set traversal.treelet_prefetch=true";
