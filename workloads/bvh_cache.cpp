@@ -204,14 +204,15 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
     auto seconds = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     };
-    if (dir.empty()) {
-        st.outcome = BvhCacheOutcome::Off;
+    // A build (not a hit) is what needs the memory: checked before each.
+    auto build = [&] {
         check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
                              scene.triangle_count(), 0);
-        check_prepare_memory(scene.source.empty() ? scene.name : scene.source,
-                             scene.triangle_count(),
-                             0);  // a build (not a hit) is what needs the memory
-        Bvh b = build_bvh(scene, options, layout_sizes);
+        return build_bvh(scene, options, layout_sizes);
+    };
+    if (dir.empty()) {
+        st.outcome = BvhCacheOutcome::Off;
+        Bvh b = build();
         st.seconds = seconds();
         return b;
     }
@@ -233,7 +234,7 @@ Bvh build_bvh_cached(const Scene& scene, const BvhBuildOptions& options,
             warn(fmt::format("{}: BVH cache entry unusable ({}); rebuilding it", st.path, u.why));
         }
     }
-    Bvh b = build_bvh(scene, options, layout_sizes);
+    Bvh b = build();
     store_cache_entry(st.path, serialize(b, key), "BVH cache entry");
     st.seconds = seconds();
     return b;

@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 #include <xxhash.h>
 
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 
+#include "support/input_error.h"
 #include "support/scratch_dir.h"
 #include "workloads/bvh_cache.h"
 #include "workloads/tracer.h"
@@ -192,4 +194,23 @@ TEST(BvhCache, NoFolderMeansNoCache) {
     build_bvh_cached(make_builtin_scene("sphere"), BvhBuildOptions(), BvhLayout(), "", &st);
     EXPECT_EQ(st.outcome, BvhCacheOutcome::Off);
     EXPECT_TRUE(st.path.empty());
+}
+
+// A build is what needs memory: a scene that would not fit is refused before it is built,
+// whether the cache is off or misses; a hit needs no build and is served.
+TEST(BvhCache, BuildsThatWouldNotFitAreRefusedWithOrWithoutTheCache) {
+    const Scene s = make_builtin_scene("cornell");  // ~26k triangles at 300 bytes: ~8 MB
+    const fs::path dir = fresh_dir("memory-limit");
+    ::setenv("RTSIM_MEMORY_LIMIT", "1M", 1);
+    for (const std::string& folder : {std::string(), dir.string()})
+        test::expect_input_error(
+            [&] { build_bvh_cached(s, BvhBuildOptions(), BvhLayout(), folder); },
+            s.source.empty() ? s.name : s.source, "above the 0.0 GiB limit");
+    ::unsetenv("RTSIM_MEMORY_LIMIT");
+    build_bvh_cached(s, BvhBuildOptions(), BvhLayout(), dir.string());  // stored
+    ::setenv("RTSIM_MEMORY_LIMIT", "1M", 1);
+    BvhCacheStatus st;
+    build_bvh_cached(s, BvhBuildOptions(), BvhLayout(), dir.string(), &st);
+    EXPECT_EQ(st.outcome, BvhCacheOutcome::Hit);
+    ::unsetenv("RTSIM_MEMORY_LIMIT");
 }
