@@ -35,9 +35,9 @@ from rtsim_run import ROOT, SCENES, run_stats, write_results  # noqa: E402
 from make_grid_scene import read_off  # noqa: E402
 
 
-def grid_files(mesh_path, n, folder):
-    """The grid as a scene file and as one flattened OFF: copy (i, j) moved by (i, 0, j) times
-    1.1 mesh extents, as both files place it."""
+def grid_files(mesh_path, n, folder, flattened=True):
+    """The grid as a scene file and (unless `flattened` is false: then None) as one flattened OFF:
+    copy (i, j) moved by (i, 0, j) times 1.1 mesh extents, as both files place it."""
     verts, faces = read_off(mesh_path)
     lo = [min(v[a] for v in verts) for a in range(3)]
     hi = [max(v[a] for v in verts) for a in range(3)]
@@ -47,6 +47,8 @@ def grid_files(mesh_path, n, folder):
         json.dump({"meshes": {"m": mesh_path},
                    "instances": [{"mesh": "m", "grid": {"count": [n, 1, n],
                                                         "spacing": [step, 0, step]}}]}, f)
+    if not flattened:
+        return scene, None, len(faces)
     flat = os.path.join(folder, f"grid{n}.off")
     with open(flat, "w") as f:
         f.write(f"OFF\n{len(verts) * n * n} {len(faces) * n * n} 0\n")
@@ -65,7 +67,7 @@ def grid_files(mesh_path, n, folder):
 def alpha_grid_file(mesh_path, n, folder, opaque):
     """The n x n grid as a scene file whose mesh carries a checker alpha mask (2 x 2 squares per
     triangle: half of every triangle cut out); `opaque` makes the instances skip the shader."""
-    scene, _, tris = grid_files(mesh_path, n, folder)
+    scene, _, tris = grid_files(mesh_path, n, folder, flattened=False)
     with open(scene) as f:
         doc = json.load(f)
     doc["meshes"]["m"] = {"file": mesh_path, "alpha": {"pattern": "checker", "cells": 2}}
@@ -113,10 +115,10 @@ def main():
     common = ["--res", a.res, "--rays", a.rays, "--bvh-cache", "off"]
     for kv in a.set:
         common += ["--set", kv]
-    rows, cells = [], []
+    rows, cells, files = [], [], {}
     with tempfile.TemporaryDirectory() as tmp:
         for n in (int(g) for g in a.grids.split(",")):
-            scene, flat, tris = grid_files(mesh, n, tmp)
+            scene, flat, tris = files[n] = grid_files(mesh, n, tmp)
             got = {}
             for kind, path in (("instanced", scene), ("flattened", flat)):
                 s = run_stats(a.rtsim, common + ["--scene", path],
@@ -137,8 +139,8 @@ def main():
             print(rows[-1], flush=True)
         # Treelet queues at the largest grid.
         treelet_rows = []
-        n = max(int(g) for g in a.grids.split(","))
-        scene, flat, tris = grid_files(mesh, n, tmp)
+        n = max(files)
+        scene, flat, tris = files[n]  # written by the grid loop above
         tl = ["--config", os.path.join(ROOT, "configs", "treelet.json"),
               "--set", "traversal.treelet_prefetch=true"]
         for kind, path in (("instanced", scene), ("flattened", flat)):

@@ -127,8 +127,7 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
                        const SamplingParams* sampling, Workload& w,
                        std::unique_ptr<InstancedScene> loaded = nullptr, double loaded_s = 0) {
     const std::string& file = opt.workload.scene;
-    // A mesh file read as instances can be flattened instead.
-    const std::string or_flatten = loaded ? " (or add --flatten to read it as one mesh)" : "";
+    const char* or_flatten = loaded ? kOrFlatten : "";
     if (sampling)
         throw InputError(fmt::format(
             "sim.sampled: {} is a scene of instances; sampled runs take one-level scenes so far{}",

@@ -153,8 +153,7 @@ class TraceJob {
     // written.
     void load_instanced() {
         const std::string& file = opt_.workload.scene;
-        const std::string or_flatten =
-            scene_file_ ? "" : " (or add --flatten to read it as one mesh)";
+        const char* or_flatten = scene_file_ ? "" : kOrFlatten;
         if (opt_.packet > 0)
             throw InputError(fmt::format(
                 "--packet: {} is an instanced scene; packets trace one level{}", file, or_flatten));

@@ -35,6 +35,10 @@ struct WorkloadOptions {
     void resolve();
 };
 
+// Ends a refusal of what scenes of instances cannot do yet, when the scene is a mesh file read
+// as instances (a scene file has no flattened form).
+constexpr const char* kOrFlatten = " (or add --flatten to read it as one mesh)";
+
 // Adds the scene and ray options (--scene, --rays, --res, ...) to a command.
 void add_workload_options(CLI::App* cmd, WorkloadOptions& w);
 // "WxH" -> width, height. Throws InputError naming `what`.

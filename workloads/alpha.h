@@ -10,7 +10,6 @@
 
 #include <cmath>
 #include <cstdint>
-#include <string>
 
 namespace rtsim {
 
@@ -51,20 +50,6 @@ struct AlphaMask {
                 return true;
         }
     }
-    bool operator==(const AlphaMask& o) const {
-        return pattern == o.pattern && keep == o.keep && seed == o.seed && cells == o.cells;
-    }
 };
-
-inline const char* alpha_pattern_name(AlphaPattern p) {
-    switch (p) {
-        case AlphaPattern::Triangles:
-            return "triangles";
-        case AlphaPattern::Checker:
-            return "checker";
-        default:
-            return "none";
-    }
-}
 
 }  // namespace rtsim

@@ -53,8 +53,9 @@ class SahBuilder {
         reserve_huge(bvh.nodes, 2 * prims_.size());
         bvh.nodes.emplace_back();
         // Subtrees split off to threads down to this many levels: about four per host thread.
+        const int threads = resolve_threads(opt_.build_threads);
         int levels = 0;
-        for (int t = resolve_threads(opt_.build_threads); (1 << levels) < 4 * t && t > 1;) ++levels;
+        while (threads > 1 && (1 << levels) < 4 * threads) ++levels;
         Scratch scratch(opt_.sah_buckets);
         build_node(bvh.nodes, 0, 0, static_cast<uint32_t>(prims_.size()), 0, scratch, levels);
         reserve_huge(bvh.prim_order, prims_.size());

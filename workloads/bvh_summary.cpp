@@ -8,10 +8,42 @@ namespace rtsim {
 
 using nlohmann::json;
 
+namespace {
+
+// A layout's record regions; `treelet_tables` adds the treelet start tables (a trace needs them
+// to replay treelet mode; stats keep only the figures). Two-level layouts add their instance
+// records and alpha data.
+json layout_summary(const BvhLayout& L, bool treelet_tables) {
+    json out = {{"node_base_addr", L.node_base_addr},
+                {"node_size_bytes", L.node_size_bytes},
+                {"inner_node_count", L.inner_node_count},
+                {"triangle_base_addr", L.tri_base_addr},
+                {"triangle_size_bytes", L.tri_size_bytes},
+                {"triangle_count", L.triangle_count},
+                {"treelet_bytes", L.treelet_bytes},
+                {"treelets", L.treelet_bytes ? L.treelet_count() : 0}};
+    if (L.instance_count) {
+        out["instance_base_addr"] = L.instance_base_addr;
+        out["instance_size_bytes"] = L.instance_size_bytes;
+        out["instance_count"] = L.instance_count;
+        out["alpha_base_addr"] = L.alpha_base_addr;
+        out["alpha_size_bytes"] = L.alpha_size_bytes;
+        out["alpha_count"] = L.alpha_count;
+    }
+    if (treelet_tables) {
+        out["treelet_node_start"] = L.treelet_node_start;
+        out["treelet_tri_start"] = L.treelet_tri_start;
+        if (!L.treelet_instance_start.empty())
+            out["treelet_instance_start"] = L.treelet_instance_start;
+    }
+    return out;
+}
+
+}  // namespace
+
 json bvh_summary(const Bvh& bvh, bool treelet_tables) {
     const BvhQuality& q = bvh.quality;
     const BvhBuildOptions& bo = bvh.options;
-    const BvhLayout& L = bvh.layout;
     json out = {{"builder", bvh_builder_name(bo.builder)},
                 {"restructure_passes", bo.restructure_passes},
                 {"width", bvh.width()},
@@ -28,20 +60,7 @@ json bvh_summary(const Bvh& bvh, bool treelet_tables) {
                 {"mean_leaf_size", q.mean_leaf_size},
                 {"mean_children", q.mean_children},
                 {"bytes", q.bytes},
-                {"layout",
-                 {{"node_base_addr", L.node_base_addr},
-                  {"node_size_bytes", L.node_size_bytes},
-                  {"inner_node_count", L.inner_node_count},
-                  {"triangle_base_addr", L.tri_base_addr},
-                  {"triangle_size_bytes", L.tri_size_bytes},
-                  {"triangle_count", L.triangle_count},
-                  {"treelet_bytes", L.treelet_bytes},
-                  {"treelets", L.treelet_bytes ? L.treelet_count() : 0}}}};
-    // Stats keep the figures, traces also the tables (a replay needs them to know treelets).
-    if (treelet_tables) {
-        out["layout"]["treelet_node_start"] = L.treelet_node_start;
-        out["layout"]["treelet_tri_start"] = L.treelet_tri_start;
-    }
+                {"layout", layout_summary(bvh.layout, treelet_tables)}};
     return out;
 }
 
@@ -74,25 +93,7 @@ json bvh_summary(const TwoLevelBvh& two, bool treelet_tables) {
                    L.alpha_bytes_total();
     out["non_opaque_instances"] = std::count_if(two.instances.begin(), two.instances.end(),
                                                 [](const Instance& i) { return !i.opaque; });
-    out["layout"] = {{"node_base_addr", L.node_base_addr},
-                     {"node_size_bytes", L.node_size_bytes},
-                     {"inner_node_count", L.inner_node_count},
-                     {"triangle_base_addr", L.tri_base_addr},
-                     {"triangle_size_bytes", L.tri_size_bytes},
-                     {"triangle_count", L.triangle_count},
-                     {"instance_base_addr", L.instance_base_addr},
-                     {"instance_size_bytes", L.instance_size_bytes},
-                     {"instance_count", L.instance_count},
-                     {"alpha_base_addr", L.alpha_base_addr},
-                     {"alpha_size_bytes", L.alpha_size_bytes},
-                     {"alpha_count", L.alpha_count},
-                     {"treelet_bytes", L.treelet_bytes},
-                     {"treelets", L.treelet_bytes ? L.treelet_count() : 0}};
-    if (treelet_tables && L.treelet_bytes) {
-        out["layout"]["treelet_node_start"] = L.treelet_node_start;
-        out["layout"]["treelet_tri_start"] = L.treelet_tri_start;
-        out["layout"]["treelet_instance_start"] = L.treelet_instance_start;
-    }
+    out["layout"] = layout_summary(L, treelet_tables);
     return out;
 }
 

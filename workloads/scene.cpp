@@ -49,6 +49,18 @@ uint64_t Scene::content_hash() const {
     return h;
 }
 
+namespace {
+
+// Throws InputError ("FILE: MESH has a non-finite vertex coordinate") for a vertex with a NaN or
+// infinite coordinate.
+void require_finite_vertices(const Scene& mesh, const std::string& file, const std::string& what) {
+    for (const Vec3& p : mesh.vertices)
+        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+            throw InputError(fmt::format("{}: {} has a non-finite vertex coordinate", file, what));
+}
+
+}  // namespace
+
 Scene load_scene(const std::string& spec) {
     return load_scene(spec, nullptr, nullptr);
 }
@@ -77,10 +89,7 @@ Scene load_scene(const std::string& spec, InstancedScene* instanced, bool* share
             instanced->name = fs::path(spec).filename().string();
             instanced->source = spec;
             for (const Scene& m : instanced->meshes)
-                for (const Vec3& p : m.vertices)
-                    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-                        throw InputError(fmt::format(
-                            "{}: mesh '{}' has a non-finite vertex coordinate", spec, m.name));
+                require_finite_vertices(m, spec, fmt::format("mesh '{}'", m.name));
             instanced->validate();
             return scene;
         }
@@ -88,9 +97,7 @@ Scene load_scene(const std::string& spec, InstancedScene* instanced, bool* share
     scene.name = fs::path(spec).filename().string();
     scene.source = spec;
     if (scene.triangles.empty()) throw InputError(fmt::format("{}: mesh has no triangles", spec));
-    for (const Vec3& p : scene.vertices)
-        if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-            throw InputError(fmt::format("{}: mesh has a non-finite vertex coordinate", spec));
+    require_finite_vertices(scene, spec, "mesh");
     return scene;
 }
 
