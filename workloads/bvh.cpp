@@ -9,6 +9,7 @@
 #include <limits>
 
 #include "workloads/error.h"
+#include "workloads/parallel.h"
 #include "workloads/reduced_box.h"
 
 namespace rtsim {
@@ -46,10 +47,10 @@ uint32_t default_node_size_bytes(int width) {
     return size;
 }
 
-int largest_inner_node(const BinaryBvh& bvh, const std::vector<uint32_t>& nodes) {
+int largest_inner_node(const BinaryBvh& bvh, const uint32_t* nodes, size_t count) {
     int best = -1;
     float best_area = -1.0f;
-    for (size_t i = 0; i < nodes.size(); ++i) {
+    for (size_t i = 0; i < count; ++i) {
         const BinaryNode& n = bvh.nodes[nodes[i]];
         if (!n.is_leaf() && n.box.surface_area() > best_area) {
             best_area = n.box.surface_area();
@@ -128,10 +129,15 @@ class Collapser {
 
     void run() {
         out_.clear();
-        reserve_huge(out_, in_.nodes.size() / (W - 1) + 1);
+        // At most one wide node per binary inner node (wide nodes need not be full); reserved
+        // address space that is never written costs nothing, but growing past a short
+        // reservation moves the array onto small pages.
+        reserve_huge(out_, in_.nodes.size() / 2 + 1);
         if (in_.nodes[0].is_leaf()) {
             // A tree that is one leaf still gets a root record, so traversal always starts at one.
-            std::vector<uint32_t> only = {0};
+            Kids only;
+            only.at[0] = 0;
+            only.size = 1;
             emit(only);
         } else {
             emit_from(0);
@@ -139,20 +145,32 @@ class Collapser {
     }
 
   private:
+    // Up to W binary nodes, left to right.
+    struct Kids {
+        std::array<uint32_t, W> at;
+        int size = 0;
+    };
+
     // Opens the binary node `b` into up to W children and emits the wide node; returns its index.
     uint32_t emit_from(uint32_t b) {
-        std::vector<uint32_t> kids = {in_.nodes[b].a, in_.nodes[b].b};
-        while (kids.size() < size_t(W)) {
-            const int best = largest_inner_node(in_, kids);
+        Kids kids;
+        kids.at[0] = in_.nodes[b].a;
+        kids.at[1] = in_.nodes[b].b;
+        kids.size = 2;
+        while (kids.size < W) {
+            const int best = largest_inner_node(in_, kids.at.data(), size_t(kids.size));
             if (best < 0) break;
-            const BinaryNode& k = in_.nodes[kids[best]];
-            kids[best] = k.a;
-            kids.insert(kids.begin() + best + 1, k.b);  // keeps left-to-right (depth-first) order
+            const BinaryNode& k = in_.nodes[kids.at[best]];
+            // Its two children take its place, keeping left-to-right (depth-first) order.
+            for (int i = kids.size; i > best + 1; --i) kids.at[i] = kids.at[i - 1];
+            kids.at[best] = k.a;
+            kids.at[best + 1] = k.b;
+            kids.size++;
         }
         return emit(kids);
     }
 
-    uint32_t emit(const std::vector<uint32_t>& kids) {
+    uint32_t emit(const Kids& kids) {
         const auto index = static_cast<uint32_t>(out_.size());
         out_.emplace_back();
         WideNode<W> node{};
@@ -160,9 +178,9 @@ class Collapser {
             node.lo_x[l] = node.lo_y[l] = node.lo_z[l] = std::numeric_limits<float>::infinity();
             node.hi_x[l] = node.hi_y[l] = node.hi_z[l] = -std::numeric_limits<float>::infinity();
         }
-        node.num = static_cast<uint8_t>(kids.size());
-        for (size_t l = 0; l < kids.size(); ++l) {
-            const BinaryNode& k = in_.nodes[kids[l]];
+        node.num = static_cast<uint8_t>(kids.size);
+        for (int l = 0; l < kids.size; ++l) {
+            const BinaryNode& k = in_.nodes[kids.at[l]];
             node.lo_x[l] = k.box.lo.x;
             node.lo_y[l] = k.box.lo.y;
             node.lo_z[l] = k.box.lo.z;
@@ -175,9 +193,9 @@ class Collapser {
         if (quantize_) quantize_boxes(node);
         out_[index] = node;
         // Children's records follow in depth-first order (emit_from may grow out_).
-        for (size_t l = 0; l < kids.size(); ++l)
-            if (!in_.nodes[kids[l]].is_leaf()) {
-                const uint32_t c = emit_from(kids[l]);
+        for (int l = 0; l < kids.size; ++l)
+            if (!in_.nodes[kids.at[l]].is_leaf()) {
+                const uint32_t c = emit_from(kids.at[l]);
                 out_[index].child[l] = c;
             }
         return index;
@@ -312,31 +330,41 @@ void cut_treelets(std::vector<WideNode<W>>& nodes, std::vector<uint32_t>& prim_o
 }  // namespace
 
 // Packs each leaf's triangles into Tri4 blocks (unused lanes stay zero; tests mask them off).
+// Nodes are filled in parallel, each at its own offset, so the blocks are the same at any
+// thread count.
 template <int W>
 void build_tri_blocks(const std::vector<WideNode<W>>& nodes,
                       const std::vector<std::array<Vec3, 3>>& tri_verts,
-                      std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4) {
+                      std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4, int threads) {
     reserve_huge(leaf_block, tri_verts.size());
     leaf_block.assign(tri_verts.size(), 0);
+    std::vector<uint64_t> first_block(nodes.size() + 1, 0);
+    for (size_t i = 0; i < nodes.size(); ++i) {
+        uint64_t blocks = 0;
+        for (int l = 0; l < nodes[i].num; ++l) blocks += (nodes[i].count[l] + 3) / 4;
+        first_block[i + 1] = first_block[i] + blocks;
+    }
     tri4.clear();
-    size_t blocks = 0;  // counted first: grown block by block, the array was copied ~20 times
-    for (const WideNode<W>& n : nodes)
-        for (int l = 0; l < n.num; ++l) blocks += (n.count[l] + 3) / 4;
-    reserve_huge(tri4, blocks);
-    for (const WideNode<W>& n : nodes)
-        for (int l = 0; l < n.num; ++l) {
-            if (!n.count[l]) continue;
-            leaf_block[n.child[l]] = static_cast<uint32_t>(tri4.size());
-            for (uint32_t base = 0; base < n.count[l]; base += 4) {
-                Tri4 block{};
-                for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
-                    const auto& t = tri_verts[n.child[l] + base + lane];
-                    for (int vert = 0; vert < 3; ++vert)
-                        for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
+    reserve_huge(tri4, first_block.back());
+    tri4.resize(first_block.back());
+    parallel_blocks(nodes.size(), 4096, threads, [&](size_t begin, size_t end) {
+        for (size_t i = begin; i < end; ++i) {
+            const WideNode<W>& n = nodes[i];
+            uint64_t at = first_block[i];
+            for (int l = 0; l < n.num; ++l) {
+                if (!n.count[l]) continue;
+                leaf_block[n.child[l]] = static_cast<uint32_t>(at);
+                for (uint32_t base = 0; base < n.count[l]; base += 4) {
+                    Tri4& block = tri4[at++];
+                    for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
+                        const auto& t = tri_verts[n.child[l] + base + lane];
+                        for (int vert = 0; vert < 3; ++vert)
+                            for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
+                    }
                 }
-                tri4.push_back(block);
             }
         }
+    });
 }
 
 // The collapsed tree of width W, its treelets cut (when asked) and its triangles laid out in
@@ -354,11 +382,14 @@ void lay_out(BinaryBvh& bin, bool quantize, const Scene& scene, MappableArray<Wi
     std::vector<std::array<Vec3, 3>> tri_verts;
     reserve_huge(tri_verts, prim_order.size());
     tri_verts.resize(prim_order.size());
-    for (size_t s = 0; s < prim_order.size(); ++s)
-        for (int c = 0; c < 3; ++c) tri_verts[s][c] = scene.v(prim_order[s], c);
+    const int threads = resolve_threads(bvh.options.build_threads);
+    parallel_blocks(prim_order.size(), 1 << 16, threads, [&](size_t begin, size_t end) {
+        for (size_t s = begin; s < end; ++s)
+            for (int c = 0; c < 3; ++c) tri_verts[s][c] = scene.v(prim_order[s], c);
+    });
     std::vector<uint32_t> leaf_block;
     std::vector<Tri4> tri4;
-    build_tri_blocks(nodes, tri_verts, leaf_block, tri4);
+    build_tri_blocks(nodes, tri_verts, leaf_block, tri4, threads);
     out = std::move(nodes);
     bvh.prim_order = std::move(prim_order);
     bvh.tri_verts = std::move(tri_verts);

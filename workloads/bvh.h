@@ -194,7 +194,10 @@ struct BinaryBvh {
 BinaryBvh build_binary_sah(const Scene& scene, const BvhBuildOptions& options);
 // Position in `nodes` of the inner node with the largest surface area, or -1 if all are leaves:
 // the node a collapse or a treelet opens next (the one rays are most likely to enter).
-int largest_inner_node(const BinaryBvh& bvh, const std::vector<uint32_t>& nodes);
+int largest_inner_node(const BinaryBvh& bvh, const uint32_t* nodes, size_t count);
+inline int largest_inner_node(const BinaryBvh& bvh, const std::vector<uint32_t>& nodes) {
+    return largest_inner_node(bvh, nodes.data(), nodes.size());
+}
 BinaryBvh build_binary_lbvh(const Scene& scene, const BvhBuildOptions& options);
 // Treelet restructuring (Karras & Aila 2013), `passes` bottom-up sweeps; returns the number of
 // treelets rebuilt. Never increases the SAH cost.

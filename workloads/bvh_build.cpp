@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstring>
 #include <future>
+#include <map>
+#include <memory>
 
 #include "workloads/bvh.h"
 #include "workloads/error.h"
@@ -27,40 +29,43 @@ uint32_t append_children(std::vector<BinaryNode>& nodes, uint32_t index) {
 
 struct BuildPrim {
     AABB box;
-    Vec3 centroid;
     uint32_t id;
+    // Computed where needed rather than stored: 28 bytes a primitive instead of 40, and the
+    // partitions that move them are memory-bound.
+    float centroid(int axis) const { return (box.lo[axis] + box.hi[axis]) * 0.5f; }
 };
 
-// Binned SAH, top-down. Large subtrees are built on threads of their own into arrays of their
-// own and spliced in the order the serial recursion numbers nodes (a node's two children
-// appended together, then the left child's subtree, then the right's), so the tree is the same
-// bit for bit for any thread count: each node's split depends only on its own primitives, and
-// the subtrees partition disjoint ranges of them.
+// Binned SAH, top-down. Large subtrees are built on threads of their own, each into a fragment
+// (an array whose first node is the subtree's root); the fragments are concatenated once at the
+// end. Node numbering therefore depends on the thread count, but nothing reads it: the collapse
+// follows child links, so the laid-out tree is the same bit for bit for any thread count. Each
+// node's split depends only on its own primitives, and subtrees partition disjoint ranges.
 class SahBuilder {
   public:
-    SahBuilder(const Scene& scene, const BvhBuildOptions& opt) : opt_(opt) {
+    SahBuilder(const Scene& scene, const BvhBuildOptions& opt)
+        : opt_(opt), threads_(resolve_threads(opt.build_threads)) {
         reserve_huge(prims_, scene.triangle_count());
         prims_.resize(scene.triangle_count());
-        for (uint32_t i = 0; i < prims_.size(); ++i) {
-            prims_[i].box = scene.triangle_bounds(i);
-            prims_[i].centroid = prims_[i].box.center();
-            prims_[i].id = i;
-        }
+        parallel_blocks(prims_.size(), kBlockPrims, threads_, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i) prims_[i] = {scene.triangle_bounds(i), uint32_t(i)};
+        });
     }
 
     void build(BinaryBvh& bvh) {
-        bvh.nodes.clear();
-        reserve_huge(bvh.nodes, 2 * prims_.size());
-        bvh.nodes.emplace_back();
+        Fragment root;
+        reserve_huge(root.nodes, 2 * prims_.size());
+        root.nodes.emplace_back();
         // Subtrees split off to threads down to this many levels: about four per host thread.
-        const int threads = resolve_threads(opt_.build_threads);
         int levels = 0;
-        while (threads > 1 && (1 << levels) < 4 * threads) ++levels;
+        while (threads_ > 1 && (1 << levels) < 4 * threads_) ++levels;
         Scratch scratch(opt_.sah_buckets);
-        build_node(bvh.nodes, 0, 0, static_cast<uint32_t>(prims_.size()), 0, scratch, levels);
+        build_node(root, 0, 0, static_cast<uint32_t>(prims_.size()), 0, scratch, levels, threads_);
+        assemble(root, bvh.nodes);
         reserve_huge(bvh.prim_order, prims_.size());
         bvh.prim_order.resize(prims_.size());
-        for (size_t i = 0; i < prims_.size(); ++i) bvh.prim_order[i] = prims_[i].id;
+        parallel_blocks(prims_.size(), kBlockPrims, threads_, [&](size_t b, size_t e) {
+            for (size_t i = b; i < e; ++i) bvh.prim_order[i] = prims_[i].id;
+        });
     }
 
   private:
@@ -77,23 +82,64 @@ class SahBuilder {
         std::vector<float> right_area;
         std::vector<uint32_t> right_count;
     };
+    // A subtree built on a thread of its own. `links` name the nodes whose right child is the
+    // root of another fragment (their `b` is filled in by assemble).
+    struct Fragment {
+        std::vector<BinaryNode> nodes;
+        std::vector<std::pair<uint32_t, std::unique_ptr<Fragment>>> links;
+    };
     // Subtrees smaller than this are not worth a thread.
     static constexpr uint32_t kParallelPrims = 32768;
+    // Nodes with this many primitives bin on every thread their subtree owns.
+    static constexpr uint32_t kParallelBinPrims = 1u << 18;
+    static constexpr size_t kBlockPrims = 1u << 16;
 
     void make_leaf(BinaryNode& node, uint32_t begin, uint32_t end) {
         node.a = begin;
         node.prim_count = end - begin;
     }
 
-    // Builds nodes[index] over prims_[begin, end); children are appended to `nodes`. `levels`:
-    // how many more levels may hand a subtree to a thread of its own.
-    void build_node(std::vector<BinaryNode>& nodes, uint32_t index, uint32_t begin, uint32_t end,
-                    uint32_t depth, Scratch& sc, int levels) {
-        AABB box, cbox;
-        for (uint32_t i = begin; i < end; ++i) {
-            box.grow(prims_[i].box);
-            cbox.grow(prims_[i].centroid);
+    // Applies body(begin, end) to blocks of [begin, end) and folds the blocks' results (each
+    // starting from `init`) with merge. Min, max and integer sums are exact in any grouping, so
+    // the result is the same for any thread count.
+    template <class T, class Body, class Merge>
+    T fold(uint32_t begin, uint32_t end, int share, const T& init, Body body, Merge merge) const {
+        if (share <= 1 || end - begin < kParallelBinPrims) {
+            T acc = init;
+            body(begin, end, acc);
+            return acc;
         }
+        const size_t blocks = (end - begin + kBlockPrims - 1) / kBlockPrims;
+        std::vector<T> part(blocks, init);
+        parallel_blocks(end - begin, kBlockPrims, share, [&](size_t b, size_t e) {
+            body(begin + uint32_t(b), begin + uint32_t(e), part[b / kBlockPrims]);
+        });
+        T acc = init;
+        for (const T& p : part) merge(acc, p);
+        return acc;
+    }
+
+    // Builds node `index` of `frag` over prims_[begin, end); children are appended to frag.
+    // `levels`: how many more levels may hand a subtree to a thread of its own; `share`: the host
+    // threads this subtree may use for one node's loops.
+    void build_node(Fragment& frag, uint32_t index, uint32_t begin, uint32_t end, uint32_t depth,
+                    Scratch& sc, int levels, int share) {
+        std::vector<BinaryNode>& nodes = frag.nodes;
+        using Boxes = std::pair<AABB, AABB>;  // primitives' bounds, centroids' bounds
+        const Boxes boxes = fold(
+            begin, end, share, Boxes(),
+            [&](uint32_t b, uint32_t e, Boxes& acc) {
+                for (uint32_t i = b; i < e; ++i) {
+                    acc.first.grow(prims_[i].box);
+                    acc.second.grow(prims_[i].box.center());
+                }
+            },
+            [](Boxes& acc, const Boxes& p) {
+                acc.first.grow(p.first);
+                acc.second.grow(p.second);
+            });
+        const AABB& box = boxes.first;
+        const AABB& cbox = boxes.second;
         nodes[index].box = box;
         const uint32_t n = end - begin;
         if (n == 1) return make_leaf(nodes[index], begin, end);
@@ -108,16 +154,29 @@ class SahBuilder {
             mid = begin + n / 2;
         } else {
             const int nb = opt_.sah_buckets;
-            std::vector<Bucket>& buckets = sc.buckets;
-            std::fill(buckets.begin(), buckets.end(), Bucket());
             auto bucket_of = [&](const BuildPrim& p) {
-                int b = static_cast<int>(nb * ((p.centroid[axis] - lo) / ext));
+                int b = static_cast<int>(nb * ((p.centroid(axis) - lo) / ext));
                 return std::clamp(b, 0, nb - 1);
             };
-            for (uint32_t i = begin; i < end; ++i) {
-                Bucket& bk = buckets[bucket_of(prims_[i])];
-                bk.count++;
-                bk.box.grow(prims_[i].box);
+            std::vector<Bucket>& buckets = sc.buckets;
+            std::fill(buckets.begin(), buckets.end(), Bucket());
+            auto bin = [&](uint32_t b, uint32_t e, std::vector<Bucket>& into) {
+                for (uint32_t i = b; i < e; ++i) {
+                    Bucket& bk = into[bucket_of(prims_[i])];
+                    bk.count++;
+                    bk.box.grow(prims_[i].box);
+                }
+            };
+            if (share <= 1 || n < kParallelBinPrims) {
+                bin(begin, end, buckets);
+            } else {
+                buckets = fold(begin, end, share, buckets, bin,
+                               [](std::vector<Bucket>& acc, const std::vector<Bucket>& p) {
+                                   for (size_t k = 0; k < acc.size(); ++k) {
+                                       acc[k].count += p[k].count;
+                                       acc[k].box.grow(p[k].box);
+                                   }
+                               });
             }
             // Sweep from the right to get suffix areas, then from the left to evaluate B-1 planes.
             std::vector<float>& right_area = sc.right_area;
@@ -160,51 +219,62 @@ class SahBuilder {
                 if (mid == begin || mid == end) mid = begin + n / 2;
             }
         }
-        if (levels > 0 && mid - begin >= kParallelPrims && end - mid >= kParallelPrims)
-            return build_children_apart(nodes, index, begin, mid, end, depth, sc, levels - 1);
         const uint32_t left = append_children(nodes, index);
-        build_node(nodes, left, begin, mid, depth + 1, sc, levels);
-        build_node(nodes, left + 1, mid, end, depth + 1, sc, levels);
+        if (levels > 0 && mid - begin >= kParallelPrims && end - mid >= kParallelPrims) {
+            // The right subtree becomes a fragment of its own, built beside the left one.
+            frag.links.push_back({index, std::make_unique<Fragment>()});
+            Fragment& apart = *frag.links.back().second;
+            nodes.pop_back();  // the right child's record is the fragment's root
+            reserve_huge(apart.nodes, 2 * size_t(end - mid));
+            apart.nodes.emplace_back();
+            const int right_share = share / 2;
+            auto right = std::async(std::launch::async, [&, right_share] {
+                Scratch own(opt_.sah_buckets);
+                build_node(apart, 0, mid, end, depth + 1, own, levels - 1, right_share);
+            });
+            build_node(frag, left, begin, mid, depth + 1, sc, levels - 1, share - right_share);
+            right.get();
+            return;
+        }
+        build_node(frag, left, begin, mid, depth + 1, sc, levels, share);
+        build_node(frag, left + 1, mid, end, depth + 1, sc, levels, share);
     }
 
-    // The two children's subtrees, the right one on a thread of its own, each into an array whose
-    // first node is its root; then appended as the serial recursion would have made them.
-    void build_children_apart(std::vector<BinaryNode>& nodes, uint32_t index, uint32_t begin,
-                              uint32_t mid, uint32_t end, uint32_t depth, Scratch& sc, int levels) {
-        std::vector<BinaryNode> lnodes, rnodes;
-        reserve_huge(lnodes, 2 * size_t(mid - begin));
-        reserve_huge(rnodes, 2 * size_t(end - mid));
-        lnodes.emplace_back();
-        rnodes.emplace_back();
-        auto right = std::async(std::launch::async, [&] {
-            Scratch own(opt_.sah_buckets);
-            build_node(rnodes, 0, mid, end, depth + 1, own, levels);
-        });
-        build_node(lnodes, 0, begin, mid, depth + 1, sc, levels);
-        right.get();
-        const uint32_t left = append_children(nodes, index);
-        const auto base = uint32_t(nodes.size());
-        const auto after_left = uint32_t(base + lnodes.size() - 1);
-        auto splice = [&nodes](const std::vector<BinaryNode>& part, uint32_t root_at,
-                               uint32_t rest_at) {
-            auto moved = [&](uint32_t k) { return k == 0 ? root_at : rest_at + k - 1; };
-            for (size_t k = 0; k < part.size(); ++k) {
-                BinaryNode node = part[k];
-                if (!node.is_leaf()) {
-                    node.a = moved(node.a);
-                    node.b = moved(node.b);
-                }
-                if (k == 0)
-                    nodes[root_at] = node;
-                else
-                    nodes.push_back(node);
-            }
+    // Concatenates the fragments, root first and each fragment's links in the order they were
+    // made, into `out` with child indices moved by each fragment's offset.
+    void assemble(Fragment& root, std::vector<BinaryNode>& out) {
+        std::vector<std::pair<Fragment*, uint32_t>> order;  // fragment, its first index in out
+        uint32_t total = 0;
+        auto place = [&](auto&& self, Fragment& f) -> void {
+            order.push_back({&f, total});
+            total += uint32_t(f.nodes.size());
+            for (auto& link : f.links) self(self, *link.second);
         };
-        splice(lnodes, left, base);
-        splice(rnodes, left + 1, after_left);
+        place(place, root);
+        out = std::move(root.nodes);
+        out.resize(total);
+        std::map<const Fragment*, uint32_t> base_of;
+        for (const auto& [f, base] : order) base_of[f] = base;
+        parallel_blocks(order.size(), 1, threads_, [&](size_t b, size_t e) {
+            for (size_t k = b; k < e; ++k) {
+                const auto [f, base] = order[k];
+                if (k > 0)
+                    for (size_t i = 0; i < f->nodes.size(); ++i) {
+                        BinaryNode node = f->nodes[i];
+                        if (!node.is_leaf()) {
+                            node.a += base;
+                            node.b += base;
+                        }
+                        out[base + i] = node;
+                    }
+                for (const auto& link : f->links)
+                    out[base + link.first].b = base_of.at(link.second.get());
+            }
+        });
     }
 
     BvhBuildOptions opt_;
+    int threads_;
     std::vector<BuildPrim> prims_;
 };
 

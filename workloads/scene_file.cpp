@@ -182,29 +182,56 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
     InstancedScene scene;
     scene.name = fs::path(path).filename().string();
     scene.source = path;
-    std::map<std::string, uint32_t> mesh_index;
+    // A named mesh is one mesh placed once, or a mesh file whose nodes share meshes: its meshes
+    // placed by its own instances, which the scene file's instances then place as a whole (two
+    // levels of instancing folded into one, as DXR's TLAS holds them).
+    struct Part {
+        uint32_t mesh;
+        Affine3x4 placement;
+    };
+    std::map<std::string, std::vector<Part>> parts_of;
     const fs::path folder = fs::path(path).parent_path();
     for (const auto& item : doc["meshes"].items()) {
         const std::string where = "meshes." + item.key();
-        // "name": "file", or "name": {"file": "file", "alpha": {...}}
+        // "name": "file", or "name": {"file": "file", "alpha": {...}, "flatten": bool}
         const json* file = &item.value();
         AlphaMask alpha;
+        bool flatten = false;
         if (item.value().is_object()) {
-            rd.only(item.value(), where, {"file", "alpha"});
+            rd.only(item.value(), where, {"file", "alpha", "flatten"});
             if (!item.value().contains("file"))
                 rd.fail(where + ".file", "expected a mesh file or builtin:NAME");
             file = &item.value()["file"];
             if (item.value().contains("alpha"))
                 alpha = alpha_mask(rd, item.value()["alpha"], where + ".alpha");
+            if (item.value().contains("flatten")) {
+                if (!item.value()["flatten"].is_boolean())
+                    rd.fail(where + ".flatten", "expected true or false");
+                flatten = item.value()["flatten"].get<bool>();
+            }
         }
         if (!file->is_string()) rd.fail(where, "expected a mesh file or builtin:NAME");
         std::string spec = file->get<std::string>();
         if (spec.rfind("builtin:", 0) != 0 && fs::path(spec).is_relative())
             spec = (folder / spec).string();
         if (is_scene_file(spec)) rd.fail(where, "a scene file cannot be a mesh");
-        mesh_index[item.key()] = uint32_t(scene.meshes.size());
-        scene.meshes.push_back(load_scene_cached(spec, cache_dir));
-        scene.alpha.push_back(alpha);
+        std::vector<Part>& parts = parts_of[item.key()];
+        InstancedScene nested;
+        Scene mesh = load_scene_cached(spec, cache_dir, nullptr, flatten ? nullptr : &nested);
+        if (nested.instances.empty()) {
+            parts.push_back({uint32_t(scene.meshes.size()), Affine3x4()});
+            scene.meshes.push_back(std::move(mesh));
+            scene.alpha.push_back(alpha);
+            continue;
+        }
+        const auto first = uint32_t(scene.meshes.size());
+        for (Scene& m : nested.meshes) {
+            m.name = item.key() + "/" + m.name;
+            scene.meshes.push_back(std::move(m));
+            scene.alpha.push_back(alpha);
+        }
+        for (const Instance& i : nested.instances)
+            parts.push_back({first + i.mesh, i.object_to_world});
     }
     // Without a mask anywhere, no alpha table (a scene of opaque meshes hashes as before).
     if (std::all_of(scene.alpha.begin(), scene.alpha.end(),
@@ -220,15 +247,16 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
                  "scatter"});
         if (!e.contains("mesh") || !e["mesh"].is_string())
             rd.fail(where + ".mesh", "expected the name of a mesh in 'meshes'");
-        const auto m = mesh_index.find(e["mesh"].get<std::string>());
-        if (m == mesh_index.end())
+        const auto m = parts_of.find(e["mesh"].get<std::string>());
+        if (m == parts_of.end())
             rd.fail(where + ".mesh",
                     fmt::format("no mesh named '{}' in 'meshes'", e["mesh"].get<std::string>()));
+        const std::vector<Part>& parts = m->second;
         Instance base;
-        base.mesh = m->second;
         base.object_to_world = placement(rd, e, where);
-        // Instances of a masked mesh run its any-hit shader unless the file says opaque.
-        base.opaque = scene.mesh_alpha(base.mesh).pattern == AlphaPattern::None;
+        // Instances of a masked mesh run its any-hit shader unless the file says opaque (the
+        // parts of a nested file share the entry's mask).
+        base.opaque = scene.mesh_alpha(parts[0].mesh).pattern == AlphaPattern::None;
         if (e.contains("mask")) base.mask = uint8_t(rd.count(e["mask"], where + ".mask", 255));
         if (e.contains("opaque")) {
             if (!e["opaque"].is_boolean()) rd.fail(where + ".opaque", "expected true or false");
@@ -236,12 +264,22 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
         }
         if (e.contains("grid") && e.contains("scatter"))
             rd.fail(where, "'grid' and 'scatter' both given; use one");
-        const uint64_t room = kMaxSceneFileInstances - scene.instances.size();
-        // Copies are checked against memory before they are made.
+        // Copies of the entry (each one instance per part) are counted and checked against
+        // memory before they are made.
+        const uint64_t room = (kMaxSceneFileInstances - scene.instances.size()) / parts.size();
         auto reserve = [&](uint64_t copies) {
+            const uint64_t made = copies * parts.size();
             check_prepare_memory(path, scene.unique_triangle_count(),
-                                 scene.instances.size() + copies);
-            scene.instances.reserve(scene.instances.size() + copies);
+                                 scene.instances.size() + made);
+            scene.instances.reserve(scene.instances.size() + made);
+        };
+        auto place = [&](const Affine3x4& copy_to_world) {
+            for (const Part& part : parts) {
+                Instance i = base;
+                i.mesh = part.mesh;
+                i.object_to_world = compose(copy_to_world, part.placement);
+                scene.instances.push_back(i);
+            }
         };
         if (e.contains("grid")) {
             const json& g = e["grid"];
@@ -252,19 +290,18 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
             for (int a = 0; a < 3; ++a) n[a] = rd.count(g["count"][a], where + ".grid.count", room);
             if (n[0] * n[1] * n[2] > room)
                 rd.fail(where + ".grid.count",
-                        fmt::format("{} copies: more than {} instances in the file",
-                                    n[0] * n[1] * n[2], kMaxSceneFileInstances));
+                        fmt::format("{} copies of {} instance(s): more than {} instances in "
+                                    "the file",
+                                    n[0] * n[1] * n[2], parts.size(), kMaxSceneFileInstances));
             if (!g.contains("spacing")) rd.fail(where + ".grid.spacing", "missing");
             const Vec3 d = rd.vec3(g["spacing"], where + ".grid.spacing");
             reserve(n[0] * n[1] * n[2]);
             for (uint64_t z = 0; z < n[2]; ++z)
                 for (uint64_t y = 0; y < n[1]; ++y)
                     for (uint64_t x = 0; x < n[0]; ++x) {
-                        Instance i = base;
-                        i.object_to_world = compose(
+                        place(compose(
                             translation(Vec3(d.x * float(x), d.y * float(y), d.z * float(z))),
-                            base.object_to_world);
-                        scene.instances.push_back(i);
+                            base.object_to_world));
                     }
         } else if (e.contains("scatter")) {
             const json& s = e["scatter"];
@@ -308,12 +345,11 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
                 const float sc = float(scale_lo + (scale_hi - scale_lo) * u01(rng));
                 Affine3x4 copy = scaling(Vec3(sc, sc, sc));
                 if (yaw) copy = compose(rotation(Vec3(0, 1, 0), angle), copy);
-                Instance i = base;
-                i.object_to_world = compose(translation(p), compose(copy, base.object_to_world));
-                scene.instances.push_back(i);
+                place(compose(translation(p), compose(copy, base.object_to_world)));
             }
         } else {
-            scene.instances.push_back(base);
+            reserve(1);
+            place(base.object_to_world);
         }
     }
     scene.validate();
