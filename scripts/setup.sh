@@ -14,7 +14,7 @@ mode="${1:-run}"
 build_dir="${BUILD_DIR:-build}"
 
 packages=(cmake g++ make pkg-config libsystemc-dev libgtest-dev libfmt-dev nlohmann-json3-dev
-          libassimp-dev libembree-dev libcli11-dev libzstd-dev zlib1g-dev libxxhash-dev zstd glmark2-data
+          libassimp-dev libpng-dev libembree-dev libcli11-dev libzstd-dev zlib1g-dev libxxhash-dev zstd glmark2-data
           librsvg2-bin)
 # The test command also fuzzes the input readers (scripts/fuzz.sh): clang and its libFuzzer.
 [ "$mode" != test ] || packages+=(clang libclang-rt-14-dev)

@@ -4,12 +4,16 @@
 // linked in, their loading and relocation took about 6 ms of every rtsim process (a bare SystemC
 // program starts in 8.7 ms, the same linked with assimp in 15 ms), while a run whose mesh is in
 // the mesh cache (workloads/mesh_cache.h) never calls them.
+#include <assimp/GltfMaterial.h>
+#include <assimp/material.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <png.h>
 
 #include <assimp/Importer.hpp>
+#include <cstring>
+#include <filesystem>
 #include <string>
-
 #include <vector>
 
 #include "workloads/assimp_reader.h"
@@ -50,6 +54,98 @@ void count_placements(const aiScene* ai, const aiNode* node, std::vector<unsigne
         count_placements(ai, node->mChildren[c], count);
 }
 
+// The alpha channel of a PNG (in memory when `size` > 0, else the file `where`); false if it
+// cannot be decoded. Other image formats (JPEG) carry no alpha.
+bool read_png_alpha(const void* bytes, size_t size, const std::string& where,
+                    rtsim::AlphaTexture& out) {
+    png_image image;
+    std::memset(&image, 0, sizeof image);
+    image.version = PNG_IMAGE_VERSION;
+    const bool begun = size ? png_image_begin_read_from_memory(&image, bytes, size)
+                            : png_image_begin_read_from_file(&image, where.c_str());
+    if (!begun) return false;
+    image.format = PNG_FORMAT_GA;  // grey and alpha: the alpha is all a mask needs
+    std::vector<uint8_t> ga(PNG_IMAGE_SIZE(image));
+    if (!png_image_finish_read(&image, nullptr, ga.data(), 0, nullptr)) {
+        png_image_free(&image);
+        return false;
+    }
+    out.width = image.width;
+    out.height = image.height;
+    out.alpha.resize(size_t(image.width) * image.height);
+    for (size_t i = 0; i < out.alpha.size(); ++i) out.alpha[i] = ga[2 * i + 1];
+    return true;
+}
+
+// A mesh's alpha mask from its material, if the material is glTF's alphaMode MASK: the base
+// colour factor's alpha, its cutoff, and the base colour texture's alpha (embedded, or a file
+// beside the model) with the mesh's texture coordinates per triangle corner. `error` is set
+// when the texture is named but cannot be read.
+rtsim::AlphaMask material_alpha(const aiScene* ai, const aiMesh* mesh, const std::string& model,
+                                std::string* error) {
+    rtsim::AlphaMask mask;
+    if (mesh->mMaterialIndex >= ai->mNumMaterials) return mask;
+    const aiMaterial* mat = ai->mMaterials[mesh->mMaterialIndex];
+    aiString mode;
+    if (mat->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) != AI_SUCCESS || std::strcmp(mode.C_Str(), "MASK"))
+        return mask;
+    auto tex = std::make_shared<rtsim::AlphaTexture>();
+    float cutoff = 0.5f;
+    if (mat->Get(AI_MATKEY_GLTF_ALPHACUTOFF, cutoff) == AI_SUCCESS) tex->cutoff = cutoff;
+    aiColor4D colour(1, 1, 1, 1);
+    if (mat->Get(AI_MATKEY_BASE_COLOR, colour) == AI_SUCCESS ||
+        mat->Get(AI_MATKEY_COLOR_DIFFUSE, colour) == AI_SUCCESS)
+        tex->factor = colour.a;
+    aiString file;
+    unsigned uv_channel = 0;
+    bool textured = false;
+    for (const aiTextureType type : {aiTextureType_BASE_COLOR, aiTextureType_DIFFUSE})
+        if (mat->GetTexture(type, 0, &file, nullptr, &uv_channel) == AI_SUCCESS) {
+            textured = true;
+            break;
+        }
+    if (textured && uv_channel < AI_MAX_NUMBER_OF_TEXTURECOORDS &&
+        mesh->mTextureCoords[uv_channel]) {
+        bool read = false;
+        if (const aiTexture* embedded = ai->GetEmbeddedTexture(file.C_Str())) {
+            if (embedded->mHeight == 0) {  // compressed: mWidth bytes of a PNG or JPEG file
+                read = !embedded->CheckFormat("png") ||
+                       read_png_alpha(embedded->pcData, embedded->mWidth, model, *tex);
+            } else {  // texels, ARGB8888
+                tex->width = embedded->mWidth;
+                tex->height = embedded->mHeight;
+                tex->alpha.resize(size_t(tex->width) * tex->height);
+                for (size_t i = 0; i < tex->alpha.size(); ++i)
+                    tex->alpha[i] = embedded->pcData[i].a;
+                read = true;
+            }
+        } else {
+            const std::string path =
+                (std::filesystem::path(model).parent_path() / file.C_Str()).string();
+            const std::string ext = std::filesystem::path(path).extension().string();
+            read = (ext != ".png" && ext != ".PNG") || read_png_alpha(nullptr, 0, path, *tex);
+            if (!read) *error = "cannot read the alpha texture " + path;
+        }
+        if (!read && error->empty()) *error = "cannot decode an embedded alpha texture";
+        if (tex->width) {
+            const aiVector3D* st = mesh->mTextureCoords[uv_channel];
+            for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+                const aiFace& face = mesh->mFaces[f];
+                if (face.mNumIndices != 3) continue;
+                std::array<float, 6> c;
+                for (int k = 0; k < 3; ++k) {
+                    c[size_t(2 * k)] = st[face.mIndices[k]].x;
+                    c[size_t(2 * k + 1)] = st[face.mIndices[k]].y;
+                }
+                tex->corner_st.push_back(c);
+            }
+        }
+    }
+    mask.pattern = rtsim::AlphaPattern::Texture;
+    mask.texture = std::move(tex);
+    return mask;
+}
+
 // One instance per node placement of a mesh with triangles, in the order append_node visits
 // them, with the node's global transform (assimp's matrices are row-major, as Affine3x4).
 void add_instances(const aiNode* node, const aiMatrix4x4& parent,
@@ -60,6 +156,7 @@ void add_instances(const aiNode* node, const aiMatrix4x4& parent,
         if (blas < 0) continue;
         rtsim::Instance inst;
         inst.mesh = uint32_t(blas);
+        inst.opaque = out.mesh_alpha(inst.mesh).pattern == rtsim::AlphaPattern::None;
         inst.object_to_world.m = {xf.a1, xf.a2, xf.a3, xf.a4, xf.b1, xf.b2,
                                   xf.b3, xf.b4, xf.c1, xf.c2, xf.c3, xf.c4};
         out.instances.push_back(inst);
@@ -68,9 +165,10 @@ void add_instances(const aiNode* node, const aiMatrix4x4& parent,
         add_instances(node->mChildren[c], xf, blas_of_mesh, out);
 }
 
-// Each placed mesh with triangles once, in object space, in the file's mesh order.
-void add_meshes(const aiScene* ai, const std::vector<unsigned>& placements,
-                std::vector<int>& blas_of_mesh, rtsim::InstancedScene& out) {
+// Each placed mesh with triangles once, in object space, in the file's mesh order, with its
+// material's alpha mask.
+bool add_meshes(const aiScene* ai, const std::vector<unsigned>& placements, const char* model,
+                std::vector<int>& blas_of_mesh, rtsim::InstancedScene& out, std::string* error) {
     for (unsigned k = 0; k < ai->mNumMeshes; ++k) {
         const aiMesh* mesh = ai->mMeshes[k];
         if (!placements[k] || !has_triangles(mesh)) continue;
@@ -87,7 +185,22 @@ void add_meshes(const aiScene* ai, const std::vector<unsigned>& placements,
         if (s.triangles.empty()) continue;
         blas_of_mesh[k] = int(out.meshes.size());
         out.meshes.push_back(std::move(s));
+        out.alpha.push_back(material_alpha(ai, mesh, model, error));
+        if (!error->empty()) return false;
     }
+    // Without a mask anywhere, no alpha table (as a scene file's).
+    bool any = false;
+    for (const rtsim::AlphaMask& a : out.alpha) any = any || a.pattern != rtsim::AlphaPattern::None;
+    if (!any) out.alpha.clear();
+    return true;
+}
+
+bool is_masked(const aiScene* ai, const aiMesh* mesh) {
+    if (mesh->mMaterialIndex >= ai->mNumMaterials) return false;
+    aiString mode;
+    return ai->mMaterials[mesh->mMaterialIndex]->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) ==
+               AI_SUCCESS &&
+           std::strcmp(mode.C_Str(), "MASK") == 0;
 }
 
 }  // namespace
@@ -105,12 +218,16 @@ extern "C" __attribute__((visibility("default"))) bool rtsim_assimp_read(
     }
     std::vector<unsigned> placements(ai->mNumMeshes, 0);
     count_placements(ai, ai->mRootNode, placements);
+    // Files whose nodes share meshes, or whose materials cut geometry out (alphaMode MASK: the
+    // masks live with a scene of instances), keep their instances.
     *shared = false;
     for (unsigned k = 0; k < ai->mNumMeshes; ++k)
-        *shared = *shared || (placements[k] > 1 && has_triangles(ai->mMeshes[k]));
+        *shared = *shared || (placements[k] && has_triangles(ai->mMeshes[k]) &&
+                              (placements[k] > 1 || is_masked(ai, ai->mMeshes[k])));
     if (*shared && instanced) {
         std::vector<int> blas_of_mesh(ai->mNumMeshes, -1);
-        add_meshes(ai, placements, blas_of_mesh, *instanced);
+        error->clear();
+        if (!add_meshes(ai, placements, path, blas_of_mesh, *instanced, error)) return false;
         add_instances(ai->mRootNode, aiMatrix4x4(), blas_of_mesh, *instanced);
         return true;
     }

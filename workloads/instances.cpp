@@ -105,6 +105,15 @@ uint64_t InstancedScene::content_hash() const {
         const uint32_t fields[3] = {uint32_t(a.pattern), a.seed, a.cells};
         h = fnv1a(h, fields, sizeof fields);
         h = fnv1a(h, &a.keep, sizeof a.keep);
+        if (a.texture) {
+            const AlphaTexture& t = *a.texture;
+            const uint32_t size[2] = {t.width, t.height};
+            const float levels[2] = {t.factor, t.cutoff};
+            h = fnv1a(h, size, sizeof size);
+            h = fnv1a(h, levels, sizeof levels);
+            h = fnv1a(h, t.alpha.data(), t.alpha.size());
+            h = fnv1a(h, t.corner_st.data(), t.corner_st.size() * sizeof(t.corner_st[0]));
+        }
     }
     return h;
 }

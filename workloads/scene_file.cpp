@@ -188,6 +188,7 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
     struct Part {
         uint32_t mesh;
         Affine3x4 placement;
+        bool opaque;  // unless the scene file's instance says
     };
     std::map<std::string, std::vector<Part>> parts_of;
     const fs::path folder = fs::path(path).parent_path();
@@ -218,20 +219,23 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
         std::vector<Part>& parts = parts_of[item.key()];
         InstancedScene nested;
         Scene mesh = load_scene_cached(spec, cache_dir, nullptr, flatten ? nullptr : &nested);
+        const bool masked = alpha.pattern != AlphaPattern::None;
         if (nested.instances.empty()) {
-            parts.push_back({uint32_t(scene.meshes.size()), Affine3x4()});
+            parts.push_back({uint32_t(scene.meshes.size()), Affine3x4(), !masked});
             scene.meshes.push_back(std::move(mesh));
             scene.alpha.push_back(alpha);
             continue;
         }
+        // The file's own masks (glTF alphaMode MASK) and opaque flags hold unless the entry
+        // gives a mask, which then covers all of its meshes.
         const auto first = uint32_t(scene.meshes.size());
-        for (Scene& m : nested.meshes) {
-            m.name = item.key() + "/" + m.name;
-            scene.meshes.push_back(std::move(m));
-            scene.alpha.push_back(alpha);
+        for (uint32_t k = 0; k < nested.meshes.size(); ++k) {
+            nested.meshes[k].name = item.key() + "/" + nested.meshes[k].name;
+            scene.meshes.push_back(std::move(nested.meshes[k]));
+            scene.alpha.push_back(masked ? alpha : nested.mesh_alpha(k));
         }
         for (const Instance& i : nested.instances)
-            parts.push_back({first + i.mesh, i.object_to_world});
+            parts.push_back({first + i.mesh, i.object_to_world, masked ? false : i.opaque});
     }
     // Without a mask anywhere, no alpha table (a scene of opaque meshes hashes as before).
     if (std::all_of(scene.alpha.begin(), scene.alpha.end(),
@@ -254,11 +258,10 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
         const std::vector<Part>& parts = m->second;
         Instance base;
         base.object_to_world = placement(rd, e, where);
-        // Instances of a masked mesh run its any-hit shader unless the file says opaque (the
-        // parts of a nested file share the entry's mask).
-        base.opaque = scene.mesh_alpha(parts[0].mesh).pattern == AlphaPattern::None;
         if (e.contains("mask")) base.mask = uint8_t(rd.count(e["mask"], where + ".mask", 255));
-        if (e.contains("opaque")) {
+        // Instances of a masked mesh run its any-hit shader unless the file says opaque.
+        const bool opaque_given = e.contains("opaque");
+        if (opaque_given) {
             if (!e["opaque"].is_boolean()) rd.fail(where + ".opaque", "expected true or false");
             base.opaque = e["opaque"].get<bool>();
         }
@@ -278,6 +281,7 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
                 Instance i = base;
                 i.mesh = part.mesh;
                 i.object_to_world = compose(copy_to_world, part.placement);
+                if (!opaque_given) i.opaque = part.opaque;
                 scene.instances.push_back(i);
             }
         };
