@@ -38,6 +38,8 @@ struct DramParams {
     std::string page_policy = "open";
     std::string address_mapping;  // empty: the device's
     bool refresh = true;
+    // The TLM-2.0 stand-in (dram.model = tlm): the shared library that makes its target.
+    std::string tlm_target;
     double chip_clock_ghz = 0;  // set by chip assembly from clock_ghz
 };
 

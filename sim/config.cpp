@@ -269,6 +269,11 @@ void validate_cross(const json& c, const std::string& where) {
                 where, c["ray_buffer"]["capacity_rays"].get<uint64_t>(),
                 c["ray_buffer"]["ray_bytes"].get<uint64_t>()));
     }
+    if (c["dram"]["model"] == "tlm" && c["dram"]["tlm_target"].get<std::string>().empty())
+        throw InputError(fmt::format(
+            "{}: dram.tlm_target: dram.model=tlm needs the path of a shared library that makes a "
+            "TLM-2.0 target (docs/extending.md)",
+            where));
     if (c["dram"]["model"] == "command") {
         DramParams p;
         p.device = c["dram"]["device"];

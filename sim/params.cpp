@@ -144,6 +144,7 @@ std::vector<FieldBinding> make_bindings() {
         field("dram.page_policy", M(dram.page_policy)),
         field("dram.address_mapping", M(dram.address_mapping)),
         field("dram.refresh", M(dram.refresh)),
+        field("dram.tlm_target", M(dram.tlm_target)),
         custom(
             "bvh.builder",
             [](Params& p, const json& v) {
