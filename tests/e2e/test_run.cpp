@@ -1406,7 +1406,8 @@ void diff_json(const json& a, const json& b, const std::string& path,
 }  // namespace
 
 // Simulated statistics of small fixed runs (tests/golden/cases.json: independent, treelet with
-// the age-ordered scheduler, packet, shared units with tree-PLRU and SRRIP). A change here must
+// the age-ordered scheduler, packet, shared units with tree-PLRU and SRRIP, the time-ordered
+// engine, and command DRAM with the writes of a small write-back L2). A change here must
 // be deliberate: regenerate with scripts/update_golden.sh, which prints each file's diff, and
 // explain in the commit why the numbers moved.
 TEST(Golden, EveryCaseMatchesItsFile) {

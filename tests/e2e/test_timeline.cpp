@@ -214,3 +214,32 @@ TEST(Timeline, OneRayOnTheCommandLevelDramByHand) {
         EXPECT_EQ(s["out_of_order"]["dram_requests"].get<uint64_t>(), 0u);
     }
 }
+
+// Two cores, one slot each, one ray each (ray i to core i), both rays the same node and triangle:
+// they share the L2 and the crossbar (8 bytes per cycle, so a 64-byte line crosses in 8 cycles).
+// Same-cycle ties go to the lower core.
+//   0    both setups -> 1
+//   1    both node steps: fetch at 2; each core's own L1 misses at 6; both reach the L2 at 6 (a
+//        tie): core 0's lookup misses at 36 and goes to DRAM (empty bank: column 50, data 64,
+//        burst 68, +150 -> 218); core 1's finds the fill in flight and waits for it (merged)
+//   218  the line returns to both: core 0's crosses the link 218..226, core 1's 226..234;
+//        box tests 226 -> 234 and 234 -> 242 (each core has its own box unit)
+//   234  core 0's triangle: fetch 235; L1 miss 239; L2 miss 269; DRAM row hit: column 269,
+//        data 283, burst 287, +150 -> 437; link 437..445; triangle unit 445 -> 463
+//   242  core 1's triangle: fetch 243; L1 miss 247; L2 lookup 277 finds core 0's fill in
+//        flight until 437; link after core 0's line: 445..453; triangle unit 453 -> 471
+TEST(Timeline, TwoCoresShareTheL2AndTheCrossbarByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "two_cores.rtt", 2);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s = run_trace(trace,
+                                 " --set core.count=2 --set core.ray_slots=1"
+                                 " --set crossbar.bytes_per_cycle=8",
+                                 "two_cores", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 471u);
+        EXPECT_EQ(s["caches"]["l2"]["misses"].get<uint64_t>(), 2u) << s["caches"].dump();
+        EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), 128u);
+        EXPECT_EQ(s["bandwidth"]["crossbar"]["bytes"].get<uint64_t>(), 4u * 64);
+        EXPECT_EQ(s["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+    }
+}
