@@ -243,3 +243,98 @@ TEST(Timeline, TwoCoresShareTheL2AndTheCrossbarByHand) {
         EXPECT_EQ(s["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
     }
 }
+
+namespace {
+
+// Rays given as lists of steps: 'n' + id a node step (node `id`'s line), 't' the triangle.
+std::string write_steps(const fs::path& path, const std::vector<std::string>& rays, int nodes) {
+    TraceWriter w(path.string(), tiny_layout_metadata(nodes).dump(), 16);
+    for (size_t i = 0; i < rays.size(); ++i) {
+        TraceRecord r;
+        r.ray_id = uint32_t(i);
+        for (size_t c = 0; c < rays[i].size(); ++c) {
+            Step s{};
+            if (rays[i][c] == 't') {
+                s.kind = StepKind::Triangle;
+                s.count = 1;
+            } else {
+                s.kind = StepKind::Node;
+                s.id = uint32_t(rays[i][++c] - '0');
+                s.count = 2;
+            }
+            r.steps.push_back(s);
+        }
+        w.add(r);
+    }
+    w.finish();
+    return path.string();
+}
+
+}  // namespace
+
+// A lookup and a fill of the same line in the same cycle: fills complete first, so the lookup
+// hits. The L2's lines are 128 bytes, two of the L1's: node 0's line and the triangle's share
+// one. Lines cross the crossbar in one cycle (64 bytes a cycle); L1 lookups take 4 cycles,
+// triangle tests 25. Ray A is the triangle then node 0, ray B the triangle twice then node 0,
+// on one core's two slots:
+//   0    setups: A -> 1, B -> 2
+//   2    A's triangle step -> fetch 3; L1 miss at 7, L2 miss at 37; DRAM: two bursts; the line
+//        crosses back: F
+//   3    B's triangle step -> fetch 4; lookup at 8 finds A's miss in flight: merged, also F
+//   F    the triangle unit takes A's test at F (-> F+25) and B's at F+1 (-> F+26)
+//   F+25 A's node step -> fetch F+26; L1 miss at F+30; the L2 holds the line (it came with the
+//        triangle's): hit at F+60; the line crosses, and the L1's fill completes at F+61
+//   F+26 B's second triangle step -> fetch F+27; L1 hit at F+31; triangle unit -> F+56
+//   F+56 B's node step -> fetch F+57; its lookup ends at F+61, as A's fill completes: a hit
+//   The L1: misses for A's triangle and node; three hits, one of them a merged miss (B's first
+//   triangle, which found its line filling), the others B's second triangle and its node; the
+//   L2: one miss, one hit.
+// The fill's completion is only known at F+60 (when the L2 answers), after the lookup's event
+// was made at F+57, so an engine that ordered the two by when they were made would see a
+// merged miss.
+TEST(Timeline, AFillCompletesBeforeALookupInTheSameCycleByHand) {
+    const std::string trace = write_steps(test::scratch_dir() / "tie.rtt", {"tn0", "ttn0"}, 1);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s = run_trace(trace,
+                                 " --set core.ray_slots=2 --set l2.line_bytes=128"
+                                 " --set crossbar.bytes_per_cycle=64"
+                                 " --set triangle_unit.latency_cycles=25",
+                                 "tie", fidelity);
+        const json& l1 = s["caches"]["l1_total"];
+        EXPECT_EQ(l1["misses"].get<uint64_t>(), 2u) << l1.dump();
+        EXPECT_EQ(l1["merged_misses"].get<uint64_t>(), 1u) << l1.dump();
+        EXPECT_EQ(l1["hits"].get<uint64_t>(), 3u) << l1.dump();
+        EXPECT_EQ(s["caches"]["l2"]["misses"].get<uint64_t>(), 1u);
+        EXPECT_EQ(s["caches"]["l2"]["hits"].get<uint64_t>(), 1u);
+    }
+}
+
+// Three rays, each with its own node line, and one L1 MSHR: misses waiting for it are served
+// first come, first served.
+//   0    setups: A -> 1, B -> 2, C -> 3 (one issue a cycle, the longest waiting first)
+//   3    A's node step (ready since 1) -> fetch 4; B's at 4 -> 5; C's at 5 -> 6
+//   A: L1 miss at 8 takes the MSHR; L2 miss 38; DRAM empty: column 52, data 66, burst 70, +150
+//      -> 220; box 220 -> 228
+//   B: L1 miss at 9 waits; C: at 10 waits
+//   220  the MSHR goes to B (first to wait): L2 miss 250; DRAM row hit: column 250, data 264,
+//        burst 268, +150 -> 418; box 418 -> 426
+//   228  A's triangle step -> fetch 229; L1 miss at 233 waits behind C
+//   418  C: L2 miss 448; column 448, data 462, burst 466, +150 -> 616; box 616 -> 624
+//   616  A's triangle: L2 miss 646; column 646, data 660, burst 664, +150 -> 814; triangle
+//        814 -> 832
+//   426  B's triangle -> fetch 427; lookup at 431 finds A's miss (waiting) and merges: 814;
+//        triangle 815 -> 833.  624: C's -> fetch 625, lookup 629 merges: triangle 816 -> 834
+//   MSHR waits: B 211, C 408, A's triangle 383.
+TEST(Timeline, MissesWaitingForAnMshrAreServedInOrderByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "fcfs.rtt", 3, true);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s =
+            run_trace(trace, " --set core.ray_slots=3 --set l1.mshrs=1", "fcfs", fidelity);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 834u);
+        EXPECT_EQ(s["counters"]["l1[0].mshr_wait_cycles"].get<uint64_t>(), 211u + 408 + 383);
+        EXPECT_EQ(s["caches"]["l1_total"]["misses"].get<uint64_t>(), 4u);
+        EXPECT_EQ(s["caches"]["l1_total"]["merged_misses"].get<uint64_t>(), 2u);
+    }
+}
