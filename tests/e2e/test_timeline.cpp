@@ -338,3 +338,34 @@ TEST(Timeline, MissesWaitingForAnMshrAreServedInOrderByHand) {
         EXPECT_EQ(s["caches"]["l1_total"]["merged_misses"].get<uint64_t>(), 2u);
     }
 }
+
+// Posted writes through a one-entry write buffer: each ray writes a 16-byte hit record when it
+// ends; an entry is held until the L2 has looked the write up, and a write that finds the
+// buffer full waits. One slot, two identical rays; box and triangle tests take 1 cycle; lines
+// cross the crossbar at 8 bytes a cycle (a 64-byte line in 8, a hit record in 2).
+//   0    A's setup -> 1; node step -> fetch 2; L1 miss 6; L2 miss 36; DRAM: column 50, data
+//        64, burst 68, +150 -> 218; crossing 218..226; box -> 227
+//   227  A's triangle -> fetch 228; L1 miss 232; L2 miss 262; DRAM row hit: column 262, data
+//        276, burst 280, +150 -> 430; crossing -> 438; triangle -> 439
+//   439  A ends: its record takes the entry, crosses up 439..441, the L2 looks it up 441..471
+//        (the entry is free again at 471). B takes the slot: setup -> 440; node -> fetch 441,
+//        L1 hit 445, box -> 446; triangle -> fetch 447, hit 451, triangle -> 452
+//   452  B ends; its record waits for the entry until 471 (19 cycles of write_buffer stall)
+TEST(Timeline, AFullWriteBufferHoldsTheNextWriteByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "writes.rtt", 2);
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s = run_trace(trace,
+                                 " --set core.ray_slots=1 --set core.hit_record_bytes=16"
+                                 " --set core.write_buffer_entries=1"
+                                 " --set crossbar.bytes_per_cycle=8"
+                                 " --set box_unit.latency_cycles=1"
+                                 " --set triangle_unit.latency_cycles=1",
+                                 "writes", fidelity);
+        const json& st = s["stalls"]["total"];
+        EXPECT_EQ(st["write_buffer"].get<uint64_t>(), 19u) << st.dump();
+        EXPECT_EQ(s["counters"]["core[0].hit_record_writes"].get<uint64_t>(), 2u);
+        EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 471u);
+        EXPECT_EQ(st["unaccounted_cycles"].get<int64_t>(), 0);
+    }
+}
