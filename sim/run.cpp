@@ -119,19 +119,50 @@ SamplingParams sampling_params(const RunOptions& opt, const Config& cfg) {
     return sp;
 }
 
+// A skip-design sampled run's frame profile (through the cache), the units' work, the order
+// strata are cut from and the reference, then the design; returns the tiles it wants traced.
+// `trace` traces the frame's rays over `layout`; `key` names what the rays' steps depend on.
+std::function<bool(int)> prepare_skip_design(const RunOptions& opt, const Config& cfg,
+                                             SamplingParams& sp, Workload& w,
+                                             const BvhLayout& layout, const TraceRays& trace,
+                                             const std::string& key) {
+    // The profile traces the whole frame once, on every host core (nothing else runs yet).
+    w.gen->set_record_steps(true);
+    w.profile = std::make_unique<FrameProfile>(profile_frame_cached(
+        *w.gen, trace, sp.unit_tiles, layout.fetch_begin(), layout.fetch_end(),
+        uint32_t(cfg.typed.l2.line_bytes), int(std::max(1u, std::thread::hardware_concurrency())),
+        key, w.cache_dir));
+    sp.tiles = uint64_t(w.gen->tile_count());
+    sp.tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
+    if (sp.by_work) {
+        sp.unit_work.resize(w.profile->units.size());
+        for (size_t u = 0; u < w.profile->units.size(); ++u)
+            sp.unit_work[u] = w.profile->units[u][kAuxWork];
+    }
+    // The order strata are cut from, before the design is made: another run's units by their
+    // cycles, or (a paired run) the reference's, once it is known to be this frame's.
+    if (!opt.sample_order_dir.empty()) {
+        sp.unit_order = read_strata_order(opt.sample_order_dir, "--sample-order", sp.unit_tiles,
+                                          w.profile->units, sp.period_units);
+        sp.unit_order_of = opt.sample_order_dir;
+    }
+    if (!opt.reference_dir.empty())
+        w.reference = std::make_unique<Reference>(load_reference(opt, cfg, w.meta, *w.profile, sp));
+    // Made once: the ray source's helper thread and the sampler read it.
+    w.design = std::make_shared<const SampleDesign>(sp);
+    return [design = w.design](int tile) { return design->wants_tile(uint64_t(tile)); };
+}
+
 // A scene of instances (a scene file, workloads/scene_file.h, or a mesh file whose nodes share
 // meshes: `loaded`, read in `loaded_s`): its meshes' BLASes and the TLAS over its instances,
-// built as the config's bvh section says, traced on the fly. What two-level scenes do not have
-// yet is refused before anything runs.
+// built as the config's bvh section says, traced on the fly (a sampled run's skip design
+// profiles the frame over both levels). Packets, which trace one level, are refused before
+// anything runs.
 void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
-                       const SamplingParams* sampling, Workload& w,
+                       SamplingParams* sampling, Workload& w,
                        std::unique_ptr<InstancedScene> loaded = nullptr, double loaded_s = 0) {
     const std::string& file = opt.workload.scene;
     const char* or_flatten = loaded ? kOrFlatten : "";
-    if (sampling)
-        throw InputError(fmt::format(
-            "sim.sampled: {} is a scene of instances; sampled runs take one-level scenes so far{}",
-            file, or_flatten));
     if (TraversalModeRegistry::at(cfg.typed.traversal.mode).packets)
         throw InputError(
             fmt::format("traversal.mode {}: {} is a scene of instances; packets trace one level{}",
@@ -148,7 +179,20 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
     w.meta = {{"scene", scene_summary(*w.instanced)},
               {"bvh", bvh_summary(*w.two)},
               {"workload", workload_summary(opt.workload.gen, w.gen->ao_length())}};
-    w.source = std::make_unique<GeneratedWorkSource>(*w.two, *w.gen, progress, opt.tracer_threads);
+    std::function<bool(int)> want_tile;
+    if (sampling && sampling->skip) {
+        // Keyed by the scene's content (meshes, instances, masks) and the two levels as built,
+        // laid out and traversed, and the generator's settings.
+        const std::string key =
+            fmt::format("v1 two={:016x} {} {}", w.instanced->content_hash(),
+                        json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
+        const TwoLevelBvh& two = *w.two;
+        want_tile = prepare_skip_design(
+            opt, cfg, *sampling, w, two.layout,
+            [&two](std::vector<GeneratedRay>& rays) { trace_untraced(two, rays); }, key);
+    }
+    w.source = std::make_unique<GeneratedWorkSource>(*w.two, *w.gen, progress, opt.tracer_threads,
+                                                     std::move(want_tile));
 }
 
 // `sampling`: a sampled run's plan; in the skip design the frame's tile count is filled in, and
@@ -198,9 +242,6 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
     const bool packets = TraversalModeRegistry::at(cfg.typed.traversal.mode).packets;
     std::function<bool(int)> want_tile;
     if (sampling && sampling->skip) {
-        // The profile traces the whole frame once, on every host core (nothing else runs yet).
-        const BvhLayout& L = w.bvh->layout;
-        w.gen->set_record_steps(true);
         // Keyed by what the rays' steps depend on: the scene's content and the BVH build (the
         // BVH cache's key), the tree as laid out and traversed, and the generator's settings.
         const BvhLayout sizes = layout_sizes_from_config(cfg);
@@ -208,31 +249,10 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             "v1 bvh={:016x} {} {}",
             cached ? w.bvh_cache.key : bvh_cache_key(scene_hash, *w.scene, cfg.typed.bvh, sizes),
             json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
-        w.profile = std::make_unique<FrameProfile>(profile_frame_cached(
-            *w.gen, *w.bvh, sampling->unit_tiles, L.fetch_begin(), L.fetch_end(),
-            uint32_t(cfg.typed.l2.line_bytes),
-            int(std::max(1u, std::thread::hardware_concurrency())), key, cache_dir));
-        sampling->tiles = uint64_t(w.gen->tile_count());
-        sampling->tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
-        if (sampling->by_work) {
-            sampling->unit_work.resize(w.profile->units.size());
-            for (size_t u = 0; u < w.profile->units.size(); ++u)
-                sampling->unit_work[u] = w.profile->units[u][kAuxWork];
-        }
-        // The order strata are cut from, before the design is made: another run's units by their
-        // cycles, or (a paired run) the reference's, once it is known to be this frame's.
-        if (!opt.sample_order_dir.empty()) {
-            sampling->unit_order =
-                read_strata_order(opt.sample_order_dir, "--sample-order", sampling->unit_tiles,
-                                  w.profile->units, sampling->period_units);
-            sampling->unit_order_of = opt.sample_order_dir;
-        }
-        if (!opt.reference_dir.empty())
-            w.reference = std::make_unique<Reference>(
-                load_reference(opt, cfg, w.meta, *w.profile, *sampling));
-        // Made once: the ray source's helper thread and the sampler read it.
-        w.design = std::make_shared<const SampleDesign>(*sampling);
-        want_tile = [design = w.design](int tile) { return design->wants_tile(uint64_t(tile)); };
+        const Bvh& bvh = *w.bvh;
+        want_tile = prepare_skip_design(
+            opt, cfg, *sampling, w, w.bvh->layout,
+            [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }, key);
     }
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,
                                                      packets ? cfg.typed.traversal.packet_size : 0,

@@ -183,6 +183,12 @@ void print_run_summary(const json& out, const std::string& stats_path) {
             const json& c = sm["total_cycles"];
             fmt::print("; frame cycles {:.0f} {} (95%)", c["value"].get<double>(), interval(c));
             if (c.contains("caveat")) caveats.emplace_back("cycles", c["caveat"]);
+        } else {
+            // Nothing may pass for the frame's figure: the lines above are the measured units'.
+            caveats.emplace_back("frame",
+                                 "no estimate: the cycles, rate and traffic above are the "
+                                 "measured units' only; " +
+                                     sm.value("note", std::string("too few measured units")));
         }
         // The traffic line below is the detailed part's; the frame's DRAM bytes are estimated.
         if (sm.contains("counters") && sm["counters"].contains("dram.bytes")) {

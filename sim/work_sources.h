@@ -294,13 +294,15 @@ class GeneratedWorkSource : public PrefetchingSource {
         prefetch();
     }
     // Over a two-level scene (single rays: packets trace one level).
-    GeneratedWorkSource(const TwoLevelBvh& bvh, RayGenerator& gen, bool progress, int threads = 1)
+    GeneratedWorkSource(const TwoLevelBvh& bvh, RayGenerator& gen, bool progress, int threads = 1,
+                        std::function<bool(int)> want_tile = {})
         : PrefetchingSource(progress, "tiles"),
           gen_(gen),
           packet_size_(0),
-          record_tiles_(false),
-          tiles_(gen, threads,
-                 [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }) {
+          record_tiles_(bool(want_tile)),
+          tiles_(
+              gen, threads, [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); },
+              std::move(want_tile)) {
         gen_.set_record_steps(true);
         prefetch();
     }

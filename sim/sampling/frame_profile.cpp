@@ -18,7 +18,7 @@ LineTracker::LineTracker(uint64_t base, uint64_t end, uint32_t line_bytes) {
     touched_.assign((lines_ + 63) / 64, 0);
 }
 
-FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
+FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint64_t unit_tiles,
                            uint64_t base, uint64_t end, uint32_t line_bytes, int threads) {
     const auto start = std::chrono::steady_clock::now();
     FrameProfile p;
@@ -37,8 +37,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t uni
     std::vector<uint32_t> fetched_by(lines.lines(), 0), last_ray(lines.lines(), 0);
     std::vector<size_t> entry(lines.lines(), 0);
     // The tiles in frame order, traced on the tile threads as a run's work source does.
-    TileQueue queue(gen, threads,
-                    [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); });
+    TileQueue queue(gen, threads, trace);
     std::vector<GeneratedRay> rays;
     std::vector<size_t> new_entries;  // the tile's entries of lines new to the frame
     RayWork work;
@@ -147,10 +146,11 @@ FrameProfile deserialize(std::string_view bytes, const std::string& key, uint64_
 
 }  // namespace
 
-FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
-                                  uint64_t base, uint64_t end, uint32_t line_bytes, int threads,
-                                  const std::string& key, const std::string& dir) {
-    if (dir.empty()) return profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads);
+FrameProfile profile_frame_cached(const RayGenerator& gen, const TraceRays& trace,
+                                  uint64_t unit_tiles, uint64_t base, uint64_t end,
+                                  uint32_t line_bytes, int threads, const std::string& key,
+                                  const std::string& dir) {
+    if (dir.empty()) return profile_frame(gen, trace, unit_tiles, base, end, line_bytes, threads);
     const auto start = std::chrono::steady_clock::now();
     // The format's magic in the key: an entry of an older format is never read (nor warned of).
     const std::string full_key =
@@ -166,7 +166,7 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint6
         [&](std::string_view bytes, const std::shared_ptr<const void>& keep) {
             return deserialize(bytes, full_key, uint64_t(gen.tile_count()), keep);
         },
-        [&] { return profile_frame(gen, bvh, unit_tiles, base, end, line_bytes, threads); },
+        [&] { return profile_frame(gen, trace, unit_tiles, base, end, line_bytes, threads); },
         [&](const FrameProfile& built) { return serialize(built, full_key); }, "frame profile",
         outcome);
     p.cache = outcome;

@@ -13,12 +13,14 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "workloads/bvh.h"
 #include "workloads/raygen.h"
 #include "workloads/step.h"
+#include "workloads/tile_queue.h"
 
 namespace rtsim {
 
@@ -111,15 +113,33 @@ struct FrameProfile {
 
 // Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)
 // at line_bytes.
-FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
+// How the frame's rays are traced (a one-level BVH's or a scene of instances' tracer), filling
+// each ray's steps.
+using TraceRays = std::function<void(std::vector<GeneratedRay>&)>;
+FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint64_t unit_tiles,
                            uint64_t base, uint64_t end, uint32_t line_bytes, int threads);
+inline FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
+                                  uint64_t base, uint64_t end, uint32_t line_bytes, int threads) {
+    return profile_frame(
+        gen, TraceRays([&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }),
+        unit_tiles, base, end, line_bytes, threads);
+}
 
 // profile_frame through an on-disk cache in `dir` (empty: none), the BVH cache's folder. `key`
 // names everything the profile depends on besides the unit and line sizes and the range (the
 // scene's content, the BVH and its layout, the ray generator's settings); an entry whose
 // checksum, key or structure is wrong is recomputed and stored over, never used.
-FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
-                                  uint64_t base, uint64_t end, uint32_t line_bytes, int threads,
-                                  const std::string& key, const std::string& dir);
+FrameProfile profile_frame_cached(const RayGenerator& gen, const TraceRays& trace,
+                                  uint64_t unit_tiles, uint64_t base, uint64_t end,
+                                  uint32_t line_bytes, int threads, const std::string& key,
+                                  const std::string& dir);
+inline FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh,
+                                         uint64_t unit_tiles, uint64_t base, uint64_t end,
+                                         uint32_t line_bytes, int threads, const std::string& key,
+                                         const std::string& dir) {
+    return profile_frame_cached(
+        gen, TraceRays([&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }),
+        unit_tiles, base, end, line_bytes, threads, key, dir);
+}
 
 }  // namespace rtsim

@@ -1577,11 +1577,56 @@ TEST(Trace, SceneFileHitsNameTheirInstance) {
         run_rtsim(fmt::format("trace --scene '{}' --hits-bin '{}'", scene.string(), bin.string())),
         "is an instanced scene; its hits carry an instance");
     EXPECT_FALSE(fs::exists(bin));
-    expect_one_line_error(
-        run_rtsim(fmt::format("run --scene '{}' --res 8x8 --set sim.sampled=true -o '{}'",
-                              scene.string(), (dir / "grid_out").string())),
-        "sim.sampled: " + scene.string() + " is a scene of instances");
-    EXPECT_FALSE(fs::exists(dir / "grid_out" / "stats.json"));
+}
+
+// A frame too short for two sampling periods gets no estimate, and the summary says that its
+// cycles line is the measured units' alone, not the frame's.
+TEST(Sampled, AFrameWithoutAnEstimateSaysItsFiguresAreTheMeasuredUnits) {
+    const fs::path out = work_dir() / "no_estimate";
+    const Result r = run_rtsim("run --scene " RTSIM_BUNNY_OBJ
+                               " --rays primary,ao --res 96x96 --set sim.sampled=true "
+                               "-o '" +
+                               out.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    const json s = stats_of(out);
+    EXPECT_FALSE(s["sampling"].contains("total_cycles"));
+    EXPECT_LT(s["sampling"]["units_measured"].get<int>(), 2);
+    EXPECT_NE(r.out.find("caution  frame: no estimate: the cycles, rate and traffic above are "
+                         "the measured units' only"),
+              std::string::npos)
+        << r.out;
+}
+
+// Sampled runs over a scene of instances: the skip design profiles the frame over both levels;
+// measuring every unit is the full run counter for counter, and a 1-in-4 sample of the work
+// design holds the full run's cycles within its interval.
+TEST(Sampled, ScenesOfInstancesSampleAsMeshesDo) {
+    const fs::path dir = work_dir();
+    const fs::path scene = spheres_on_a_floor(dir / "sampled_copies.json", 4, 0.2);
+    const std::string common =
+        "run --scene '" + scene.string() + "' --rays primary,ao --res 48x48 ";
+    const auto [f, a] = full_and_every_unit_run(common, "inst");
+    ASSERT_FALSE(f.is_null() || a.is_null());
+    EXPECT_EQ(a["sampling"]["units_measured"], a["sampling"]["units"]);
+    EXPECT_EQ(a["sampling"]["simulated_cycles"], f["total_cycles"]);
+    EXPECT_EQ(counters_less_first_fills(a), f["counters"]);
+    EXPECT_GT(f["units"]["transform_unit_total"]["ops"].get<uint64_t>(), 0u);
+
+    const std::string frame = "run --scene '" + scene.string() + "' --rays primary,ao --res 96x96 ";
+    const fs::path truth_dir = dir / "inst96_full", sample_dir = dir / "inst96_s";
+    ASSERT_EQ(run_rtsim(frame + "-o '" + truth_dir.string() + "'").status, 0);
+    const Result s = run_rtsim(frame +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --set sim.sample_period_units=4 "
+                               "--set sim.sample_unit_tiles=1 -o '" +
+                               sample_dir.string() + "'");
+    ASSERT_EQ(s.status, 0) << s.err;
+    const double truth = stats_of(truth_dir)["total_cycles"].get<double>();
+    const json est = stats_of(sample_dir)["sampling"]["total_cycles"];
+    ASSERT_TRUE(est["half_width_pct"].is_number()) << est.dump();
+    const double value = est["value"].get<double>();
+    const double half = value * est["half_width_pct"].get<double>() / 100;
+    EXPECT_LE(std::fabs(value - truth), half) << est.dump() << " truth " << truth;
 }
 
 // A scene file simulated: every instance entered is one transform-unit operation (counted by
