@@ -330,41 +330,31 @@ void cut_treelets(std::vector<WideNode<W>>& nodes, std::vector<uint32_t>& prim_o
 }  // namespace
 
 // Packs each leaf's triangles into Tri4 blocks (unused lanes stay zero; tests mask them off).
-// Nodes are filled in parallel, each at its own offset, so the blocks are the same at any
-// thread count.
 template <int W>
 void build_tri_blocks(const std::vector<WideNode<W>>& nodes,
                       const std::vector<std::array<Vec3, 3>>& tri_verts,
-                      std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4, int threads) {
+                      std::vector<uint32_t>& leaf_block, std::vector<Tri4>& tri4) {
     reserve_huge(leaf_block, tri_verts.size());
     leaf_block.assign(tri_verts.size(), 0);
-    std::vector<uint64_t> first_block(nodes.size() + 1, 0);
-    for (size_t i = 0; i < nodes.size(); ++i) {
-        uint64_t blocks = 0;
-        for (int l = 0; l < nodes[i].num; ++l) blocks += (nodes[i].count[l] + 3) / 4;
-        first_block[i + 1] = first_block[i] + blocks;
-    }
     tri4.clear();
-    reserve_huge(tri4, first_block.back());
-    tri4.resize(first_block.back());
-    parallel_blocks(nodes.size(), 4096, threads, [&](size_t begin, size_t end) {
-        for (size_t i = begin; i < end; ++i) {
-            const WideNode<W>& n = nodes[i];
-            uint64_t at = first_block[i];
-            for (int l = 0; l < n.num; ++l) {
-                if (!n.count[l]) continue;
-                leaf_block[n.child[l]] = static_cast<uint32_t>(at);
-                for (uint32_t base = 0; base < n.count[l]; base += 4) {
-                    Tri4& block = tri4[at++];
-                    for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
-                        const auto& t = tri_verts[n.child[l] + base + lane];
-                        for (int vert = 0; vert < 3; ++vert)
-                            for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
-                    }
+    size_t blocks = 0;  // counted first: grown block by block, the array was copied ~20 times
+    for (const WideNode<W>& n : nodes)
+        for (int l = 0; l < n.num; ++l) blocks += (n.count[l] + 3) / 4;
+    reserve_huge(tri4, blocks);
+    for (const WideNode<W>& n : nodes)
+        for (int l = 0; l < n.num; ++l) {
+            if (!n.count[l]) continue;
+            leaf_block[n.child[l]] = static_cast<uint32_t>(tri4.size());
+            for (uint32_t base = 0; base < n.count[l]; base += 4) {
+                Tri4 block{};
+                for (uint32_t lane = 0; lane < 4 && base + lane < n.count[l]; ++lane) {
+                    const auto& t = tri_verts[n.child[l] + base + lane];
+                    for (int vert = 0; vert < 3; ++vert)
+                        for (int a = 0; a < 3; ++a) block.v[vert][a][lane] = t[vert][a];
                 }
+                tri4.push_back(block);
             }
         }
-    });
 }
 
 // The collapsed tree of width W, its treelets cut (when asked) and its triangles laid out in
@@ -383,13 +373,13 @@ void lay_out(BinaryBvh& bin, bool quantize, const Scene& scene, MappableArray<Wi
     reserve_huge(tri_verts, prim_order.size());
     tri_verts.resize(prim_order.size());
     const int threads = resolve_threads(bvh.options.build_threads);
-    parallel_blocks(prim_order.size(), 1 << 16, threads, [&](size_t begin, size_t end) {
+    parallel_blocks(prim_order.size(), 1 << 18, threads, [&](size_t begin, size_t end) {
         for (size_t s = begin; s < end; ++s)
             for (int c = 0; c < 3; ++c) tri_verts[s][c] = scene.v(prim_order[s], c);
     });
     std::vector<uint32_t> leaf_block;
     std::vector<Tri4> tri4;
-    build_tri_blocks(nodes, tri_verts, leaf_block, tri4, threads);
+    build_tri_blocks(nodes, tri_verts, leaf_block, tri4);
     out = std::move(nodes);
     bvh.prim_order = std::move(prim_order);
     bvh.tri_verts = std::move(tri_verts);

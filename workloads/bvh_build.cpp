@@ -91,8 +91,8 @@ class SahBuilder {
     // Subtrees smaller than this are not worth a thread.
     static constexpr uint32_t kParallelPrims = 32768;
     // Nodes with this many primitives bin on every thread their subtree owns.
-    static constexpr uint32_t kParallelBinPrims = 1u << 18;
-    static constexpr size_t kBlockPrims = 1u << 16;
+    static constexpr uint32_t kParallelBinPrims = 1u << 19;
+    static constexpr size_t kBlockPrims = 1u << 18;
 
     void make_leaf(BinaryNode& node, uint32_t begin, uint32_t end) {
         node.a = begin;
