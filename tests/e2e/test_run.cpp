@@ -595,6 +595,27 @@ std::pair<json, json> full_and_every_unit_run(const std::string& common, const s
     if (f.status != 0 || r.status != 0) return {};  // null: the caller stops
     return {stats_of(full), stats_of(all)};
 }
+
+// Runs `frame` (an `rtsim run` command line) in full and as a 1-in-4 sample of the work design
+// (units of one tile), and checks that the sample's interval holds the full run's cycles.
+void expect_work_sample_holds_the_full_run(const std::string& frame, const std::string& name) {
+    const fs::path truth_dir = work_dir() / (name + "_full"), sample_dir = work_dir() / name;
+    ASSERT_EQ(run_rtsim(frame + "-o '" + truth_dir.string() + "'").status, 0);
+    const Result s = run_rtsim(frame +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --set sim.sample_period_units=4 "
+                               "--set sim.sample_unit_tiles=1 -o '" +
+                               sample_dir.string() + "'");
+    ASSERT_EQ(s.status, 0) << s.err;
+    const json sampled = stats_of(sample_dir);
+    const json& est = sampled["sampling"]["total_cycles"];
+    const double truth = stats_of(truth_dir)["total_cycles"].get<double>();
+    ASSERT_TRUE(est["lo"].is_number()) << est.dump();
+    EXPECT_LT(sampled["sampling"]["units_measured"].get<double>(),
+              sampled["sampling"]["units"].get<double>());
+    EXPECT_LE(est["lo"].get<double>(), truth) << est.dump();
+    EXPECT_GE(est["hi"].get<double>(), truth) << est.dump();
+}
 }  // namespace
 
 // The skip design (sim.sample_fast_forward = skip) with every unit measured traces every tile and
@@ -669,24 +690,10 @@ TEST(Sampled, TheAccurateEngineSamplesAsTheFastOneDoes) {
     ASSERT_EQ(run_rtsim(chip + "-o '" + fast.string() + "'").status, 0);
     EXPECT_NE(stats_of(fast)["total_cycles"], f["total_cycles"]);
 
-    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ
-                              " --rays primary,ao --res 96x96 --set sim.fidelity=accurate ";
-    const fs::path truth_dir = work_dir() / "acc96_full", sample_dir = work_dir() / "acc96_s";
-    ASSERT_EQ(run_rtsim(frame + "-o '" + truth_dir.string() + "'").status, 0);
-    const Result s = run_rtsim(frame +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_design=work --set sim.sample_period_units=4 "
-                               "--set sim.sample_unit_tiles=1 -o '" +
-                               sample_dir.string() + "'");
-    ASSERT_EQ(s.status, 0) << s.err;
-    const json sampled = stats_of(sample_dir);
-    const json& est = sampled["sampling"]["total_cycles"];
-    const double truth = stats_of(truth_dir)["total_cycles"].get<double>();
-    ASSERT_TRUE(est["lo"].is_number()) << est.dump();
-    EXPECT_LT(sampled["sampling"]["units_measured"].get<double>(),
-              sampled["sampling"]["units"].get<double>());
-    EXPECT_LE(est["lo"].get<double>(), truth) << est.dump();
-    EXPECT_GE(est["hi"].get<double>(), truth) << est.dump();
+    expect_work_sample_holds_the_full_run("run --scene " RTSIM_BUNNY_OBJ
+                                          " --rays primary,ao --res 96x96 --set "
+                                          "sim.fidelity=accurate ",
+                                          "acc96");
 }
 
 // The units a skip run measures take what the same units took in the full run (the run that
@@ -1612,21 +1619,8 @@ TEST(Sampled, ScenesOfInstancesSampleAsMeshesDo) {
     EXPECT_EQ(counters_less_first_fills(a), f["counters"]);
     EXPECT_GT(f["units"]["transform_unit_total"]["ops"].get<uint64_t>(), 0u);
 
-    const std::string frame = "run --scene '" + scene.string() + "' --rays primary,ao --res 96x96 ";
-    const fs::path truth_dir = dir / "inst96_full", sample_dir = dir / "inst96_s";
-    ASSERT_EQ(run_rtsim(frame + "-o '" + truth_dir.string() + "'").status, 0);
-    const Result s = run_rtsim(frame +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_design=work --set sim.sample_period_units=4 "
-                               "--set sim.sample_unit_tiles=1 -o '" +
-                               sample_dir.string() + "'");
-    ASSERT_EQ(s.status, 0) << s.err;
-    const double truth = stats_of(truth_dir)["total_cycles"].get<double>();
-    const json est = stats_of(sample_dir)["sampling"]["total_cycles"];
-    ASSERT_TRUE(est["half_width_pct"].is_number()) << est.dump();
-    const double value = est["value"].get<double>();
-    const double half = value * est["half_width_pct"].get<double>() / 100;
-    EXPECT_LE(std::fabs(value - truth), half) << est.dump() << " truth " << truth;
+    expect_work_sample_holds_the_full_run(
+        "run --scene '" + scene.string() + "' --rays primary,ao --res 96x96 ", "inst96");
 }
 
 // A scene file simulated: every instance entered is one transform-unit operation (counted by

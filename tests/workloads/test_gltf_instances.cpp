@@ -70,6 +70,32 @@ Expected count_from_json(const nlohmann::json& g) {
     return e;
 }
 
+// Rays from around `b` towards its middle (targets within `spread` of its half-extent), traced
+// through both structures: {rays that hit, rays whose hit or t (1e-4) differ}.
+template <class A, class B>
+std::pair<int, int> compare_hits(const A& a, const B& b_bvh, const AABB& b, unsigned seed, int n,
+                                 float spread) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+    int hits = 0, differ = 0;
+    for (int i = 0; i < n; ++i) {
+        Ray r;
+        r.org = b.center() + Vec3(u(rng), u(rng), u(rng)) * length(b.extent());
+        const Vec3 e = b.extent();
+        const Vec3 target = b.center() + Vec3(u(rng) * e.x, u(rng) * e.y, u(rng) * e.z) * spread;
+        r.dir = normalize(target - r.org);
+        const Hit x = trace_ray(a, r, HitQuery::Closest),
+                  y = trace_ray(b_bvh, r, HitQuery::Closest);
+        if (x.valid() != y.valid() ||
+            (x.valid() && std::fabs(x.t - y.t) > 1e-4f * std::max(1.0f, y.t))) {
+            ++differ;  // a ray through an edge the two roundings put on either side
+            continue;
+        }
+        hits += x.valid();
+    }
+    return {hits, differ};
+}
+
 }  // namespace
 
 TEST(GltfInstances, SharedMeshesAreOneBlasEachWithAnInstancePerNode) {
@@ -122,26 +148,8 @@ TEST(GltfInstances, InstancedHitsMatchTheFlattenedFile) {
     const Scene flat = load_scene(model("2CylinderEngine.glb"));
     const TwoLevelBvh two = build_two_level(inst, BvhBuildOptions());
     const Bvh one = build_bvh(flat, BvhBuildOptions());
-    const AABB b = flat.bounds();
-    std::mt19937 rng(3);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    int hits = 0, differ = 0;
     const int n = 4000;
-    for (int i = 0; i < n; ++i) {
-        Ray r;
-        r.org = b.center() + Vec3(u(rng), u(rng), u(rng)) * length(b.extent());
-        const Vec3 e = b.extent();
-        const Vec3 target = b.center() + Vec3(u(rng) * e.x, u(rng) * e.y, u(rng) * e.z) * 0.3f;
-        r.dir = normalize(target - r.org);
-        const Hit x = trace_ray(two, r, HitQuery::Closest),
-                  y = trace_ray(one, r, HitQuery::Closest);
-        if (x.valid() != y.valid() ||
-            (x.valid() && std::fabs(x.t - y.t) > 1e-4f * std::max(1.0f, y.t))) {
-            ++differ;  // a ray through an edge the two roundings put on either side
-            continue;
-        }
-        hits += x.valid();
-    }
+    const auto [hits, differ] = compare_hits(two, one, flat.bounds(), 3, n, 0.3f);
     EXPECT_GT(hits, n / 2);
     EXPECT_LE(differ, n / 500);
 }
@@ -210,26 +218,8 @@ TEST(GltfInstances, SceneFilesNestAFilesInstances) {
     }
     const TwoLevelBvh two = build_two_level(nested, BvhBuildOptions());
     const Bvh ref = build_bvh(copies, BvhBuildOptions());
-    const AABB b = copies.bounds();
-    std::mt19937 rng(11);
-    std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-    int hits = 0, differ = 0;
     const int n = 3000;
-    for (int i = 0; i < n; ++i) {
-        Ray r;
-        r.org = b.center() + Vec3(u(rng), u(rng), u(rng)) * length(b.extent());
-        const Vec3 e = b.extent();
-        const Vec3 target = b.center() + Vec3(u(rng) * e.x, u(rng) * e.y, u(rng) * e.z) * 0.4f;
-        r.dir = normalize(target - r.org);
-        const Hit x = trace_ray(two, r, HitQuery::Closest),
-                  y = trace_ray(ref, r, HitQuery::Closest);
-        if (x.valid() != y.valid() ||
-            (x.valid() && std::fabs(x.t - y.t) > 1e-4f * std::max(1.0f, y.t))) {
-            ++differ;  // an edge the two roundings put on either side
-            continue;
-        }
-        hits += x.valid();
-    }
+    const auto [hits, differ] = compare_hits(two, ref, copies.bounds(), 11, n, 0.4f);
     EXPECT_GT(hits, n / 3);
     EXPECT_LE(differ, n / 500);
 }
