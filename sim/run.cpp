@@ -186,10 +186,8 @@ void prepare_two_level(const RunOptions& opt, const Config& cfg, bool progress,
         const std::string key =
             fmt::format("v1 two={:016x} {} {}", w.instanced->content_hash(),
                         json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
-        const TwoLevelBvh& two = *w.two;
-        want_tile = prepare_skip_design(
-            opt, cfg, *sampling, w, two.layout,
-            [&two](std::vector<GeneratedRay>& rays) { trace_untraced(two, rays); }, key);
+        want_tile =
+            prepare_skip_design(opt, cfg, *sampling, w, w.two->layout, tracer_of(*w.two), key);
     }
     w.source = std::make_unique<GeneratedWorkSource>(*w.two, *w.gen, progress, opt.tracer_threads,
                                                      std::move(want_tile));
@@ -249,10 +247,8 @@ Workload prepare_workload(const RunOptions& opt, const Config& cfg, bool progres
             "v1 bvh={:016x} {} {}",
             cached ? w.bvh_cache.key : bvh_cache_key(scene_hash, *w.scene, cfg.typed.bvh, sizes),
             json(w.meta["bvh"]).dump(), json(w.meta["workload"]).dump());
-        const Bvh& bvh = *w.bvh;
-        want_tile = prepare_skip_design(
-            opt, cfg, *sampling, w, w.bvh->layout,
-            [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }, key);
+        want_tile =
+            prepare_skip_design(opt, cfg, *sampling, w, w.bvh->layout, tracer_of(*w.bvh), key);
     }
     w.source = std::make_unique<GeneratedWorkSource>(*w.bvh, *w.gen, progress,
                                                      packets ? cfg.typed.traversal.packet_size : 0,

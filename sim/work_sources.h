@@ -284,12 +284,8 @@ class GeneratedWorkSource : public PrefetchingSource {
           gen_(gen),
           packet_size_(packet_size),
           record_tiles_(bool(want_tile)),
-          tiles_(
-              gen, threads,
-              packet_size > 0
-                  ? std::function<void(std::vector<GeneratedRay>&)>()
-                  : [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); },
-              std::move(want_tile)) {
+          tiles_(gen, threads, packet_size > 0 ? TraceRays() : tracer_of(bvh),
+                 std::move(want_tile)) {
         gen_.set_record_steps(packet_size_ == 0);  // packets trace their own way
         prefetch();
     }
@@ -300,9 +296,7 @@ class GeneratedWorkSource : public PrefetchingSource {
           gen_(gen),
           packet_size_(0),
           record_tiles_(bool(want_tile)),
-          tiles_(
-              gen, threads, [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); },
-              std::move(want_tile)) {
+          tiles_(gen, threads, tracer_of(bvh), std::move(want_tile)) {
         gen_.set_record_steps(true);
         prefetch();
     }

@@ -77,6 +77,15 @@ bool read_png_alpha(const void* bytes, size_t size, const std::string& where,
     return true;
 }
 
+// Whether the mesh's material is glTF's alphaMode MASK.
+bool is_masked(const aiScene* ai, const aiMesh* mesh) {
+    if (mesh->mMaterialIndex >= ai->mNumMaterials) return false;
+    aiString mode;
+    return ai->mMaterials[mesh->mMaterialIndex]->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) ==
+               AI_SUCCESS &&
+           std::strcmp(mode.C_Str(), "MASK") == 0;
+}
+
 // A mesh's alpha mask from its material, if the material is glTF's alphaMode MASK: the base
 // colour factor's alpha, its cutoff, and the base colour texture's alpha (embedded, or a file
 // beside the model) with the mesh's texture coordinates per triangle corner. `error` is set
@@ -84,11 +93,8 @@ bool read_png_alpha(const void* bytes, size_t size, const std::string& where,
 rtsim::AlphaMask material_alpha(const aiScene* ai, const aiMesh* mesh, const std::string& model,
                                 std::string* error) {
     rtsim::AlphaMask mask;
-    if (mesh->mMaterialIndex >= ai->mNumMaterials) return mask;
+    if (!is_masked(ai, mesh)) return mask;
     const aiMaterial* mat = ai->mMaterials[mesh->mMaterialIndex];
-    aiString mode;
-    if (mat->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) != AI_SUCCESS || std::strcmp(mode.C_Str(), "MASK"))
-        return mask;
     auto tex = std::make_shared<rtsim::AlphaTexture>();
     float cutoff = 0.5f;
     if (mat->Get(AI_MATKEY_GLTF_ALPHACUTOFF, cutoff) == AI_SUCCESS) tex->cutoff = cutoff;
@@ -188,19 +194,8 @@ bool add_meshes(const aiScene* ai, const std::vector<unsigned>& placements, cons
         out.alpha.push_back(material_alpha(ai, mesh, model, error));
         if (!error->empty()) return false;
     }
-    // Without a mask anywhere, no alpha table (as a scene file's).
-    bool any = false;
-    for (const rtsim::AlphaMask& a : out.alpha) any = any || a.pattern != rtsim::AlphaPattern::None;
-    if (!any) out.alpha.clear();
+    out.drop_alpha_if_none();
     return true;
-}
-
-bool is_masked(const aiScene* ai, const aiMesh* mesh) {
-    if (mesh->mMaterialIndex >= ai->mNumMaterials) return false;
-    aiString mode;
-    return ai->mMaterials[mesh->mMaterialIndex]->Get(AI_MATKEY_GLTF_ALPHAMODE, mode) ==
-               AI_SUCCESS &&
-           std::strcmp(mode.C_Str(), "MASK") == 0;
 }
 
 }  // namespace

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstring>
 #include <future>
-#include <map>
 #include <memory>
 
 #include "workloads/bvh.h"
@@ -87,6 +86,7 @@ class SahBuilder {
     struct Fragment {
         std::vector<BinaryNode> nodes;
         std::vector<std::pair<uint32_t, std::unique_ptr<Fragment>>> links;
+        uint32_t base = 0;  // its first node's index once assembled
     };
     // Subtrees smaller than this are not worth a thread.
     static constexpr uint32_t kParallelPrims = 32768;
@@ -99,24 +99,19 @@ class SahBuilder {
         node.prim_count = end - begin;
     }
 
-    // Applies body(begin, end) to blocks of [begin, end) and folds the blocks' results (each
-    // starting from `init`) with merge. Min, max and integer sums are exact in any grouping, so
-    // the result is the same for any thread count.
+    // Applies body(begin, end, acc) to [begin, end), or, for a large range and more than one
+    // thread, to blocks of it, each block's result starting from acc's value on entry (an
+    // empty one) and folded into acc with merge. Min, max and integer sums are exact in any
+    // grouping, so the result is the same for any thread count.
     template <class T, class Body, class Merge>
-    T fold(uint32_t begin, uint32_t end, int share, const T& init, Body body, Merge merge) const {
-        if (share <= 1 || end - begin < kParallelBinPrims) {
-            T acc = init;
-            body(begin, end, acc);
-            return acc;
-        }
+    void fold(uint32_t begin, uint32_t end, int share, T& acc, Body body, Merge merge) const {
+        if (share <= 1 || end - begin < kParallelBinPrims) return body(begin, end, acc);
         const size_t blocks = (end - begin + kBlockPrims - 1) / kBlockPrims;
-        std::vector<T> part(blocks, init);
+        std::vector<T> part(blocks, acc);
         parallel_blocks(end - begin, kBlockPrims, share, [&](size_t b, size_t e) {
             body(begin + uint32_t(b), begin + uint32_t(e), part[b / kBlockPrims]);
         });
-        T acc = init;
         for (const T& p : part) merge(acc, p);
-        return acc;
     }
 
     // Builds node `index` of `frag` over prims_[begin, end); children are appended to frag.
@@ -126,8 +121,9 @@ class SahBuilder {
                     Scratch& sc, int levels, int share) {
         std::vector<BinaryNode>& nodes = frag.nodes;
         using Boxes = std::pair<AABB, AABB>;  // primitives' bounds, centroids' bounds
-        const Boxes boxes = fold(
-            begin, end, share, Boxes(),
+        Boxes boxes;
+        fold(
+            begin, end, share, boxes,
             [&](uint32_t b, uint32_t e, Boxes& acc) {
                 for (uint32_t i = b; i < e; ++i) {
                     acc.first.grow(prims_[i].box);
@@ -167,17 +163,13 @@ class SahBuilder {
                     bk.box.grow(prims_[i].box);
                 }
             };
-            if (share <= 1 || n < kParallelBinPrims) {
-                bin(begin, end, buckets);
-            } else {
-                buckets = fold(begin, end, share, buckets, bin,
-                               [](std::vector<Bucket>& acc, const std::vector<Bucket>& p) {
-                                   for (size_t k = 0; k < acc.size(); ++k) {
-                                       acc[k].count += p[k].count;
-                                       acc[k].box.grow(p[k].box);
-                                   }
-                               });
-            }
+            fold(begin, end, share, buckets, bin,
+                 [](std::vector<Bucket>& acc, const std::vector<Bucket>& p) {
+                     for (size_t k = 0; k < acc.size(); ++k) {
+                         acc[k].count += p[k].count;
+                         acc[k].box.grow(p[k].box);
+                     }
+                 });
             // Sweep from the right to get suffix areas, then from the left to evaluate B-1 planes.
             std::vector<float>& right_area = sc.right_area;
             std::vector<uint32_t>& right_count = sc.right_count;
@@ -243,32 +235,30 @@ class SahBuilder {
     // Concatenates the fragments, root first and each fragment's links in the order they were
     // made, into `out` with child indices moved by each fragment's offset.
     void assemble(Fragment& root, std::vector<BinaryNode>& out) {
-        std::vector<std::pair<Fragment*, uint32_t>> order;  // fragment, its first index in out
+        std::vector<Fragment*> order;
         uint32_t total = 0;
         auto place = [&](auto&& self, Fragment& f) -> void {
-            order.push_back({&f, total});
+            order.push_back(&f);
+            f.base = total;
             total += uint32_t(f.nodes.size());
             for (auto& link : f.links) self(self, *link.second);
         };
         place(place, root);
         out = std::move(root.nodes);
         out.resize(total);
-        std::map<const Fragment*, uint32_t> base_of;
-        for (const auto& [f, base] : order) base_of[f] = base;
         parallel_blocks(order.size(), 1, threads_, [&](size_t b, size_t e) {
             for (size_t k = b; k < e; ++k) {
-                const auto [f, base] = order[k];
-                if (k > 0)
-                    for (size_t i = 0; i < f->nodes.size(); ++i) {
-                        BinaryNode node = f->nodes[i];
+                const Fragment& f = *order[k];
+                if (k > 0)  // the root's nodes are in place already
+                    for (size_t i = 0; i < f.nodes.size(); ++i) {
+                        BinaryNode node = f.nodes[i];
                         if (!node.is_leaf()) {
-                            node.a += base;
-                            node.b += base;
+                            node.a += f.base;
+                            node.b += f.base;
                         }
-                        out[base + i] = node;
+                        out[f.base + i] = node;
                     }
-                for (const auto& link : f->links)
-                    out[base + link.first].b = base_of.at(link.second.get());
+                for (const auto& link : f.links) out[f.base + link.first].b = link.second->base;
             }
         });
     }

@@ -67,6 +67,13 @@ struct InstancedScene {
     AlphaMask mesh_alpha(uint32_t mesh) const {
         return mesh < alpha.size() ? alpha[mesh] : AlphaMask();
     }
+    // Without a mask anywhere, no alpha table: a scene of opaque meshes hashes as it did before
+    // masks existed. (Inline: the assimp reader's module calls it too.)
+    void drop_alpha_if_none() {
+        for (const AlphaMask& a : alpha)
+            if (a.pattern != AlphaPattern::None) return;
+        alpha.clear();
+    }
     uint64_t unique_triangle_count() const;
     uint64_t instanced_triangle_count() const;  // every instance's mesh, counted per instance
     AABB bounds() const;                        // of the instances' world boxes

@@ -237,10 +237,7 @@ InstancedScene load_scene_file(const std::string& path, const std::string& cache
         for (const Instance& i : nested.instances)
             parts.push_back({first + i.mesh, i.object_to_world, masked ? false : i.opaque});
     }
-    // Without a mask anywhere, no alpha table (a scene of opaque meshes hashes as before).
-    if (std::all_of(scene.alpha.begin(), scene.alpha.end(),
-                    [](const AlphaMask& a) { return a.pattern == AlphaPattern::None; }))
-        scene.alpha.clear();
+    scene.drop_alpha_if_none();
 
     const json& list = doc["instances"];
     for (size_t k = 0; k < list.size(); ++k) {

@@ -27,12 +27,19 @@ void trace_untraced(const Accel& bvh, std::vector<GeneratedRay>& rays) {
         }
 }
 
+// Work on a tile's rays, run on the thread that generated them.
+using TraceRays = std::function<void(std::vector<GeneratedRay>&)>;
+// trace_untraced through `bvh` (held by reference) as a TileQueue's per-tile work.
+template <class Accel>
+TraceRays tracer_of(const Accel& bvh) {
+    return [&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); };
+}
+
 class TileQueue {
   public:
     // `per_tile` (optional) runs on the generating thread on each tile's rays, before they are
     // handed on (the run command traces them there).
-    TileQueue(const RayGenerator& gen, int threads,
-              std::function<void(std::vector<GeneratedRay>&)> per_tile = {},
+    TileQueue(const RayGenerator& gen, int threads, TraceRays per_tile = {},
               std::function<bool(int)> want = {})
         : gen_(gen),
           threads_(std::max(1, threads)),
@@ -83,7 +90,7 @@ class TileQueue {
 
     const RayGenerator& gen_;
     int threads_;
-    std::function<void(std::vector<GeneratedRay>&)> per_tile_;
+    TraceRays per_tile_;
     std::function<bool(int)> want_;
     int next_tile_ = 0;  // the first tile not generated (or skipped) yet
     int last_tile_ = -1;

@@ -13,7 +13,6 @@
 
 #include <array>
 #include <cstdint>
-#include <functional>
 #include <string>
 #include <vector>
 
@@ -111,19 +110,10 @@ struct FrameProfile {
     std::string key;     // what its cache entry is keyed by (empty: not cached)
 };
 
-// Traces every tile of the frame (on `threads` threads) and profiles it; lines of [base, end)
-// at line_bytes.
-// How the frame's rays are traced (a one-level BVH's or a scene of instances' tracer), filling
-// each ray's steps.
-using TraceRays = std::function<void(std::vector<GeneratedRay>&)>;
+// Traces every tile of the frame (on `threads` threads, with `trace`: tracer_of a one-level BVH
+// or of a scene of instances' two levels) and profiles it; lines of [base, end) at line_bytes.
 FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint64_t unit_tiles,
                            uint64_t base, uint64_t end, uint32_t line_bytes, int threads);
-inline FrameProfile profile_frame(const RayGenerator& gen, const Bvh& bvh, uint64_t unit_tiles,
-                                  uint64_t base, uint64_t end, uint32_t line_bytes, int threads) {
-    return profile_frame(
-        gen, TraceRays([&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }),
-        unit_tiles, base, end, line_bytes, threads);
-}
 
 // profile_frame through an on-disk cache in `dir` (empty: none), the BVH cache's folder. `key`
 // names everything the profile depends on besides the unit and line sizes and the range (the
@@ -133,13 +123,5 @@ FrameProfile profile_frame_cached(const RayGenerator& gen, const TraceRays& trac
                                   uint64_t unit_tiles, uint64_t base, uint64_t end,
                                   uint32_t line_bytes, int threads, const std::string& key,
                                   const std::string& dir);
-inline FrameProfile profile_frame_cached(const RayGenerator& gen, const Bvh& bvh,
-                                         uint64_t unit_tiles, uint64_t base, uint64_t end,
-                                         uint32_t line_bytes, int threads, const std::string& key,
-                                         const std::string& dir) {
-    return profile_frame_cached(
-        gen, TraceRays([&bvh](std::vector<GeneratedRay>& rays) { trace_untraced(bvh, rays); }),
-        unit_tiles, base, end, line_bytes, threads, key, dir);
-}
 
 }  // namespace rtsim

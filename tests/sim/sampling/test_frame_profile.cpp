@@ -175,7 +175,8 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
     RayGenerator gen(f.scene, f.bvh, f.options());
     gen.set_record_steps(true);
     const uint64_t unit_tiles = 2;
-    const FrameProfile p = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 1);
+    const FrameProfile p =
+        profile_frame(gen, tracer_of(f.bvh), unit_tiles, f.base(), f.end(), 64, 1);
     ASSERT_EQ(p.units.size(), 8u);  // 15 tiles in units of 2
     ASSERT_EQ(p.tile_line_start.size(), 16u);
     auto line_of = [&p](uint32_t k) { return (p.line_base + uint64_t(k) * 64) / 64; };
@@ -231,7 +232,8 @@ TEST(FrameProfile, CountsWhatTheFrameTracesAndFetches) {
     EXPECT_GT(p.tile_lines.size(), seen.size());  // tiles share lines (the root's, at least)
     EXPECT_GT(shared, 0u);
     // The same profile on two threads.
-    const FrameProfile q = profile_frame(gen, f.bvh, unit_tiles, f.base(), f.end(), 64, 2);
+    const FrameProfile q =
+        profile_frame(gen, tracer_of(f.bvh), unit_tiles, f.base(), f.end(), 64, 2);
     EXPECT_EQ(q.units, p.units);
     EXPECT_EQ(q.unit_new_line_rays, p.unit_new_line_rays);
     EXPECT_EQ(q.tile_line_start, p.tile_line_start);
@@ -249,7 +251,8 @@ TEST(FrameProfile, CacheServesValidEntriesAndRefusesDamagedOnes) {
     const fs::path dir = fs::path(::testing::TempDir()) / "rtsim_profile_cache";
     fs::remove_all(dir);
     auto get = [&](const std::string& key) {
-        return profile_frame_cached(gen, f.bvh, 2, f.base(), f.end(), 64, 1, key, dir.string());
+        return profile_frame_cached(gen, tracer_of(f.bvh), 2, f.base(), f.end(), 64, 1, key,
+                                    dir.string());
     };
     const FrameProfile built = get("a");
     EXPECT_EQ(built.cache, "built");
