@@ -17,7 +17,11 @@ clock), so that no figure it prints was tuned on. For each frame it runs the ful
 
     scripts/eval_sampled.py [--rtsim build/rtsim] [--seed S] [--runs 30] [--periods 10,50]
         [--designs stratified,work] [--frames fandisk_large:diffuse:1024x768,...] [-j 2]
-        [--out bench/results]
+        [--spp N] [--set KEY=VALUE ...] [--target-error P] [--out bench/results]
+
+--set gives every run (full and sampled) a config field, for example a large chip:
+--set core.count=64 --set core.ray_slots=32. --target-error P sizes each sampled run with a pilot
+(the periods are then the pilots' own); its host time counts the pilot.
 
 Writes bench/results/sampled_heldout.md (and every run's figures to out/bench/).
 """
@@ -84,6 +88,11 @@ def parse_frames(text, rng):
 def figure(stats, name):
     """The run's estimate of a figure; None where it gave none (a sample with no unit of work)."""
     s = stats["sampling"]
+    if s.get("in_full"):
+        # The plan could not beat the full run, which ran instead: exact.
+        v = float(stats["total_cycles"] if name == "cycles"
+                  else stats["bandwidth"]["dram"]["bytes"])
+        return {"value": v, "lo": v, "hi": v, "caveat": ""}
     if "total_cycles" not in s:
         return {"value": float("nan"), "lo": None, "hi": None, "caveat": s.get("note", "")}
     return s["total_cycles"] if name == "cycles" else s["counters"].get("dram.bytes")
@@ -100,6 +109,9 @@ def main(argv=None):
     ap.add_argument("-j", type=int, default=2)
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     ap.add_argument("--name", default="sampled_heldout")
+    ap.add_argument("--spp", type=int, default=1)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--target-error", type=float, default=None)
     a = ap.parse_args(argv)
     seed = a.seed if a.seed is not None else int(time.time()) % 1000000
     rng = random.Random(seed)
@@ -113,7 +125,9 @@ def main(argv=None):
     with tempfile.TemporaryDirectory() as tmp:
         for fi, (mesh, kind, res) in enumerate(frames):
             scene = os.path.join(CGAL, mesh + ".off")
-            base = ["--scene", scene, "--res", res] + KINDS[kind]
+            base = ["--scene", scene, "--res", res, "--spp", str(a.spp)] + KINDS[kind]
+            for kv in a.set:
+                base += ["--set", kv]
             full = run_stats(a.rtsim, base, os.path.join(tmp, f"f{fi}_full"), "eval_sampled")
             truth = {"cycles": float(full["total_cycles"]),
                      "dram": float(full["bandwidth"]["dram"]["bytes"])}
@@ -132,6 +146,8 @@ def main(argv=None):
                             args = sampled + ["--set", f"sim.sample_design={d}",
                                               "--set", f"sim.sample_period_units={p}",
                                               "--set", f"sim.sample_seed={s}"]
+                            if a.target_error is not None:
+                                args += ["--target-error", str(a.target_error)]
                             out = os.path.join(tmp, f"f{fi}_{d}_{p}_{k}")
                             jobs.append(((d, p), pool.submit(run_stats, a.rtsim, args, out,
                                                              "eval_sampled")))
@@ -205,11 +221,13 @@ def format_row(r):
 def report(seed, a, frames, rows):
     lines = ["# Sampled simulation on held-out frames (scripts/eval_sampled.py)", "",
              f"Seed {seed} (frames and sample seeds drawn from it); {a.runs} runs per cell; "
+             f"{a.spp} spp; settings: {' '.join(a.set) or 'defaults'}"
+             f"{f'; --target-error {a.target_error}' if a.target_error is not None else ''}; "
              f"frames {', '.join(f'{m} {k} {r}' for m, k, r in frames)}. Meshes and seeds never "
              "used to tune the method. Each cell's truth is the full fast run of the frame. "
              "'no int.': runs whose estimate carried no interval (the data could not bound it); "
-             "coverage is over the others. 'zero': zero-width intervals on an inexact figure. x: the "
-             "full run's host.run_time_s over the sampled run's median; x+p adds the frame "
+             "coverage is over the others. 'zero': zero-width intervals on an inexact figure. "
+             "x: the full run's host.run_time_s over the sampled run's median; x+p adds the frame "
              "profile, built once per frame.", "",
              "| mesh | kind | res | design | rate | cycles mean abs err | p95 | coverage (Wilson) "
              "| zero | no int. | DRAM mean abs err | p95 | DRAM cov | x | x+p |",

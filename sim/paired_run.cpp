@@ -109,6 +109,7 @@ Reference load_reference(const RunOptions& opt, const Config& cfg, const json& m
     ref_cfg["sim"]["sample_warmup_tiles"] = sp.warmup_tiles;
     ref_cfg["sim"]["sample_warmup_tile_rays"] = sp.warmup_tile_rays;  // fills included
     ref_cfg["sim"]["sample_warmup_slot_fills"] = 0;
+    ref_cfg["sim"]["sample_unit_slot_fills"] = 0;  // the units as given
     // The order the strata were cut from is the plan's too.
     const uint64_t order_hash =
         sp.unit_order.empty()

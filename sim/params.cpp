@@ -204,6 +204,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_paired_warmup_tiles", M(sim.sample_paired_warmup_tiles)),
         field("sim.sample_paired_warmup_tile_rays", M(sim.sample_paired_warmup_tile_rays)),
         field("sim.sample_warmup_slot_fills", M(sim.sample_warmup_slot_fills)),
+        field("sim.sample_unit_slot_fills", M(sim.sample_unit_slot_fills)),
         field("sim.sample_paired_warmup_slot_fills", M(sim.sample_paired_warmup_slot_fills)),
         field("energy.sram_8kib_pj", M(energy.sram_8kib_pj), 1, kNotMirrored),
         field("energy.sram_32kib_pj", M(energy.sram_32kib_pj), 1, kNotMirrored),

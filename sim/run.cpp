@@ -128,11 +128,23 @@ std::function<bool(int)> prepare_skip_design(const RunOptions& opt, const Config
                                              const std::string& key) {
     // The profile traces the whole frame once, on every host core (nothing else runs yet).
     w.gen->set_record_steps(true);
+    // Profiled per tile and merged to the run's units: one cache entry serves every unit size.
     w.profile = std::make_unique<FrameProfile>(profile_frame_cached(
-        *w.gen, trace, sp.unit_tiles, layout.fetch_begin(), layout.fetch_end(),
+        *w.gen, trace, 1, layout.fetch_begin(), layout.fetch_end(),
         uint32_t(cfg.typed.l2.line_bytes), int(std::max(1u, std::thread::hardware_concurrency())),
         key, w.cache_dir));
     sp.tiles = uint64_t(w.gen->tile_count());
+    // A unit spans at least sim.sample_unit_slot_fills fills of the chip's ray slots, counted in
+    // the rays of the frame's tiles that have any. Not in a run whose units must fit another
+    // run's (a paired run, --sample-order) nor in an every-unit run, which is exact at any unit
+    // size and serves as such a run's reference in the units it is given.
+    if (opt.reference_dir.empty() && opt.sample_order_dir.empty() && sp.period_units > 1)
+        sp.unit_tiles = std::max(
+            sp.unit_tiles, unit_tiles_for_slot_fills(w.profile->tile_rays,
+                                                     cfg.typed.sim.sample_unit_slot_fills *
+                                                         uint64_t(cfg.typed.core_count) *
+                                                         uint64_t(cfg.typed.core.ray_slots)));
+    merge_profile_units(*w.profile, sp.unit_tiles);
     sp.tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
     if (sp.by_work) {
         sp.unit_work.resize(w.profile->units.size());

@@ -89,6 +89,33 @@ FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint
     return p;
 }
 
+uint64_t unit_tiles_for_slot_fills(const MappableArray<uint32_t>& tile_rays, uint64_t rays) {
+    uint64_t sum = 0, tiles = 0;
+    for (uint32_t r : tile_rays) {
+        sum += r;
+        tiles += r > 0;
+    }
+    if (sum == 0 || rays == 0) return 1;
+    // ceil(rays / (sum / tiles)), in integers.
+    return std::max<uint64_t>(1, (rays * tiles + sum - 1) / sum);
+}
+
+void merge_profile_units(FrameProfile& p, uint64_t merge) {
+    if (merge == 0) throw std::invalid_argument("merge_profile_units: merge >= 1");
+    if (merge == 1) return;
+    const size_t units = (p.units.size() + merge - 1) / merge;
+    std::vector<AuxFigures> merged(units, AuxFigures{});
+    std::vector<uint64_t> new_line_rays(units, 0);
+    for (size_t u = 0; u < p.units.size(); ++u) {
+        for (size_t k = 0; k < kAuxiliaries; ++k) merged[u / merge][k] += p.units[u][k];
+        new_line_rays[u / merge] += p.unit_new_line_rays[u];
+    }
+    p.units = std::move(merged);
+    p.unit_new_line_rays = std::move(new_line_rays);
+    p.unit_tiles *= merge;
+    if (!p.key.empty()) p.key += fmt::format(" merged to {} tiles", p.unit_tiles);
+}
+
 namespace {
 
 namespace fs = std::filesystem;

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <numeric>
 #include <stdexcept>
@@ -108,6 +109,64 @@ FunctionalL2 functional_l2_misses(const FrameProfile& p, uint64_t sets, uint32_t
             fetched[line] = 1;
         }
     }
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return out;
+}
+
+FunctionalL1 functional_l1_misses(const FrameProfile& p, uint64_t cores, uint64_t sets,
+                                  uint32_t ways, bool split) {
+    const auto start = std::chrono::steady_clock::now();
+    if (cores == 0 || sets == 0 || (sets & (sets - 1)) != 0 || ways == 0)
+        throw std::invalid_argument("functional_l1_misses: cores >= 1, sets a power of two");
+    FunctionalL1 out;
+    out.unit_misses.assign(p.units.size(), 0);
+    const size_t tiles = p.tile_line_start.empty() ? 0 : p.tile_line_start.size() - 1;
+    if (tiles == 0) return out;
+    if (p.unit_tiles == 0 || (tiles + p.unit_tiles - 1) / p.unit_tiles > p.units.size())
+        throw std::invalid_argument(
+            "functional_l1_misses: the profile's units do not cover its tiles");
+    // One tag array for every core's cache (and a split L1's two): core c's set s of cache
+    // kind k is set (c * kinds + k) * sets + s.
+    const uint64_t kinds = split ? 2 : 1, set_mask = sets - 1;
+    LruTags tags(cores * kinds * sets, ways);
+    // Expected distinct cores among r rays, for r up to the profile's cap.
+    std::vector<double> spread(kTileLineRays + 1, 0.0);
+    for (uint32_t r = 1; r <= kTileLineRays; ++r)
+        spread[r] = double(cores) * (1.0 - std::pow(1.0 - 1.0 / double(cores), double(r)));
+    uint64_t state = 0x9e3779b97f4a7c15ULL;  // a fixed stream: the count is deterministic
+    auto draw = [&state] {
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        return state * 0x2545f4914f6cdd1dULL;
+    };
+    uint64_t accesses = 0;
+    for (size_t t = 0; t < tiles; ++t) {
+        uint32_t& unit = out.unit_misses[t / p.unit_tiles];
+        for (uint32_t i = p.tile_line_start[t]; i < p.tile_line_start[t + 1]; ++i) {
+            const uint32_t line = p.tile_lines[i];
+            const uint8_t info = p.tile_line_info[i];
+            const double expected = spread[info & kTileLineRays];
+            const uint64_t r = draw();
+            // Rounded up with the probability of its fraction: the right count on average.
+            uint64_t fetching = uint64_t(expected);
+            if (double(r >> 11) * 0x1.0p-53 < expected - double(fetching)) ++fetching;
+            const uint64_t kind = split && (info & kTileLineTriangle) ? 1 : 0;
+            uint64_t core = (r >> 32) % cores;
+            for (uint64_t c = 0; c < fetching; ++c) {
+                const uint64_t set = (core * kinds + kind) * sets + (line & set_mask);
+                if (!tags.access(set, line)) ++unit;
+                core = core + 1 == cores ? 0 : core + 1;
+            }
+            accesses += fetching;
+            // The tags' use stamps count accesses: a frame with more gets no count.
+            if (accesses >= UINT32_MAX) {
+                out.unit_misses.clear();
+                return out;
+            }
+        }
+    }
+    for (uint32_t m : out.unit_misses) out.misses += m;
     out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     return out;
 }

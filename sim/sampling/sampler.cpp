@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cstdlib>
+#include <cstdio>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -221,6 +223,9 @@ void Sampler::set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_p
     l1_fetch_lines_ = LineTracker(0, 0, p1.line_bytes);
     l2_sets_ = p2.sets();
     l2_ways_ = uint32_t(p2.ways);
+    l1_sets_ = p1.sets();
+    l1_ways_ = uint32_t(p1.ways);
+    l1_line_bytes_ = p1.line_bytes;
 }
 
 std::unique_ptr<Sampler> make_sampler(const std::string& fast_forward, const SamplingParams& params,
@@ -275,11 +280,21 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
             std::async(std::launch::async, [profile, sets = l2_sets_, ways = l2_ways_, cache_dir] {
                 return functional_l2_misses_cached(*profile, sets, ways, cache_dir);
             });
+    if (!reference_ && l1_sets_ > 0 && l1_ways_ > 0 && profile->line_bytes == l1_line_bytes_ &&
+        !ports_.empty()) {
+        const bool split = ports_[0][size_t(StepKind::Node)] != ports_[0][size_t(StepKind::Triangle)];
+        functional_l1_pending_ = std::async(
+            std::launch::async, [profile, cores = ports_.size(), sets = l1_sets_,
+                                 ways = l1_ways_, split] {
+                return functional_l1_misses(*profile, cores, sets, ways, split);
+            });
+    }
 }
 
 double Sampler::wait_functional_l2() {
     if (functional_l2_pending_.valid()) functional_l2_ = functional_l2_pending_.get();
-    return functional_l2_.seconds;
+    if (functional_l1_pending_.valid()) functional_l1_ = functional_l1_pending_.get();
+    return functional_l2_.seconds + functional_l1_.seconds;
 }
 
 void Sampler::replay_skipped_tiles(uint64_t tile) {
@@ -705,6 +720,9 @@ json Sampler::report(Cycle end_cycle) {
         return out;
     }
     std::vector<Auxiliary> aux(kAuxiliaries);
+    // Each auxiliary's column in sampled_units.csv, for the regression's totals in stats.json.
+    std::vector<std::string> aux_names = {"work", skip ? "new_line_rays" : "new_lines",
+                                          "node_steps", "rays"};
     if (skip) {
         // The units' auxiliaries come from the frame's profile (the skip run's own first
         // fetches are not the frame's), their totals too.
@@ -763,10 +781,33 @@ json Sampler::report(Cycle end_cycle) {
             capacity.total = double(functional_l2_.capacity_misses);
             constexpr long kMinUnitsWithCapacityMisses = 4;
             if (std::count_if(capacity.x.begin(), capacity.x.end(),
-                              [](double x) { return x > 0; }) >= kMinUnitsWithCapacityMisses)
+                              [](double x) { return x > 0; }) >= kMinUnitsWithCapacityMisses) {
                 aux.push_back(capacity);
+                aux_names.push_back("functional_capacity_misses");
+            }
             out["functional_l2"] = {{"misses", functional_l2_.misses},
                                     {"capacity_misses", functional_l2_.capacity_misses}};
+        }
+        // A sixth where the units' L1 misses are known only to timing (sim/sampling/functional_l2.h).
+        if (!functional_l1_.unit_misses.empty() &&
+            std::count_if(functional_l1_.unit_misses.begin(), functional_l1_.unit_misses.end(),
+                          [](uint32_t m) { return m > 0; }) >= 4) {
+            Auxiliary l1;
+            l1.x.resize(cycles_.size());
+            for (size_t i = 0; i < cycles_.size(); ++i)
+                l1.x[i] = double(functional_l1_.unit_misses[unit_index_[i]]);
+            l1.total = double(functional_l1_.misses);
+            aux.push_back(l1);
+            aux_names.push_back("functional_l1_misses");
+            out["functional_l1"] = {{"misses", functional_l1_.misses}};
+            if (const char* dump = std::getenv("RTSIM_DUMP_UNITS")) {
+                FILE* f = std::fopen(dump, "w");
+                std::fprintf(f, "unit,work,rays,fl1,tiles_rays\n");
+                for (size_t u = 0; u < profile_->units.size(); ++u)
+                    std::fprintf(f, "%zu,%lu,%lu,%u\n", u, profile_->units[u][kWork],
+                                 profile_->units[u][kRays], functional_l1_.unit_misses[u]);
+                std::fclose(f);
+            }
         }
     }
     // Skip design: the share of the frame's work in units heavier than any measured one. The
@@ -875,10 +916,7 @@ json Sampler::report(Cycle end_cycle) {
     // the table's columns.
     {
         json totals = json::object();
-        const char* const names[] = {"work", skip ? "new_line_rays" : "new_lines", "node_steps",
-                                     "rays", "functional_capacity_misses"};
-        for (size_t k = 0; k < aux.size() && k < std::size(names); ++k)
-            totals[names[k]] = aux[k].total;
+        for (size_t k = 0; k < aux.size(); ++k) totals[aux_names[k]] = aux[k].total;
         out["regression"] = {{"population", population}, {"totals", totals}};
     }
     // The frame's cycles after its last hand-out: the run's own drain, corrected by the
@@ -1026,6 +1064,8 @@ std::string Sampler::units_csv() const {
     std::string out = "unit,work,new_lines,node_steps,rays,cycles";
     if (new_line_rays) out += ",new_line_rays";
     if (capacity) out += ",functional_capacity_misses";
+    const bool l1 = !functional_l1_.unit_misses.empty();
+    if (l1) out += ",functional_l1_misses";
     // Design `work`: which units were measured outright, and the units each stands for.
     if (params_.by_work) out += ",certainty,design_weight";
     for (const auto& n : names) out += "," + n;
@@ -1049,6 +1089,11 @@ std::string Sampler::units_csv() const {
             fmt::format_to(to, ",{}",
                            unit_index_[i] < functional_l2_.unit_capacity_misses.size()
                                ? functional_l2_.unit_capacity_misses[unit_index_[i]]
+                               : 0);
+        if (l1)
+            fmt::format_to(to, ",{}",
+                           unit_index_[i] < functional_l1_.unit_misses.size()
+                               ? functional_l1_.unit_misses[unit_index_[i]]
                                : 0);
         if (params_.by_work)
             fmt::format_to(to, ",{},{}", design_->certainty_unit(unit_index_[i]) ? 1 : 0,

@@ -395,12 +395,18 @@ class Sampler {
     bool l2_lru_ = false;
     uint64_t l2_sets_ = 0;
     uint32_t l2_ways_ = 0;
+    uint64_t l1_sets_ = 0;
+    uint32_t l1_ways_ = 0, l1_line_bytes_ = 0;
     // Skip design without a reference design, LRU L2: the frame's L2 misses counted
     // functionally, per unit (sim/sampling/functional_l2.h); unit_capacity_misses empty otherwise.
     // Counted on a thread of its own while the run simulates (45-75 ms for the 5.2 million tile
     // lines of a 1080p Cornell 2-bounce path frame), taken in report.
     std::future<FunctionalL2> functional_l2_pending_;
     FunctionalL2 functional_l2_;
+    // Skip design without a reference design: the units' L1 misses as estimated functionally
+    // (sim/sampling/functional_l2.h), a predictor the regression fits; counted beside the L2's.
+    std::future<FunctionalL1> functional_l1_pending_;
+    FunctionalL1 functional_l1_;
     const StatsRegistry& counters_;
     uint64_t index_ = 0;     // rays judged so far
     uint64_t detailed_ = 0;  // of them, run in detail

@@ -742,7 +742,7 @@ TEST(Sampled, SkipDesignTracesPartOfTheFrame) {
         "--set sim.sample_design=systematic --set sim.sample_period_units=4 "
         "--set sim.sample_unit_tiles=2 --set sim.sample_warm_tiles=2 "
         "--set sim.sample_warmup_tiles=1 --set sim.sample_warmup_tile_rays=0 "
-        "--set sim.sample_warmup_slot_fills=0 --bvh-cache '" +
+        "--set sim.sample_warmup_slot_fills=0 --set sim.sample_unit_slot_fills=0 --bvh-cache '" +
         cache.string() + "' ";
     const fs::path full = work_dir() / "kf", a = work_dir() / "ka", b = work_dir() / "kb";
     ASSERT_EQ(run_rtsim(common + "-o '" + full.string() + "'").status, 0);
@@ -873,7 +873,7 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
     ASSERT_EQ(run_rtsim(common +
                         "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                         "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=48 "
-                        "--set sim.sample_seed=6 -o '" +
+                        "--set sim.sample_unit_slot_fills=0 --set sim.sample_seed=6 -o '" +
                         part.string() + "'")
                   .status,
               0);
@@ -1156,7 +1156,8 @@ TEST(Sampled, StrataFollowTheReferenceCycles) {
     ASSERT_EQ(r.status, 0) << r.err;
     r = run_rtsim(design + "--sample-order '" + ref.string() + "' -o '" + ordered.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
-    r = run_rtsim(design + "-o '" + frame.string() + "'");
+    // In the reference's units (an unpaired run would otherwise size them to the chip's slots).
+    r = run_rtsim(design + "--set sim.sample_unit_slot_fills=0 -o '" + frame.string() + "'");
     ASSERT_EQ(r.status, 0) << r.err;
 
     const auto measured = [](const fs::path& dir) {
