@@ -862,6 +862,49 @@ TEST(Sampled, SkipDesignCountsCapacityMissesFunctionally) {
     EXPECT_FALSE(stats_of(fifo)["sampling"].contains("functional_l2"));
 }
 
+// An unpaired sampled run's units hold at least sim.sample_unit_slot_fills fills of the chip's
+// ray slots. The rays per tile come from an every-unit run of 1-tile units (which keeps the
+// units it is given); on 16 x 16 cores (256 slots, 4 fills: 1,024 rays) the units are the fewest
+// tiles reaching that at the mean over tiles with rays, and the every-unit run's own units, the
+// default chip's (64 slots) and a run told 0 fills keep the configured 4 tiles.
+TEST(Sampled, UnitsHoldSeveralFillsOfTheChipsSlots) {
+    const std::string common = "run -q --scene " RTSIM_BUNNY_OBJ
+                               " --rays primary,ao --res 96x96 --bvh-cache off "
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip ";
+    const fs::path tiles = work_dir() / "uf_tiles", big = work_dir() / "uf_big",
+                   small = work_dir() / "uf_small", off = work_dir() / "uf_off";
+    const std::string chip = "--set core.count=16 --set core.ray_slots=16 ";
+    ASSERT_EQ(run_rtsim(common + chip +
+                        "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=1 -o '" +
+                        tiles.string() + "'")
+                  .status,
+              0);
+    const UnitsCsv per_tile = read_units_csv(tiles / "sampled_units.csv");
+    EXPECT_EQ(stats_of(tiles)["sampling"]["unit_tiles"], 1);
+    double rays = 0, with_rays = 0;
+    for (double r : per_tile.cols.at("rays")) {
+        rays += r;
+        with_rays += r > 0;
+    }
+    ASSERT_GT(with_rays, 0);
+    const uint64_t want = uint64_t(std::ceil(1024.0 / (rays / with_rays)));
+    ASSERT_GT(want, 4u);  // the premise: the rule matters here
+    ASSERT_EQ(run_rtsim(common + chip + "--set sim.sample_period_units=4 -o '" + big.string() + "'")
+                  .status,
+              0);
+    EXPECT_EQ(stats_of(big)["sampling"]["unit_tiles"].get<uint64_t>(), want);
+    ASSERT_EQ(
+        run_rtsim(common + "--set sim.sample_period_units=4 -o '" + small.string() + "'").status,
+        0);
+    EXPECT_EQ(stats_of(small)["sampling"]["unit_tiles"], 4);
+    ASSERT_EQ(run_rtsim(common + chip +
+                        "--set sim.sample_period_units=4 --set sim.sample_unit_slot_fills=0 -o '" +
+                        off.string() + "'")
+                  .status,
+              0);
+    EXPECT_EQ(stats_of(off)["sampling"]["unit_tiles"], 4);
+}
+
 // A sample whose measured units fetched nothing (seed 6 picks three background tiles of a 96x96
 // bunny frame) still knows the frame's first fills: DRAM bytes and their energy are estimated,
 // not left out (1080p elephant primary at 1 in 100 had reported none, and the bench read -100%).

@@ -172,3 +172,100 @@ TEST(FunctionalL2, CacheServesValidEntriesAndRefusesDamagedOnes) {
     EXPECT_EQ(refit.unit_capacity_misses, functional_l2_misses(fewer, 2, 1).unit_capacity_misses);
     fs::remove_all(dir);
 }
+
+namespace {
+
+// profile_of with each line's rays and kind given: {line, rays, triangle}.
+struct TileLine {
+    uint32_t line, rays;
+    bool triangle;
+};
+FrameProfile profile_with_rays(const std::vector<std::vector<TileLine>>& tiles) {
+    FrameProfile p = profile_of(std::vector<std::vector<uint32_t>>(tiles.size()));
+    p.tile_line_start = std::vector<uint32_t>{0};
+    std::vector<uint32_t> start{0}, lines;
+    std::vector<uint8_t> info;
+    for (const auto& t : tiles) {
+        for (const TileLine& l : t) {
+            lines.push_back(l.line);
+            info.push_back(uint8_t(l.rays | (l.triangle ? kTileLineTriangle : 0)));
+        }
+        start.push_back(uint32_t(lines.size()));
+    }
+    p.tile_line_start = std::move(start);
+    p.tile_lines = std::move(lines);
+    p.tile_line_info = std::move(info);
+    return p;
+}
+
+}  // namespace
+
+// One core: each line of a tile is one access to its L1, whatever its rays, so the count is an
+// LRU cache's misses, compulsory ones included. The tiles of DirectMappedByHand above, through
+// two sets of one way: tile 0 misses 0 and 2; tile 1 misses 0 (2 evicted it); tile 2 misses 1
+// and 3; tile 3 misses 2 (0 evicted it) and 1 (3 evicted it).
+TEST(FunctionalL1, OneCoreIsAnLruCacheByHand) {
+    const FrameProfile p = profile_with_rays(
+        {{{0, 5, false}, {2, 1, false}}, {{0, 9, false}}, {{1, 1, false}, {3, 2, false}},
+         {{2, 1, false}, {1, 127, false}}});
+    const FunctionalL1 f = functional_l1_misses(p, 1, 2, 1, false);
+    EXPECT_EQ(f.unit_misses, (std::vector<uint32_t>{2, 1, 2, 2}));
+    EXPECT_EQ(f.misses, 7u);
+}
+
+// A line that 127 rays fetch reaches every one of 4 cores (4 (1 - 0.75^127) of them), each
+// with an L1 of its own: four times the one core's misses. A line one ray fetches reaches one
+// core: tile after tile of line 0 alone misses once in each core it lands on, 4 misses in all
+// (a core missed by 100 draws has odds 4 * 0.75^100, about 1e-12).
+TEST(FunctionalL1, RaysSpreadALineOverTheCores) {
+    const FrameProfile every = profile_with_rays(
+        {{{0, 127, false}, {2, 127, false}}, {{0, 127, false}}, {{1, 127, false}, {3, 127, false}},
+         {{2, 127, false}, {1, 127, false}}});
+    EXPECT_EQ(functional_l1_misses(every, 4, 2, 1, false).unit_misses,
+              (std::vector<uint32_t>{8, 4, 8, 8}));
+    const FrameProfile one(profile_with_rays(std::vector<std::vector<TileLine>>(100, {{0, 1, false}})));
+    const FunctionalL1 f = functional_l1_misses(one, 4, 1, 1, false);
+    EXPECT_EQ(f.misses, 4u);
+    EXPECT_EQ(functional_l1_misses(one, 4, 1, 1, false).unit_misses, f.unit_misses);  // fixed
+}
+
+// A split L1 keeps triangles apart: a node line and a triangle line of one set of one way
+// evict each other in a unified L1 (2 misses a tile), not in a split one (2 in all).
+TEST(FunctionalL1, SplitL1KeepsTrianglesApart) {
+    const FrameProfile p =
+        profile_with_rays(std::vector<std::vector<TileLine>>(3, {{0, 1, false}, {1, 1, true}}));
+    EXPECT_EQ(functional_l1_misses(p, 1, 1, 1, false).misses, 6u);
+    EXPECT_EQ(functional_l1_misses(p, 1, 1, 1, true).unit_misses,
+              (std::vector<uint32_t>{2, 0, 0}));
+    EXPECT_THROW(functional_l1_misses(p, 0, 1, 1, false), std::invalid_argument);
+    EXPECT_THROW(functional_l1_misses(p, 1, 3, 1, false), std::invalid_argument);
+}
+
+// Units are merged from tiles in frame order (the last may be short), and a unit size is the
+// fewest tiles whose rays, at the mean of the tiles that have any, reach the slots asked for.
+TEST(FrameProfileUnits, MergeAndSizeByHand) {
+    FrameProfile p = profile_of({{0}, {1}, {2}, {3}, {4}});
+    for (size_t u = 0; u < 5; ++u) {
+        p.units[u][kAuxWork] = 10 * (u + 1);
+        p.units[u][kAuxRays] = u;
+    }
+    p.unit_new_line_rays = {1, 2, 3, 4, 5};
+    p.key = "k";
+    merge_profile_units(p, 2);
+    EXPECT_EQ(p.unit_tiles, 2u);
+    ASSERT_EQ(p.units.size(), 3u);
+    EXPECT_EQ(p.units[0][kAuxWork], 30u);
+    EXPECT_EQ(p.units[1][kAuxWork], 70u);
+    EXPECT_EQ(p.units[2][kAuxWork], 50u);
+    EXPECT_EQ(p.units[2][kAuxRays], 4u);
+    EXPECT_EQ(p.unit_new_line_rays, (std::vector<uint64_t>{3, 7, 5}));
+    EXPECT_NE(p.key, "k");  // counts cached by the key are kept per unit size
+    // Rays per tile 0, 100, 300, 0, 200: a mean of 200 over the three with rays.
+    const MappableArray<uint32_t> rays(std::vector<uint32_t>{0, 100, 300, 0, 200});
+    EXPECT_EQ(unit_tiles_for_slot_fills(rays, 1000), 5u);
+    EXPECT_EQ(unit_tiles_for_slot_fills(rays, 1001), 6u);
+    EXPECT_EQ(unit_tiles_for_slot_fills(rays, 200), 1u);
+    EXPECT_EQ(unit_tiles_for_slot_fills(rays, 0), 1u);
+    EXPECT_EQ(unit_tiles_for_slot_fills(MappableArray<uint32_t>(std::vector<uint32_t>{0, 0}), 64),
+              1u);
+}
