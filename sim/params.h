@@ -48,8 +48,8 @@ struct SimParams {
              sample_paired_warmup_tile_rays = 0;
     // The warm-up holds at least this many times the chip's ray slots (unpaired; paired).
     uint64_t sample_warmup_slot_fills = 2, sample_paired_warmup_slot_fills = 0;
-    // An unpaired skip unit holds at least this many times the chip's ray slots in rays.
-    uint64_t sample_unit_slot_fills = 4;
+    // An unpaired skip unit holds at least this many times the chip's ray slots in rays (0: off).
+    uint64_t sample_unit_slot_fills = 0;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -139,11 +139,11 @@ std::function<bool(int)> prepare_skip_design(const RunOptions& opt, const Config
     // run's (a paired run, --sample-order) nor in an every-unit run, which is exact at any unit
     // size and serves as such a run's reference in the units it is given.
     if (opt.reference_dir.empty() && opt.sample_order_dir.empty() && sp.period_units > 1)
-        sp.unit_tiles = std::max(
-            sp.unit_tiles, unit_tiles_for_slot_fills(w.profile->tile_rays,
-                                                     cfg.typed.sim.sample_unit_slot_fills *
-                                                         uint64_t(cfg.typed.core_count) *
-                                                         uint64_t(cfg.typed.core.ray_slots)));
+        sp.unit_tiles = std::max(sp.unit_tiles,
+                                 unit_tiles_for_slot_fills(w.profile->tile_rays,
+                                                           cfg.typed.sim.sample_unit_slot_fills *
+                                                               uint64_t(cfg.typed.core_count) *
+                                                               uint64_t(cfg.typed.core.ray_slots)));
     merge_profile_units(*w.profile, sp.unit_tiles);
     sp.tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
     if (sp.by_work) {

@@ -3,8 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <cstdlib>
-#include <cstdio>
 #include <charconv>
 #include <chrono>
 #include <cmath>
@@ -282,12 +280,13 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
             });
     if (!reference_ && l1_sets_ > 0 && l1_ways_ > 0 && profile->line_bytes == l1_line_bytes_ &&
         !ports_.empty()) {
-        const bool split = ports_[0][size_t(StepKind::Node)] != ports_[0][size_t(StepKind::Triangle)];
-        functional_l1_pending_ = std::async(
-            std::launch::async, [profile, cores = ports_.size(), sets = l1_sets_,
-                                 ways = l1_ways_, split] {
-                return functional_l1_misses(*profile, cores, sets, ways, split);
-            });
+        const bool split =
+            ports_[0][size_t(StepKind::Node)] != ports_[0][size_t(StepKind::Triangle)];
+        functional_l1_pending_ =
+            std::async(std::launch::async,
+                       [profile, cores = ports_.size(), sets = l1_sets_, ways = l1_ways_, split] {
+                           return functional_l1_misses(*profile, cores, sets, ways, split);
+                       });
     }
 }
 
@@ -788,7 +787,8 @@ json Sampler::report(Cycle end_cycle) {
             out["functional_l2"] = {{"misses", functional_l2_.misses},
                                     {"capacity_misses", functional_l2_.capacity_misses}};
         }
-        // A sixth where the units' L1 misses are known only to timing (sim/sampling/functional_l2.h).
+        // A sixth where the units' L1 misses are known only to timing
+        // (sim/sampling/functional_l2.h).
         if (!functional_l1_.unit_misses.empty() &&
             std::count_if(functional_l1_.unit_misses.begin(), functional_l1_.unit_misses.end(),
                           [](uint32_t m) { return m > 0; }) >= 4) {
@@ -800,14 +800,6 @@ json Sampler::report(Cycle end_cycle) {
             aux.push_back(l1);
             aux_names.push_back("functional_l1_misses");
             out["functional_l1"] = {{"misses", functional_l1_.misses}};
-            if (const char* dump = std::getenv("RTSIM_DUMP_UNITS")) {
-                FILE* f = std::fopen(dump, "w");
-                std::fprintf(f, "unit,work,rays,fl1,tiles_rays\n");
-                for (size_t u = 0; u < profile_->units.size(); ++u)
-                    std::fprintf(f, "%zu,%lu,%lu,%u\n", u, profile_->units[u][kWork],
-                                 profile_->units[u][kRays], functional_l1_.unit_misses[u]);
-                std::fclose(f);
-            }
         }
     }
     // Skip design: the share of the frame's work in units heavier than any measured one. The

@@ -866,14 +866,15 @@ TEST(Sampled, SkipDesignCountsCapacityMissesFunctionally) {
 // ray slots. The rays per tile come from an every-unit run of 1-tile units (which keeps the
 // units it is given); on 16 x 16 cores (256 slots, 4 fills: 1,024 rays) the units are the fewest
 // tiles reaching that at the mean over tiles with rays, and the every-unit run's own units, the
-// default chip's (64 slots) and a run told 0 fills keep the configured 4 tiles.
+// default chip's (64 slots) and a run with the default (0 fills) keep the configured 4 tiles.
 TEST(Sampled, UnitsHoldSeveralFillsOfTheChipsSlots) {
     const std::string common = "run -q --scene " RTSIM_BUNNY_OBJ
                                " --rays primary,ao --res 96x96 --bvh-cache off "
                                "--set sim.sampled=true --set sim.sample_fast_forward=skip ";
     const fs::path tiles = work_dir() / "uf_tiles", big = work_dir() / "uf_big",
                    small = work_dir() / "uf_small", off = work_dir() / "uf_off";
-    const std::string chip = "--set core.count=16 --set core.ray_slots=16 ";
+    const std::string chip =
+        "--set core.count=16 --set core.ray_slots=16 --set sim.sample_unit_slot_fills=4 ";
     ASSERT_EQ(run_rtsim(common + chip +
                         "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=1 -o '" +
                         tiles.string() + "'")
@@ -893,12 +894,15 @@ TEST(Sampled, UnitsHoldSeveralFillsOfTheChipsSlots) {
                   .status,
               0);
     EXPECT_EQ(stats_of(big)["sampling"]["unit_tiles"].get<uint64_t>(), want);
-    ASSERT_EQ(
-        run_rtsim(common + "--set sim.sample_period_units=4 -o '" + small.string() + "'").status,
-        0);
+    ASSERT_EQ(run_rtsim(common +
+                        "--set sim.sample_unit_slot_fills=4 --set sim.sample_period_units=4 -o '" +
+                        small.string() + "'")
+                  .status,
+              0);
     EXPECT_EQ(stats_of(small)["sampling"]["unit_tiles"], 4);
-    ASSERT_EQ(run_rtsim(common + chip +
-                        "--set sim.sample_period_units=4 --set sim.sample_unit_slot_fills=0 -o '" +
+    ASSERT_EQ(run_rtsim(common +
+                        "--set core.count=16 --set core.ray_slots=16 "
+                        "--set sim.sample_period_units=4 -o '" +
                         off.string() + "'")
                   .status,
               0);

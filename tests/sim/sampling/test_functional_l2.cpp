@@ -205,9 +205,10 @@ FrameProfile profile_with_rays(const std::vector<std::vector<TileLine>>& tiles) 
 // two sets of one way: tile 0 misses 0 and 2; tile 1 misses 0 (2 evicted it); tile 2 misses 1
 // and 3; tile 3 misses 2 (0 evicted it) and 1 (3 evicted it).
 TEST(FunctionalL1, OneCoreIsAnLruCacheByHand) {
-    const FrameProfile p = profile_with_rays(
-        {{{0, 5, false}, {2, 1, false}}, {{0, 9, false}}, {{1, 1, false}, {3, 2, false}},
-         {{2, 1, false}, {1, 127, false}}});
+    const FrameProfile p = profile_with_rays({{{0, 5, false}, {2, 1, false}},
+                                              {{0, 9, false}},
+                                              {{1, 1, false}, {3, 2, false}},
+                                              {{2, 1, false}, {1, 127, false}}});
     const FunctionalL1 f = functional_l1_misses(p, 1, 2, 1, false);
     EXPECT_EQ(f.unit_misses, (std::vector<uint32_t>{2, 1, 2, 2}));
     EXPECT_EQ(f.misses, 7u);
@@ -218,12 +219,14 @@ TEST(FunctionalL1, OneCoreIsAnLruCacheByHand) {
 // core: tile after tile of line 0 alone misses once in each core it lands on, 4 misses in all
 // (a core missed by 100 draws has odds 4 * 0.75^100, about 1e-12).
 TEST(FunctionalL1, RaysSpreadALineOverTheCores) {
-    const FrameProfile every = profile_with_rays(
-        {{{0, 127, false}, {2, 127, false}}, {{0, 127, false}}, {{1, 127, false}, {3, 127, false}},
-         {{2, 127, false}, {1, 127, false}}});
+    const FrameProfile every = profile_with_rays({{{0, 127, false}, {2, 127, false}},
+                                                  {{0, 127, false}},
+                                                  {{1, 127, false}, {3, 127, false}},
+                                                  {{2, 127, false}, {1, 127, false}}});
     EXPECT_EQ(functional_l1_misses(every, 4, 2, 1, false).unit_misses,
               (std::vector<uint32_t>{8, 4, 8, 8}));
-    const FrameProfile one(profile_with_rays(std::vector<std::vector<TileLine>>(100, {{0, 1, false}})));
+    const FrameProfile one(
+        profile_with_rays(std::vector<std::vector<TileLine>>(100, {{0, 1, false}})));
     const FunctionalL1 f = functional_l1_misses(one, 4, 1, 1, false);
     EXPECT_EQ(f.misses, 4u);
     EXPECT_EQ(functional_l1_misses(one, 4, 1, 1, false).unit_misses, f.unit_misses);  // fixed
@@ -235,8 +238,7 @@ TEST(FunctionalL1, SplitL1KeepsTrianglesApart) {
     const FrameProfile p =
         profile_with_rays(std::vector<std::vector<TileLine>>(3, {{0, 1, false}, {1, 1, true}}));
     EXPECT_EQ(functional_l1_misses(p, 1, 1, 1, false).misses, 6u);
-    EXPECT_EQ(functional_l1_misses(p, 1, 1, 1, true).unit_misses,
-              (std::vector<uint32_t>{2, 0, 0}));
+    EXPECT_EQ(functional_l1_misses(p, 1, 1, 1, true).unit_misses, (std::vector<uint32_t>{2, 0, 0}));
     EXPECT_THROW(functional_l1_misses(p, 0, 1, 1, false), std::invalid_argument);
     EXPECT_THROW(functional_l1_misses(p, 1, 3, 1, false), std::invalid_argument);
 }
