@@ -40,19 +40,29 @@ FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint
     TileQueue queue(gen, threads, trace);
     std::vector<GeneratedRay> rays;
     std::vector<size_t> new_entries;  // the tile's entries of lines new to the frame
-    RayWork work;
     while (queue.next(rays)) {
         new_entries.clear();
         const uint64_t tile = uint64_t(queue.last_tile()), u = tile / unit_tiles;
         tile_rays[tile] = uint32_t(rays.size());
         const uint32_t stamp = uint32_t(tile + 1);
+        AuxFigures& aux = p.units[u];
         uint32_t ray = 0;
-        for (GeneratedRay& g : rays) {
+        // One pass over each ray's steps for every figure (ray_auxiliaries' counts: a line no
+        // tile fetched before is a first touch in the frame).
+        for (const GeneratedRay& g : rays) {
             ++ray;
-            for (const Step& s : g.steps)
+            aux[kAuxWork] += g.steps.size() + 1;
+            aux[kAuxRays] += 1;
+            for (const Step& s : g.steps) {
+                aux[kAuxNodeSteps] += s.kind == StepKind::Node;
+                p.fetch_lines += lines.lines_spanned(s);
+                p.fetch_bytes += s.size_bytes;
                 lines.for_each_line(s, [&](uint64_t k) {
                     if (fetched_by[k] != stamp) {
-                        if (fetched_by[k] == 0) new_entries.push_back(tile_lines.size());
+                        if (fetched_by[k] == 0) {
+                            new_entries.push_back(tile_lines.size());
+                            ++aux[kAuxNewLines];
+                        }
                         fetched_by[k] = stamp;
                         last_ray[k] = ray;
                         entry[k] = tile_lines.size();
@@ -65,14 +75,7 @@ FrameProfile profile_frame(const RayGenerator& gen, const TraceRays& trace, uint
                         if ((info & kTileLineRays) != kTileLineRays) ++info;
                     }
                 });
-            for (const Step& s : g.steps) {
-                p.fetch_lines += lines.lines_spanned(s);
-                p.fetch_bytes += s.size_bytes;
             }
-            work.rays = 1;
-            work.steps.swap(g.steps);
-            const AuxFigures a = ray_auxiliaries(work, lines);
-            for (size_t k = 0; k < kAuxiliaries; ++k) p.units[u][k] += a[k];
         }
         for (size_t e : new_entries) p.unit_new_line_rays[u] += tile_line_info[e] & kTileLineRays;
         rays.clear();
