@@ -141,7 +141,8 @@ def fast_check(stats):
     fc = stats.get("fidelity_check")
     if not fc:
         return {"flagged": False, "expected_error_pct": None}
-    return {"flagged": bool(fc.get("flagged")), "expected_error_pct": fc.get("expected_error_pct")}
+    return {"flagged": bool(fc.get("flagged")), "expected_error_pct": fc.get("expected_error_pct"),
+            "regimes": [r["name"] for r in fc.get("regimes", [])]}
 
 
 def predictors(s):

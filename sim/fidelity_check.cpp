@@ -19,6 +19,7 @@ constexpr double kNoRegimeErrorPct = 1.0;
 constexpr double kTreeletLoadsErrorPct = 29.0;
 constexpr double kL1BoundErrorPct = 14.0;
 constexpr double kCrossbarBoundErrorPct = 16.0;
+constexpr double kCommandDramWritesErrorPct = 11.0;
 constexpr double kL1BoundStallShare = 0.40;
 constexpr double kCrossbarBoundBusyShare = 0.30;
 
@@ -54,6 +55,14 @@ json fidelity_check(const Params& params, const json& out) {
     if (busy_share > kCrossbarBoundBusyShare)
         add("crossbar_bound", fmt::format("crossbar busy {:.0f}% of cycles", 100 * busy_share),
             kCrossbarBoundBusyShare, kCrossbarBoundErrorPct);
+    // Command-level DRAM with the cores' writes in the L2: 3 of the 7 unflagged runs over 1% on
+    // the tuning seed (the fast engine 1.8-7.7% short), 3 of the 8 such runs outside the
+    // regimes above.
+    const double writes = number_at(out, json::json_pointer("/counters/l2.write_requests"));
+    if (params.dram_model == "command" && writes > 0)
+        add("command_dram_writes",
+            fmt::format("{:.0f} write requests at the L2, command-level DRAM", writes), 1,
+            kCommandDramWritesErrorPct);
     const bool flagged = !regimes.empty();
     json check = {{"engine", "fast"},
                   {"regimes", regimes},

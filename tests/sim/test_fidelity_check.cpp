@@ -51,6 +51,17 @@ TEST(FidelityCheck, RegimesFollowTheirMeasures) {
             .typed;
     EXPECT_TRUE(names(fidelity_check(no_loads, report(0.1, 0, 1000))).empty());
 
+    // Command-level DRAM is a regime once the cores' writes reach the L2; the default DRAM
+    // with writes, or command DRAM without them, is not.
+    const Params command = load_config("", {"dram.model=command"}).typed;
+    json writes = report(0.1, 0, 1000);
+    writes["counters"]["l2.write_requests"] = 5;
+    EXPECT_EQ(names(fidelity_check(command, writes)),
+              std::vector<std::string>{"command_dram_writes"});
+    EXPECT_EQ(fidelity_check(command, writes)["expected_error_pct"].get<double>(), 11.0);
+    EXPECT_TRUE(names(fidelity_check(command, report(0.1, 0, 1000))).empty());
+    EXPECT_TRUE(names(fidelity_check(plain, writes)).empty());
+
     // The accurate engine is the reference: it makes no claim about itself.
     const json acc =
         fidelity_check(load_config("", {"sim.fidelity=accurate"}).typed, report(0.9, 900, 1000));
