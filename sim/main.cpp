@@ -49,6 +49,8 @@ CLI::App* add_run_command(CLI::App& app, rtsim::RunOptions& run) {
                      "With sim.sampled=true: the 95% interval wanted on the frame's cycles "
                      "and DRAM bytes, in percent; a pilot sample sizes the rest")
         ->check(CLI::Range(0.01, 100.0));
+    run_cmd->add_option("--pilot-units", run.pilot_units, "A --target-error pilot's units")
+        ->group("");
     run_cmd->add_option(
         "--reference", run.reference_dir,
         "With sim.sampled=true and sim.sample_fast_forward=skip: the output folder of a run "

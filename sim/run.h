@@ -19,10 +19,13 @@ struct RunOptions {
     std::string config_path;  // empty: schema defaults
     std::vector<std::string> sets;
     WorkloadOptions workload;
-    std::string trace_path;        // replay this trace instead of generating rays
-    std::string out_dir;           // empty: a fresh folder under out/
-    std::string bvh_cache;         // --bvh-cache: "off", a folder, or empty for the default
-    double target_error_pct = 0;   // --target-error (sim.sampled = true)
+    std::string trace_path;       // replay this trace instead of generating rays
+    std::string out_dir;          // empty: a fresh folder under out/
+    std::string bvh_cache;        // --bvh-cache: "off", a folder, or empty for the default
+    double target_error_pct = 0;  // --target-error (sim.sampled = true)
+    // --pilot-units (a --target-error pilot's child run): the skip design's period is raised so
+    // that about this many of the units it draws from are measured (0: as configured).
+    uint64_t pilot_units = 0;
     std::string reference_dir;     // --reference: matched-pair sampling (sim/sampling/reference.h)
     std::string sample_order_dir;  // --sample-order: strata cut from units ordered by its cycles
     bool quiet = false;

@@ -957,6 +957,28 @@ TEST(Sampled, SkipDesignHonoursTargetError) {
     EXPECT_EQ(s["profile"]["cache"], "hit");
 }
 
+// A skip-design pilot measures about 40 units, not one in the configured period: 256 units of a
+// 128x128 frame (8x8-pixel tiles, one a unit) at a configured 1 in 2 make a pilot of 1 in 256 / 40 = 6 (the stratified design
+// draws from every unit), and a run configured coarser than that keeps its own period.
+TEST(Sampled, APilotMeasuresAboutFortyUnits) {
+    const std::string frame = "run -q --scene " RTSIM_BUNNY_OBJ
+                              " --rays primary --res 128x128 --set sim.sampled=true "
+                              "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=1 "
+                              "--bvh-cache '" +
+                              (work_dir() / "pilot_cache").string() + "' --target-error 50 ";
+    const fs::path fine = work_dir() / "pilot_fine", coarse = work_dir() / "pilot_coarse";
+    ASSERT_EQ(
+        run_rtsim(frame + "--set sim.sample_period_units=2 -o '" + fine.string() + "'").status, 0);
+    const json f = stats_of(fine)["sampling"];
+    ASSERT_EQ(f["units"], 256);
+    EXPECT_EQ(f["target"]["pilot_period_units"], 6) << f["target"];
+    EXPECT_NEAR(f["target"]["pilot_units_measured"].get<double>(), 256.0 / 6, 1.0);
+    ASSERT_EQ(
+        run_rtsim(frame + "--set sim.sample_period_units=8 -o '" + coarse.string() + "'").status,
+        0);
+    EXPECT_EQ(stats_of(coarse)["sampling"]["target"]["pilot_period_units"], 8);
+}
+
 // A target no sample can reach cheaper than the whole frame: the run says so and runs the frame
 // in full, its statistics the full fast run's, field for field (a skip run measuring half the
 // units or more costs more than the full run: each unit's warm-up and cache replay besides).
