@@ -958,8 +958,9 @@ TEST(Sampled, SkipDesignHonoursTargetError) {
 }
 
 // A skip-design pilot measures about 40 units, not one in the configured period: 256 units of a
-// 128x128 frame (8x8-pixel tiles, one a unit) at a configured 1 in 2 make a pilot of 1 in 256 / 40 = 6 (the stratified design
-// draws from every unit), and a run configured coarser than that keeps its own period.
+// 128x128 frame (8x8-pixel tiles, one a unit) at a configured 1 in 2 make a pilot of 1 in 256 / 40
+// = 6 (the stratified design draws from every unit), and a run configured coarser than that keeps
+// its own period.
 TEST(Sampled, APilotMeasuresAboutFortyUnits) {
     const std::string frame = "run -q --scene " RTSIM_BUNNY_OBJ
                               " --rays primary --res 128x128 --set sim.sampled=true "

@@ -22,9 +22,9 @@ RTSIM_REGISTER(FastForwardEntry,
                 "units of image tiles; tiles far from a measured unit are never traced, and the "
                 "frame's cached profile stands in for them (needs rays generated on the fly)",
                 {"sample_unit_tiles", "sample_warm_tiles", "sample_warmup_tiles",
-                 "sample_warmup_tile_rays", "sample_warmup_slot_fills", "sample_unit_slot_fills", "sample_paired_unit_tiles",
-                 "sample_paired_warmup_tiles", "sample_paired_warmup_tile_rays",
-                 "sample_paired_warmup_slot_fills"},
+                 "sample_warmup_tile_rays", "sample_warmup_slot_fills", "sample_unit_slot_fills",
+                 "sample_paired_unit_tiles", "sample_paired_warmup_tiles",
+                 "sample_paired_warmup_tile_rays", "sample_paired_warmup_slot_fills"},
                 true,
                 &make_skip})
 
