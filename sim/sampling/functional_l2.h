@@ -1,7 +1,8 @@
 // A frame's L2 misses counted functionally, unit by unit, for the skip design's estimates
 // (sim/sampling/sampler.h): the profile's tile lines (each tile's distinct lines, in the order its
 // rays first fetched them, tile after tile in frame order) run through an LRU cache of the L2's
-// geometry, counting each miss in the unit of the tile that made it.
+// geometry, counting each miss in the unit of the tile that made it. The units' L1 misses are
+// estimated here too, over per-core L1s (FunctionalL1, below).
 //
 // Why: a frame whose lines outgrow the L2 (Cornell diffuse and 2-bounce path frames, 1080p)
 // takes 70-85% of its DRAM traffic in capacity misses, which the sampled runs regressed on the
