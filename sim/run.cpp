@@ -531,6 +531,9 @@ int run_command(const RunOptions& opt) {
         out["host"]["functional_l2_s"] = functional_l2_s;
         out["host"]["functional_l2_cache"] = sampler->functional_l2_cache();
     }
+    if (sampler && sampler->functional_l1_seconds() > 0) {
+        out["host"]["functional_l1_s"] = sampler->functional_l1_seconds();
+    }
     if (sampler)
         add_sampling(out, sampler->report(chip.total_cycles()), std::move(plan),
                      opt.target_error_pct, cfg.typed.clock_ghz * 1e9);

@@ -38,7 +38,7 @@ constexpr size_t kExactFitDegrees = 2;
 constexpr size_t kModelFloorDegrees = 20;
 
 // Solves the p x p system m x = v (row-major m) by Gaussian elimination with partial pivoting,
-// overwriting m and v; false when it is (nearly) singular. Regression fits have p of 4 or fewer.
+// overwriting m and v; false when it is (nearly) singular. Regression fits have p of 6 or fewer.
 bool solve_in_place(std::vector<double>& m, std::vector<double>& v, std::vector<double>& x) {
     const size_t p = v.size();
     double scale = 0;

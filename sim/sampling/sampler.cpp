@@ -223,7 +223,6 @@ void Sampler::set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_p
     l2_ways_ = uint32_t(p2.ways);
     l1_sets_ = p1.sets();
     l1_ways_ = uint32_t(p1.ways);
-    l1_line_bytes_ = p1.line_bytes;
 }
 
 std::unique_ptr<Sampler> make_sampler(const std::string& fast_forward, const SamplingParams& params,
@@ -278,8 +277,8 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
             std::async(std::launch::async, [profile, sets = l2_sets_, ways = l2_ways_, cache_dir] {
                 return functional_l2_misses_cached(*profile, sets, ways, cache_dir);
             });
-    if (!reference_ && l1_sets_ > 0 && l1_ways_ > 0 && profile->line_bytes == l1_line_bytes_ &&
-        !ports_.empty()) {
+    if (!reference_ && l1_sets_ > 0 && l1_ways_ > 0 &&
+        profile->line_bytes == l1_fetch_lines_.line_bytes() && !ports_.empty()) {
         const bool split =
             ports_[0][size_t(StepKind::Node)] != ports_[0][size_t(StepKind::Triangle)];
         functional_l1_pending_ =
@@ -293,7 +292,7 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
 double Sampler::wait_functional_l2() {
     if (functional_l2_pending_.valid()) functional_l2_ = functional_l2_pending_.get();
     if (functional_l1_pending_.valid()) functional_l1_ = functional_l1_pending_.get();
-    return functional_l2_.seconds + functional_l1_.seconds;
+    return functional_l2_.seconds;
 }
 
 void Sampler::replay_skipped_tiles(uint64_t tile) {
@@ -767,38 +766,38 @@ json Sampler::report(Cycle end_cycle) {
         for (size_t i = 0; i < cycles_.size(); ++i)
             a.x[i] = double(profile_->unit_new_line_rays[unit_index_[i]]);
         for (uint64_t r : profile_->unit_new_line_rays) a.total += double(r);
-        // A fifth auxiliary where the frame outgrows the L2: the units' capacity misses as
-        // counted functionally (sim/sampling/functional_l2.h). Cornell 2-bounce path frames, 1080p:
-        // the residual over every unit fell from 28.2% to 15.6% of the mean unit's cycles, a
-        // 1-in-20 sample's error from 0.88% to 0.54% (docs/sampling.md). Fitted only where at least
-        // 4 measured units had some: a unit alone in having them has a leverage of 1 (a 96x96 bunny
-        // frame with 23 capacity misses left the jackknife without replicates).
-        if (!functional_l2_.unit_capacity_misses.empty()) {
-            capacity.x.resize(cycles_.size());
-            for (size_t i = 0; i < cycles_.size(); ++i)
-                capacity.x[i] = double(functional_l2_.unit_capacity_misses[unit_index_[i]]);
-            capacity.total = double(functional_l2_.capacity_misses);
-            constexpr long kMinUnitsWithCapacityMisses = 4;
-            if (std::count_if(capacity.x.begin(), capacity.x.end(),
-                              [](double x) { return x > 0; }) >= kMinUnitsWithCapacityMisses) {
-                aux.push_back(capacity);
-                aux_names.push_back("functional_capacity_misses");
+        // A functional count per unit of the profile as an auxiliary
+        // (sim/sampling/functional_l2.h), fitted only where at least 4 measured units have some: a
+        // unit alone in having them has a leverage of 1 (a 96x96 bunny frame with 23 capacity
+        // misses left the jackknife without replicates).
+        auto per_unit_auxiliary = [&](const std::vector<uint32_t>& per_unit, double total,
+                                      const char* name) {
+            Auxiliary a;
+            a.x.resize(cycles_.size());
+            for (size_t i = 0; i < cycles_.size(); ++i) a.x[i] = double(per_unit[unit_index_[i]]);
+            a.total = total;
+            constexpr long kMinUnitsCarrying = 4;
+            if (std::count_if(a.x.begin(), a.x.end(), [](double x) { return x > 0; }) >=
+                kMinUnitsCarrying) {
+                aux.push_back(a);
+                aux_names.push_back(name);
             }
+            return a;
+        };
+        // A fifth where the frame outgrows the L2: the units' capacity misses. Cornell 2-bounce
+        // path frames, 1080p: the residual over every unit fell from 28.2% to 15.6% of the mean
+        // unit's cycles, a 1-in-20 sample's error from 0.88% to 0.54% (docs/sampling.md).
+        if (!functional_l2_.unit_capacity_misses.empty()) {
+            capacity = per_unit_auxiliary(functional_l2_.unit_capacity_misses,
+                                          double(functional_l2_.capacity_misses),
+                                          "functional_capacity_misses");
             out["functional_l2"] = {{"misses", functional_l2_.misses},
                                     {"capacity_misses", functional_l2_.capacity_misses}};
         }
-        // A sixth where the units' L1 misses are known only to timing
-        // (sim/sampling/functional_l2.h).
-        if (!functional_l1_.unit_misses.empty() &&
-            std::count_if(functional_l1_.unit_misses.begin(), functional_l1_.unit_misses.end(),
-                          [](uint32_t m) { return m > 0; }) >= 4) {
-            Auxiliary l1;
-            l1.x.resize(cycles_.size());
-            for (size_t i = 0; i < cycles_.size(); ++i)
-                l1.x[i] = double(functional_l1_.unit_misses[unit_index_[i]]);
-            l1.total = double(functional_l1_.misses);
-            aux.push_back(l1);
-            aux_names.push_back("functional_l1_misses");
+        // A sixth where a unit's cycles follow its L1 misses, which its work does not predict.
+        if (!functional_l1_.unit_misses.empty()) {
+            per_unit_auxiliary(functional_l1_.unit_misses, double(functional_l1_.misses),
+                               "functional_l1_misses");
             out["functional_l1"] = {{"misses", functional_l1_.misses}};
         }
     }
@@ -1053,10 +1052,10 @@ std::string Sampler::units_csv() const {
     // regression fits in place of the new lines.
     const bool new_line_rays = profile_ != nullptr;
     const bool capacity = !functional_l2_.unit_capacity_misses.empty();
+    const bool l1 = !functional_l1_.unit_misses.empty();
     std::string out = "unit,work,new_lines,node_steps,rays,cycles";
     if (new_line_rays) out += ",new_line_rays";
     if (capacity) out += ",functional_capacity_misses";
-    const bool l1 = !functional_l1_.unit_misses.empty();
     if (l1) out += ",functional_l1_misses";
     // Design `work`: which units were measured outright, and the units each stands for.
     if (params_.by_work) out += ",certainty,design_weight";
@@ -1072,21 +1071,15 @@ std::string Sampler::units_csv() const {
         auto to = std::back_inserter(out);
         fmt::format_to(to, "{},{},{},{},{},{}", unit_index_[i], a[kWork], a[kNewLines],
                        a[kNodeSteps], a[kRays], cycles_[i]);
-        if (new_line_rays)
+        // A per-unit figure of the profile's, 0 past its units.
+        auto per_unit_column = [&](const auto& per_unit) {
             fmt::format_to(to, ",{}",
-                           unit_index_[i] < profile_->unit_new_line_rays.size()
-                               ? profile_->unit_new_line_rays[unit_index_[i]]
-                               : 0);
-        if (capacity)
-            fmt::format_to(to, ",{}",
-                           unit_index_[i] < functional_l2_.unit_capacity_misses.size()
-                               ? functional_l2_.unit_capacity_misses[unit_index_[i]]
-                               : 0);
-        if (l1)
-            fmt::format_to(to, ",{}",
-                           unit_index_[i] < functional_l1_.unit_misses.size()
-                               ? functional_l1_.unit_misses[unit_index_[i]]
-                               : 0);
+                           unit_index_[i] < per_unit.size() ? uint64_t(per_unit[unit_index_[i]])
+                                                            : uint64_t(0));
+        };
+        if (new_line_rays) per_unit_column(profile_->unit_new_line_rays);
+        if (capacity) per_unit_column(functional_l2_.unit_capacity_misses);
+        if (l1) per_unit_column(functional_l1_.unit_misses);
         if (params_.by_work)
             fmt::format_to(to, ",{},{}", design_->certainty_unit(unit_index_[i]) ? 1 : 0,
                            design_->design_weight(unit_index_[i]));

@@ -293,9 +293,12 @@ class Sampler {
     // set_reference is.
     void set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_per_fill);
 
-    // Waits for the functional count of the frame's L2 misses (set_profile starts it on a thread
-    // of its own) and returns its host seconds (0: none), so that a run's host time includes it.
+    // Waits for the functional counts of the frame's L2 and L1 misses (set_profile starts each on
+    // a thread of its own) and returns the L2 count's host seconds (0: none), so that a run's host
+    // time includes it.
     double wait_functional_l2();
+    // The L1 count's host seconds, once waited for (0: none; stats.json's host.functional_l1_s).
+    double functional_l1_seconds() const { return functional_l1_.seconds; }
     // What the cache of that count did ("off", "hit", "built", "rebuilt: why"; empty: no count).
     const std::string& functional_l2_cache() const { return functional_l2_.cache; }
     // Skip design: host seconds spent loading skipped tiles' lines into the caches (part of the
@@ -396,7 +399,7 @@ class Sampler {
     uint64_t l2_sets_ = 0;
     uint32_t l2_ways_ = 0;
     uint64_t l1_sets_ = 0;
-    uint32_t l1_ways_ = 0, l1_line_bytes_ = 0;
+    uint32_t l1_ways_ = 0;
     // Skip design without a reference design, LRU L2: the frame's L2 misses counted
     // functionally, per unit (sim/sampling/functional_l2.h); unit_capacity_misses empty otherwise.
     // Counted on a thread of its own while the run simulates (45-75 ms for the 5.2 million tile
