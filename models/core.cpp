@@ -41,6 +41,7 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
     : sc_core::sc_module(name),
       params_(params),
       source_(source),
+      source_wake_(source ? source->wake_pending() : nullptr),
       slots_(static_cast<size_t>(params.ray_slots)),
       ready_(padded_to_8(slots_.size())),
       keys_(ready_.size()) {
@@ -71,10 +72,13 @@ void Core::count_finished(uint32_t work_rays, Cycle start, Cycle done) {
     ray_latency_cycles += done - start;
     if (rays_series_) rays_series_->add(done, work_rays);
     last_cycle = std::max(last_cycle, done);
+    if (source_wake_) source_->finished(work_rays, done);
 }
 
 void Core::set_ray_buffer(RayBuffer* buffer) {
     ray_buffer_ = buffer;
+    // Rays then come from the buffer, which parks and wakes slots itself.
+    if (buffer) source_wake_ = nullptr;
     if (!buffer || !params_.treelet_prefetch) return;
     // One more ready key, for the treelet loader (idle until a batch needs a treelet).
     loader_ = slots_.size();
@@ -88,7 +92,7 @@ void Core::go_idle(size_t slot, Cycle t, Cycle key_cycle) {
     set_ready(slot, key_cycle);
     if (key_cycle == kParkedCycle) {
         ++parked_slots_;
-        ray_buffer_->note_parked(1);
+        if (ray_buffer_) ray_buffer_->note_parked(1);
     }
 }
 
@@ -99,7 +103,7 @@ bool Core::wake(Cycle at) {
         if (keys_.cycle(ready_[i]) == kParkedCycle) {
             // Every ray done: the slot retires where it parked (its idle tail is counted up to
             // the run's end, which may come before this core's floor).
-            if (ray_buffer_->finished()) {
+            if (ray_buffer_ && ray_buffer_->finished()) {
                 set_ready(i, kNeverCycle);
                 continue;
             }
@@ -108,7 +112,7 @@ bool Core::wake(Cycle at) {
             no_work_cycles += from - slots_[i].idle_since;
             set_ready(i, from);
         }
-    ray_buffer_->note_parked(-int(parked_slots_));
+    if (ray_buffer_) ray_buffer_->note_parked(-int(parked_slots_));
     parked_slots_ = 0;
     return true;
 }
@@ -192,6 +196,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
         // Work arrived for parked slots (here or in other cores): they wake before anything
         // later runs.
         if (ray_buffer_ && ray_buffer_->wake_needed()) return t;
+        if (source_wake_ && *source_wake_) return t;
         {
             // The next earliest slot usually runs next: start loading its step, which it last
             // touched dozens of steps ago and the host's L1 has likely dropped since.
@@ -214,7 +219,9 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
             Cycle got = t;
             if (!ray_buffer_) {
                 if (!source_->next(s.work, t)) {
-                    go_idle(i, t, kNeverCycle);
+                    // A held ray (a sampled run's next window waits for the chip to drain):
+                    // the slot parks until the source wakes it.
+                    go_idle(i, t, source_->holding() ? kParkedCycle : kNeverCycle);
                     continue;
                 }
                 s.pos = 0;

@@ -29,14 +29,34 @@
 
 namespace rtsim {
 
+// Tells the core scheduler that work arrived for parked cores, and from which cycle.
+class WakeSource {
+  public:
+    virtual ~WakeSource() = default;
+    virtual bool take_wake(Cycle& at) = 0;
+};
+
 // Hands out rays to cores; the chip's shared work queue. Calls arrive in simulated time order
 // from every core.
 class RayWorkSource {
   public:
     virtual ~RayWorkSource() = default;
-    // Fills `work` with the next ray's steps; false when no ray is left. `now`: the cycle the
-    // ray is taken at (a sampled run times its units by it).
+    // Fills `work` with the next ray's steps; false when no ray is left, or none yet (holding).
+    // `now`: the cycle the ray is taken at (a sampled run times its units by it).
     virtual bool next(RayWork& work, Cycle now) = 0;
+    // After next() returned false: whether a ray is held back rather than none left. The slot
+    // then parks until the source's wakes() says when to look again.
+    virtual bool holding() const { return false; }
+    // A work item of `rays` rays that a core took from this source finished at `done`.
+    virtual void finished(uint32_t rays, Cycle done) {
+        (void)rays;
+        (void)done;
+    }
+    // Where the wakes of slots parked on a held ray come from; nullptr: this source never holds.
+    virtual WakeSource* wakes() { return nullptr; }
+    // While set, a wake is waiting to be taken: a core running stops so that parked slots wake
+    // first. nullptr: this source never holds.
+    virtual const bool* wake_pending() const { return nullptr; }
 };
 
 struct CoreParams {
@@ -68,13 +88,6 @@ struct CoreParams {
 constexpr Cycle kNeverCycle = ~Cycle(0);
 // ...and when it has nothing to do now but more may come (treelet mode): it waits to be woken.
 constexpr Cycle kParkedCycle = kNeverCycle - 1;
-
-// Tells the core scheduler that work arrived for parked cores, and from which cycle.
-class WakeSource {
-  public:
-    virtual ~WakeSource() = default;
-    virtual bool take_wake(Cycle& at) = 0;
-};
 
 // A cycle and an index packed into one key, cycle above the index bits, so that the least key
 // is the earliest cycle and, among equals, the lowest index. Picking the earliest of several
@@ -293,6 +306,9 @@ class Core : public sc_core::sc_module {
 
     CoreParams params_;
     RayWorkSource* source_;
+    // The source's pending-wake flag when it may hold a ray (RayWorkSource::wake_pending):
+    // finished rays are then reported to it. nullptr otherwise, and in treelet mode.
+    const bool* source_wake_ = nullptr;
     std::vector<Slot> slots_;
     // Per slot: the cycle it is ready for its next step (kNeverCycle once retired) as a key of
     // keys_, padded to a multiple of eight with retired keys. Apart from the slots so that finding

@@ -38,7 +38,8 @@ class ChipDriver : public sc_core::sc_module {
 
 struct DriverSetup {
     std::vector<Core*> cores;
-    WakeSource* wake = nullptr;  // where work for parked cores comes from (the ray buffer)
+    WakeSource* wake = nullptr;  // where work for parked cores comes from (the ray buffer, or a
+                                 // source that holds rays)
 };
 
 struct FidelityEntry {

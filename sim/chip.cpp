@@ -153,7 +153,10 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     for (auto& c : cores) core_ptrs.push_back(c.get());
     DriverSetup setup;
     setup.cores = std::move(core_ptrs);
-    setup.wake = ray_buffer.get();
+    // Parked slots wake when the ray buffer has work for them, or (a sampled run's drained
+    // windows) when the source lets its held ray go.
+    setup.wake = ray_buffer ? static_cast<WakeSource*>(ray_buffer.get())
+                            : (source ? source->wakes() : nullptr);
     if (ray_buffer && P.ray_buffer.in_memory)  // (a driver may then defer its requests)
         ray_buffer->set_memory(
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1, false);

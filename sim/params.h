@@ -50,6 +50,8 @@ struct SimParams {
     uint64_t sample_warmup_slot_fills = 2, sample_paired_warmup_slot_fills = 0;
     // An unpaired skip unit holds at least this many times the chip's ray slots in rays (0: off).
     uint64_t sample_unit_slot_fills = 0;
+    // A detailed window after fast-forwarded rays starts once the rays before it have finished.
+    bool sample_window_drain = true;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -466,6 +466,7 @@ int run_command(const RunOptions& opt) {
             recorder = r.get();
             return r;
         };
+    if (sampled && cfg.typed.sim.sample_window_drain) source.hold_windows();
     Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
     if (sampled) {

@@ -34,11 +34,25 @@ using WorkClock = std::chrono::steady_clock;
 
 // The chip's shared work queue. Counts what it hands out and shows progress on a terminal;
 // subclasses produce the rays.
-class CountingSource : public RayWorkSource {
+class CountingSource : public RayWorkSource, public WakeSource {
   public:
     explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work, Cycle now) override {
+        if (held_) {
+            // The next window waits for every ray before it to finish, and from the cycle the
+            // last of them does (a slot may ask earlier: it parks, and is woken then).
+            if (!failed() && (in_flight_ > 0 || now < drained_at_)) {
+                if (in_flight_ == 0) wake_at(drained_at_);
+                return false;
+            }
+            held_ = false;
+            if (!failed()) {
+                work = std::move(held_work_);
+                hand_out(now);
+                return true;
+            }
+        }
         // SIGINT or SIGTERM: no more rays (the slots finish the ones they hold, then the run
         // reports the interruption and writes nothing).
         if (!failed() && interrupt_signal()) {
@@ -55,13 +69,46 @@ class CountingSource : public RayWorkSource {
             // A sampled run fast-forwards most rays here: they warm the caches, no core runs them.
             if (!sampler_ || !sampler_->fast_forward(work, current_tile())) break;
         }
-        if (sampler_) sampler_->handed_out(now);
+        // A core reports a ray finished once it knows when (`done` may be ahead of `now`).
+        if (holds_windows_ && sampler_ && (in_flight_ > 0 || last_done_ > now) &&
+            sampler_->window_start()) {
+            held_work_ = std::move(work);
+            held_ = true;
+            sampler_->held(now);
+            drained_at_ = last_done_;
+            if (in_flight_ == 0) wake_at(drained_at_);
+            return false;
+        }
+        hand_out(now);
+        return true;
+    }
+    bool holding() const override { return held_ && !failed(); }
+    void finished(uint32_t /*rays*/, Cycle done) override {
+        --in_flight_;
+        last_done_ = std::max(last_done_, done);
+        if (held_ && in_flight_ == 0) {
+            drained_at_ = last_done_;
+            wake_at(drained_at_);
+        }
+    }
+    WakeSource* wakes() override { return holds_windows_ ? this : nullptr; }
+    const bool* wake_pending() const override { return holds_windows_ ? &wake_pending_ : nullptr; }
+    bool take_wake(Cycle& at) override {
+        if (!wake_pending_) return false;
+        wake_pending_ = false;
+        at = wake_cycle_;
         return true;
     }
 
     // Sampled simulation: rays pass through `sampler` (sim/sampling/sampler.h), which keeps most of
     // them from the cores.
     void set_sampler(Sampler* sampler) { sampler_ = sampler; }
+    // Sampled simulation (sim.sample_window_drain), before the chip is built: the first ray of a
+    // detailed window after fast-forwarded rays is held until the rays in flight have finished.
+    // Fast-forwarded rays take no simulated time, so the rays of the window before would
+    // otherwise share the cores with the new window's warm-up and measured unit, where in the
+    // full run they finished long before.
+    void hold_windows() { holds_windows_ = true; }
 
     void finish_progress() {
         if (progress_ && printed_) std::fprintf(stderr, "\r%100s\r", "");
@@ -110,6 +157,20 @@ class CountingSource : public RayWorkSource {
   private:
     bool progress_, printed_ = false, started_ = false;
     WorkClock::time_point last_print_, start_;
+    void hand_out(Cycle now) {
+        if (sampler_) sampler_->handed_out(now);
+        ++in_flight_;
+    }
+    void wake_at(Cycle at) {
+        wake_pending_ = true;
+        wake_cycle_ = at;
+    }
+    // Held windows: work items handed out and not finished, the latest finish reported, the
+    // held item and from when it may go.
+    bool holds_windows_ = false, held_ = false, wake_pending_ = false;
+    uint64_t in_flight_ = 0;
+    Cycle last_done_ = 0, drained_at_ = 0, wake_cycle_ = 0;
+    RayWork held_work_;
 };
 
 // Work prepared on a helper thread, up to kAheadBatches batches ahead of the simulation: while a

@@ -457,6 +457,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
             if (core.finish_at_step_end() && s.work.steps.empty()) {  // a root-box miss ends
                 core.count_finished(s.work.rays, s.start, done);
                 s.busy = false;
+                take_wakes(t);
             }
             schedule(done, kSlot, c, i);
             return;
@@ -465,7 +466,12 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         if (!rb) {
             if (!core.source()->next(s.work, t)) {
                 s.idle_since = t;
-                core.set_slot_idle(i, t, true);
+                // A held ray (a sampled run's next window waits for the chip to drain): the
+                // slot parks until the source wakes it.
+                const bool held = core.source()->holding();
+                core.set_slot_idle(i, t, !held);
+                if (held) parked_.emplace_back(c, i);
+                take_wakes(t);
                 return;
             }
             s.pos = 0;
@@ -509,7 +515,7 @@ void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
         if (rb) rb->release(s.handle);
         core.count_finished(s.work.rays, s.start, t);
         s.busy = false;
-        if (rb) take_wakes(t);
+        take_wakes(t);  // the ray buffer's work, or a source's held ray
         schedule(t, kSlot, c, i);
         return;
     }
@@ -579,6 +585,7 @@ void ReferenceScheduler::step_fetched(uint32_t c, uint32_t i, Cycle t, const Tim
     if (s.pos == s.work.steps.size() && core.finish_at_step_end()) {
         core.count_finished(s.work.rays, s.start, done);
         s.busy = false;
+        take_wakes(t);
     }
     schedule(done, kSlot, c, i);
 }

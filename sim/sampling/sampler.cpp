@@ -469,6 +469,16 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         // Tiles of a unit come together; a warming unit may start part-way.
         current_first_ = last_tile_ < 0 || unit != current_unit_;
         current_unit_ = unit;
+        // Tiles not traced between the last one and this, with rays (known ray counts), were
+        // skipped: the window before is over.
+        if (new_tile && !gap_) {
+            const uint64_t from = uint64_t(last_tile_ + 1);
+            if (params_.tile_rays.size() != params_.tiles) {
+                gap_ = t > from;
+            } else {
+                for (uint64_t k = from; k < t && !gap_; ++k) gap_ = params_.tile_rays[k] > 0;
+            }
+        }
         last_tile_ = tile;
         // The tiles skipped since the last traced one fetched their first lines before it.
         if (new_tile) replay_skipped_tiles(t);
@@ -494,7 +504,9 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         total_fetch_lines_ += fetch_lines;
         total_fetch_bytes_ += fetch_bytes;
     }
+    window_start_ = detailed && gap_;
     if (detailed) {
+        gap_ = false;
         detailed_ += work.rays;
         for (size_t k = 0; k < kAuxiliaries; ++k) detailed_aux_[k] += a[k];
         detailed_fetch_lines_ += fetch_lines;
@@ -507,6 +519,7 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         if (next_core_ < write_cores_.size()) warm_writes(*write_cores_[next_core_], work);
         next_core_ = (next_core_ + 1) % ports_.size();
     }
+    gap_ = true;
     return true;
 }
 
@@ -547,6 +560,11 @@ void Sampler::handed_out(Cycle now) {
     }
     if (open_)
         for (size_t k = 0; k < kAuxiliaries; ++k) unit_aux_[k] += current_aux_[k];
+}
+
+void Sampler::held(Cycle now) {
+    last_handout_ = std::max(last_handout_, now);
+    if (open_ && current_unit_ != open_unit_) close_unit(unit_aux_, now);
 }
 
 void Sampler::finish() {

@@ -269,6 +269,12 @@ class Sampler {
     void set_write_warming(std::vector<const Core*> cores) { write_cores_ = std::move(cores); }
     // The ray just judged detailed is handed out at `now`.
     void handed_out(Cycle now);
+    // Whether the ray just judged detailed starts a window: rays were fast-forwarded, or tiles
+    // with rays skipped, since the last detailed one.
+    bool window_start() const { return window_start_; }
+    // The ray just judged detailed, which starts a window, is held at `now` until the chip has
+    // drained: a measured unit still open ends now, where a slot asked for the next ray.
+    void held(Cycle now);
     // The addresses rays fetch from ([base, end), in lines of line_bytes): every ray's first
     // touches of lines are then counted, a second auxiliary figure (DRAM traffic follows new
     // lines far more than work: compulsory misses).
@@ -420,7 +426,10 @@ class Sampler {
     // The ray just judged: its unit, and whether it is the first of it.
     uint64_t current_unit_ = 0;
     bool current_first_ = false;
-    int64_t last_tile_ = -1;     // skip design: the tile of the ray before
+    int64_t last_tile_ = -1;  // skip design: the tile of the ray before
+    // Rays fast-forwarded or tiles with rays skipped since the last detailed ray; whether the
+    // ray just judged detailed came after such a gap.
+    bool gap_ = false, window_start_ = false;
     uint64_t tiles_traced_ = 0;  // skip design
     // The measured unit in progress: its start cycle and counters.
     bool open_ = false;

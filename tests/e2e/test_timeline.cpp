@@ -53,7 +53,8 @@ std::string write_trace(const fs::path& path, int rays, bool own_nodes = false) 
         tri.kind = StepKind::Triangle;
         tri.id = 0;
         tri.count = 1;
-        r.steps = {node, tri};
+        r.steps.assign(2, node);
+        r.steps[1] = tri;
         w.add(r);
     }
     w.finish();
@@ -367,5 +368,39 @@ TEST(Timeline, AFullWriteBufferHoldsTheNextWriteByHand) {
         EXPECT_EQ(s["counters"]["core[0].hit_record_writes"].get<uint64_t>(), 2u);
         EXPECT_EQ(s["total_cycles"].get<uint64_t>(), 471u);
         EXPECT_EQ(st["unaccounted_cycles"].get<int64_t>(), 0);
+    }
+}
+
+// A sampled replay whose second window waits for the first to drain. Six rays, all on node 0
+// and triangle 0, two slots, units of one ray, one unit in three from unit 0, no warm-up: rays 0
+// and 3 are measured, rays 1 and 4 close them (detailed), rays 2 and 5 are fast-forwarded.
+//   0    rays 0 and 1 run as in TwoRaysShareFillsAndPipelinesByHand: done at 448 and 449
+//   448  slot A asks: ray 2 warms the caches; ray 3 starts a window while ray 1 runs until 449,
+//        so it is held and A parks
+//   449  both slots take rays 3 and 4 (A first), every fetch an L1 hit:
+//        A's setup 449 -> 450; B's waits for the port -> 451
+//        A's node: port at 451 -> fetch 452, hit 456, box 464; B's: port 452 -> fetch 453,
+//        hit 457, the box pipeline took A's op at 456 -> 465
+//        A's triangle: issue 464 -> fetch 465, hit 469, triangle 487; B's: issue 465 -> fetch
+//        466, hit 470 -> 488
+// No work: A parked from 448 to 449, and retired from 487 to the end at 488. Without the drain,
+// A takes ray 3 at 448 while ray 1 still runs.
+TEST(Timeline, ASampledWindowStartsOnceTheOneBeforeHasDrainedByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "drain.rtt", 6);
+    const std::string sampled =
+        " --set core.ray_slots=2 --set sim.sampled=true --set sim.sample_fast_forward=warm"
+        " --set sim.sample_unit_rays=1 --set sim.sample_period_units=3"
+        " --set sim.sample_warmup_rays=0 --set sim.sample_design=systematic"
+        " --set sim.sample_first_unit=0";
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json s = run_trace(trace, sampled, "drain", fidelity);
+        EXPECT_EQ(s["sampling"]["rays_detailed"].get<uint64_t>(), 4u);
+        EXPECT_EQ(s["sampling"]["simulated_cycles"].get<uint64_t>(), 488u) << s["sampling"].dump();
+        EXPECT_EQ(s["stalls"]["total"]["no_work"].get<uint64_t>(), 2u);
+        // Without the drain the second window overlaps the first: another timeline.
+        const json free = run_trace(trace, sampled + " --set sim.sample_window_drain=false",
+                                    "no_drain", fidelity);
+        EXPECT_LT(free["sampling"]["simulated_cycles"].get<uint64_t>(), 488u);
     }
 }

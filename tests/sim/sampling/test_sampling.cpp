@@ -14,6 +14,7 @@
 #include <numeric>
 #include <random>
 #include <set>
+#include <sstream>
 
 #include "models/cache.h"
 #include "models/crossbar.h"
@@ -258,6 +259,77 @@ TEST(Sampling, SamplerKeepsUnitsAndTimesThemByHandOut) {
     // next unit's warm-up ray or its first), within 40 rays.
     EXPECT_GE(kept, 20);
     EXPECT_LE(kept, 30);
+}
+
+// Skip design, 8 tiles of one unit each, one unit in 3 from unit 1 (units 1, 4 and 7), tiles of
+// 2 rays but tiles 2 and 6 of none. Tile 0 is skipped, tile 2 (unit 1's closing tile) has no
+// ray, tile 3 is skipped, tile 5 closes unit 4 with its first ray and fast-forwards its second.
+// A window starts where rays were skipped or fast-forwarded since the last detailed ray: at tile
+// 1 (tile 0 skipped), at tile 4 (tile 3), at tile 7 (tile 5's second ray), never at a ray
+// following a detailed one across tiles without rays (below). A measured unit that no ray closes
+// (unit 1) ends where the next window's first ray is held, not where the drained chip hands it out.
+// By hand.
+TEST(Sampling, WindowsStartAfterSkippedRaysAndHeldRaysCloseUnits) {
+    StatsRegistry reg;
+    uint64_t bytes = 0;
+    reg.add("dram", "bytes", &bytes, "test counter");
+    SamplingParams sp;
+    sp.skip = true;
+    sp.unit_tiles = 1;
+    sp.tiles = 8;
+    sp.period_units = 3;
+    sp.stratified = false;
+    sp.first_unit = 1;
+    sp.warmup_tiles = 0;
+    sp.warmup_tile_rays = 0;
+    sp.tile_rays = {2, 2, 0, 2, 2, 2, 0, 2};
+    Sampler s(sp, {}, reg);
+    RayWork w;
+    w.steps.resize(3);
+    struct Ray {
+        int64_t tile;
+        bool fast_forwarded, window_start;
+        Cycle held, handed_out;  // held: 0 if not held
+    };
+    const Ray rays[] = {{1, false, true, 0, 0},   {1, false, false, 0, 10},
+                        {4, false, true, 20, 35}, {4, false, false, 0, 45},
+                        {5, false, false, 0, 60}, {5, true, false, 0, 0},
+                        {7, false, true, 70, 80}, {7, false, false, 0, 90}};
+    for (const Ray& r : rays) {
+        SCOPED_TRACE(r.tile);
+        ASSERT_EQ(s.fast_forward(w, r.tile), r.fast_forwarded);
+        if (r.fast_forwarded) continue;
+        EXPECT_EQ(s.window_start(), r.window_start);
+        if (r.held) s.held(r.held);
+        s.handed_out(r.handed_out);
+    }
+    s.finish();
+    // Per measured unit: unit 1 from 0 to its hold at 20, unit 4 from 35 to tile 5's first ray
+    // at 60, unit 7 from 80 to its last hand-out at 90 (the frame ends in it).
+    std::istringstream csv(s.units_csv());
+    std::string line;
+    std::getline(csv, line);
+    std::vector<std::pair<int, double>> cycles;
+    while (std::getline(csv, line)) {
+        std::vector<std::string> f;
+        std::stringstream ls(line);
+        for (std::string cell; std::getline(ls, cell, ',');) f.push_back(cell);
+        cycles.emplace_back(std::stoi(f[0]), std::stod(f[5]));
+    }
+    const std::vector<std::pair<int, double>> want = {{1, 20.0}, {4, 25.0}, {7, 10.0}};
+    EXPECT_EQ(cycles, want);
+
+    // Units 1 and 3 of 4 measured, tile 2 between them without rays: nothing was skipped, so
+    // tile 3 continues the window.
+    sp.tiles = 4;
+    sp.period_units = 2;
+    sp.tile_rays = {2, 2, 0, 2};
+    Sampler next(sp, {}, reg);
+    const std::pair<int64_t, bool> starts[] = {{1, true}, {1, false}, {3, false}, {3, false}};
+    for (const auto& [tile, start] : starts) {
+        ASSERT_FALSE(next.fast_forward(w, tile));
+        EXPECT_EQ(next.window_start(), start) << "tile " << tile;
+    }
 }
 
 namespace {
