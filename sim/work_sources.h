@@ -39,46 +39,28 @@ class CountingSource : public RayWorkSource, public WakeSource {
     explicit CountingSource(bool progress) : progress_(progress) {}
 
     bool next(RayWork& work, Cycle now) override {
-        if (held_) {
-            // The next window waits for every ray before it to finish, and from the cycle the
-            // last of them does (a slot may ask earlier: it parks, and is woken then).
-            if (!failed() && (in_flight_ > 0 || now < drained_at_)) {
-                if (in_flight_ == 0) wake_at(drained_at_);
-                return false;
-            }
-            held_ = false;
-            if (!failed()) {
-                work = std::move(held_work_);
+        if (!held_) {
+            if (!produce_next(work)) return false;
+            if (!holds_windows_ || !sampler_ || !sampler_->window_start() || !draining(now)) {
                 hand_out(now);
                 return true;
             }
-        }
-        // SIGINT or SIGTERM: no more rays (the slots finish the ones they hold, then the run
-        // reports the interruption and writes nothing).
-        if (!failed() && interrupt_signal()) {
-            interrupted_by = interrupt_signal();
-            failure = "interrupted";
-        }
-        for (;;) {
-            uint32_t hit = 0;
-            const bool more = failed() ? false : produce(work, hit);
-            if (!more) return false;
-            rays_by_kind[static_cast<int>(work.kind)] += work.rays;
-            hits_by_kind[static_cast<int>(work.kind)] += hit;
-            steps += work.steps.size();
-            // A sampled run fast-forwards most rays here: they warm the caches, no core runs them.
-            if (!sampler_ || !sampler_->fast_forward(work, current_tile())) break;
-        }
-        // A core reports a ray finished once it knows when (`done` may be ahead of `now`).
-        if (holds_windows_ && sampler_ && (in_flight_ > 0 || last_done_ > now) &&
-            sampler_->window_start()) {
             held_work_ = std::move(work);
             held_ = true;
             sampler_->held(now);
-            drained_at_ = last_done_;
-            if (in_flight_ == 0) wake_at(drained_at_);
+        }
+        if (failed()) {  // the held ray goes nowhere: the slots retire
+            held_ = false;
             return false;
         }
+        // The window waits for every ray before it to finish, and from the cycle the last of
+        // them does (a slot may ask earlier: it parks, and is woken then).
+        if (draining(now)) {
+            if (in_flight_ == 0) wake_at(last_done_);
+            return false;
+        }
+        held_ = false;
+        work = std::move(held_work_);
         hand_out(now);
         return true;
     }
@@ -86,10 +68,7 @@ class CountingSource : public RayWorkSource, public WakeSource {
     void finished(uint32_t /*rays*/, Cycle done) override {
         --in_flight_;
         last_done_ = std::max(last_done_, done);
-        if (held_ && in_flight_ == 0) {
-            drained_at_ = last_done_;
-            wake_at(drained_at_);
-        }
+        if (held_ && in_flight_ == 0) wake_at(last_done_);
     }
     WakeSource* wakes() override { return holds_windows_ ? this : nullptr; }
     const bool* wake_pending() const override { return holds_windows_ ? &wake_pending_ : nullptr; }
@@ -157,6 +136,29 @@ class CountingSource : public RayWorkSource, public WakeSource {
   private:
     bool progress_, printed_ = false, started_ = false;
     WorkClock::time_point last_print_, start_;
+    // The next work item that reaches a core (a sampled run fast-forwards the others); false
+    // when none is left or the run stopped.
+    bool produce_next(RayWork& work) {
+        // SIGINT or SIGTERM: no more rays (the slots finish the ones they hold, then the run
+        // reports the interruption and writes nothing).
+        if (!failed() && interrupt_signal()) {
+            interrupted_by = interrupt_signal();
+            failure = "interrupted";
+        }
+        for (;;) {
+            uint32_t hit = 0;
+            const bool more = failed() ? false : produce(work, hit);
+            if (!more) return false;
+            rays_by_kind[static_cast<int>(work.kind)] += work.rays;
+            hits_by_kind[static_cast<int>(work.kind)] += hit;
+            steps += work.steps.size();
+            // A sampled run fast-forwards most rays here: they warm the caches, no core runs them.
+            if (!sampler_ || !sampler_->fast_forward(work, current_tile())) return true;
+        }
+    }
+    // Rays handed out before now are still running (a core reports a ray finished once it
+    // knows when, so `done` may be ahead of `now`).
+    bool draining(Cycle now) const { return in_flight_ > 0 || last_done_ > now; }
     void hand_out(Cycle now) {
         if (sampler_) sampler_->handed_out(now);
         ++in_flight_;
@@ -165,11 +167,11 @@ class CountingSource : public RayWorkSource, public WakeSource {
         wake_pending_ = true;
         wake_cycle_ = at;
     }
-    // Held windows: work items handed out and not finished, the latest finish reported, the
-    // held item and from when it may go.
+    // Held windows: work items handed out and not finished, the latest finish reported (the
+    // held item goes from then), the held item.
     bool holds_windows_ = false, held_ = false, wake_pending_ = false;
     uint64_t in_flight_ = 0;
-    Cycle last_done_ = 0, drained_at_ = 0, wake_cycle_ = 0;
+    Cycle last_done_ = 0, wake_cycle_ = 0;
     RayWork held_work_;
 };
 

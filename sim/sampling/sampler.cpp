@@ -563,7 +563,6 @@ void Sampler::handed_out(Cycle now) {
 }
 
 void Sampler::held(Cycle now) {
-    last_handout_ = std::max(last_handout_, now);
     if (open_ && current_unit_ != open_unit_) close_unit(unit_aux_, now);
 }
 
