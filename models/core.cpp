@@ -1,5 +1,6 @@
 #include "models/core.h"
 
+#include "models/core_slots.h"
 #include "models/ray_buffer.h"
 
 #include <algorithm>
@@ -140,7 +141,6 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
     set_ready(loader_, now);
     ++treelet_loads;
     treelet_load_bytes += span.bytes();
-    loaded_treelet_ = treelet;
 }
 
 void Core::run_loader(Cycle t) {
@@ -182,11 +182,121 @@ bool needs_line_by_line(const Cache& cache, const Step& st, Cycle issued) {
 }
 }  // namespace
 
-Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
-    // Shared work runs up to the horizon; at it only if this core comes first among equals.
+// The fast engine's side of the slot state machine: requests complete at once with their
+// annotated delays (loosely timed), and shared work past the horizon waits for its turn.
+struct Core::LooselyTimed {
+    static constexpr bool kTimeOrdered = false;
+    Core& core;
+    Cycle horizon;
+    bool at_horizon;  // whether shared work exactly at `horizon` may run (this core comes first)
+
+    bool beyond(Cycle c) const { return c > horizon || (c == horizon && !at_horizon); }
+    void ready(size_t slot, Cycle c) { core.set_ready(slot, c); }
+    void idle(size_t slot, Cycle t, bool retired) {
+        core.go_idle(slot, t, retired ? kNeverCycle : kParkedCycle);
+    }
+    // The core scheduler looks for wakes between advances.
+    void work_changed(Cycle) {}
+    // The ray buffer writes its records to memory itself.
+    void records_written(Cycle) {}
+    void load_treelet(uint32_t treelet, Cycle t) { core.load_treelet(treelet, t); }
+    // RayBuffer::read has read the record from memory already.
+    bool read_record(size_t, Cycle) { return false; }
+    bool write_entry_busy(size_t slot, Cycle t) { return core.wait_for_write_entry(slot, t); }
+    void post_write(uint64_t addr, uint32_t bytes, Cycle t) { core.post_write(addr, bytes, t); }
+    void read_stack(size_t slot, uint64_t addr, uint32_t bytes, Cycle t) {
+        const Cycle back = core.local_->access(addr, bytes, t);
+        core.stall_cycles[kStack] += back - t;
+        core.set_ready(slot, back);
+    }
+    // Tries the fetch as a private hit first (inline: most steps end here); a fetch that needs
+    // a shared level runs only at its turn in the global order, else it is held back.
+    [[gnu::always_inline]] void fetch(size_t slot, const Step& st, Cycle issued, Fetch& f) {
+        f.kind = Fetch::kDone;
+        // A step that reads nothing (an any-hit shader without alpha data) has its data at once.
+        if (st.size_bytes == 0) {
+            f.cycle = issued;
+            return;
+        }
+        Slot& s = core.slots_[slot];
+        const auto kind = size_t(st.kind);
+        Cache* cache = core.cache_by_kind_[kind];
+        if (!s.fetch_is_shared &&
+            (cache ? cache->access_local(st.addr, st.size_bytes, issued, f.cycle, &f.bd)
+                   : core.mem_by_kind_[kind]->access_local(st.addr, st.size_bytes, issued, f.cycle,
+                                                           &f.bd)))
+            return;
+        fetch_shared(core, s, st, issued, f, horizon, at_horizon);
+    }
+    static void fetch_shared(Core& core, Slot& s, const Step& st, Cycle issued, Fetch& f,
+                             Cycle horizon, bool at_horizon);
+};
+
+// Inlined as the step loop always had it (called, the loop ran 9% slower).
+[[gnu::always_inline]] inline void Core::LooselyTimed::fetch_shared(Core& core, Slot& s,
+                                                                    const Step& st, Cycle issued,
+                                                                    Fetch& f, Cycle horizon,
+                                                                    bool at_horizon) {
     const auto beyond = [horizon, at_horizon](Cycle c) {
         return c > horizon || (c == horizon && !at_horizon);
     };
+    const auto kind = size_t(st.kind);
+    MemoryPort* mem = core.mem_by_kind_[kind];
+    Cache* cache = core.cache_by_kind_[kind];
+    // The request leaves the core at `issued`: that is its place in the global order. (Resumed,
+    // the slot is still this core's earliest and the port the same, so it issues at the same
+    // cycle.)
+    // A miss waiting for an MSHR reaches the next level only once one frees: that is its place
+    // in the global order (sent now, it would reach the L2 and DRAM ahead of other cores'
+    // earlier requests, which then queue behind it: +15% cycles with 2 MSHRs per L1 against the
+    // time-ordered reference).
+    // A fetch of several lines whose misses outnumber the free MSHRs would send its later lines'
+    // misses as earlier ones' fills free their MSHRs, hundreds of cycles ahead of other cores'
+    // requests, which would queue behind them (BVH8 nodes, one L1 MSHR, 64 cores: +88% cycles
+    // against the time-ordered reference). It goes line by line instead, each miss held back
+    // until it can leave.
+    const auto hold_until = [&f](Cycle at) {
+        f.kind = Fetch::kHold;
+        f.cycle = at;
+    };
+    if (cache && (s.fetch_lines_sent > 0 || needs_line_by_line(*cache, st, issued))) {
+        const uint64_t end = st.addr + st.size_bytes;
+        const auto [first_line, last_line] = cache->line_range(st.addr, st.size_bytes);
+        for (uint64_t k = s.fetch_lines_sent; first_line + k <= last_line; ++k) {
+            const uint64_t from = std::max(st.addr, cache->line_address(first_line + k));
+            const uint64_t to = std::min(end, cache->line_address(first_line + k + 1));
+            const Cycle line_leaves =
+                cache->contains(from) ? issued : cache->miss_leaves_at(issued);
+            if (beyond(line_leaves)) {
+                s.fetch_lines_sent = uint8_t(k);
+                hold_until(line_leaves);
+                return;
+            }
+            AccessBreakdown line_bd;
+            const Cycle ready = mem->access(from, uint32_t(to - from), issued, &line_bd);
+            if (k == 0 || ready > s.fetch_ready) {
+                s.fetch_ready = ready;
+                s.fetch_bd = line_bd;
+            }
+        }
+        f.cycle = s.fetch_ready;
+        f.bd = s.fetch_bd;
+        s.fetch_lines_sent = 0;
+        s.fetch_is_shared = false;
+        return;
+    }
+    const Cycle leaves = cache ? cache->miss_leaves_at(issued) : issued;
+    if (beyond(leaves)) {
+        hold_until(leaves);
+        return;
+    }
+    f.cycle = mem->access(st.addr, st.size_bytes, issued, &f.bd);
+    s.fetch_is_shared = false;
+}
+
+Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
+    // Shared work runs up to the horizon; at it only if this core comes first among equals.
+    LooselyTimed engine{*this, horizon, at_horizon};
     for (;;) {
         const LeastTwo two = least_two(ready_.data(), ready_.size());
         const uint64_t least = two.least;
@@ -207,227 +317,14 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
         floor_.cycle = t;
         if (shared_floor_) shared_floor_->cycle = std::min(t, others_floor);
         if (i == loader_) {
-            if (beyond(t)) return t;  // its misses reach the shared levels
+            if (engine.beyond(t)) return t;  // its misses reach the shared levels
             run_loader(t);
             continue;
         }
-        Slot& s = slots_[i];
         // Private work may run ahead of the other cores: this core's own calendars still see
         // its requests in time order, because it always runs its earliest slot.
-        if (!s.busy) {
-            if (beyond(t)) return t;  // the work queue is shared
-            Cycle got = t;
-            if (!ray_buffer_) {
-                if (!source_->next(s.work, t)) {
-                    // A held ray (a sampled run's next window waits for the chip to drain):
-                    // the slot parks until the source wakes it.
-                    go_idle(i, t, source_->holding() ? kParkedCycle : kNeverCycle);
-                    continue;
-                }
-                s.pos = 0;
-                s.start = t;
-                s.stack.reset();
-                s.stack_pos = ~size_t(0);
-            } else if (s.phase != kSetUp) {
-                if (s.phase == kTakeRay) {
-                    if (batch_.empty()) {
-                        if (!ray_buffer_->next_batch(t, batch_treelet_, batch_)) {
-                            go_idle(i, t, ray_buffer_->finished() ? kNeverCycle : kParkedCycle);
-                            continue;
-                        }
-                        if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_)
-                            load_treelet(batch_treelet_, t);
-                    }
-                    s.handle = batch_.front();
-                    batch_.pop_front();
-                    s.treelet = batch_treelet_;
-                    s.start = t;
-                    s.phase = kReadRecord;
-                    // A record still being written is read once it is there: the buffer's
-                    // ports serve in time order.
-                    const Cycle written = ray_buffer_->record_written(s.handle);
-                    if (written > t) {
-                        set_ready(i, written);
-                        continue;
-                    }
-                }
-                got = ray_buffer_->read(s.handle, t, s.work, s.pos);
-                stall_cycles[kRayBuffer] += got - s.start;
-                // The ray waited in the buffer, its steps long out of the host's caches: start
-                // loading them now, before the slot runs them. (Rays straight from the source
-                // had theirs prefetched by the source a few rays ahead.)
-                const char* p = reinterpret_cast<const char*>(s.work.steps.data() + s.pos);
-                for (size_t b = 0; b < (s.work.steps.size() - s.pos) * sizeof(Step); b += 64)
-                    __builtin_prefetch(p + b);
-                s.phase = kSetUp;
-                if (got > t) {  // its setup issues when the record is there
-                    set_ready(i, got);
-                    continue;
-                }
-            }
-            s.busy = true;
-            s.phase = kTakeRay;
-            // A ray missing the root box has no steps and ends after its setup.
-            const Cycle done = issue(got, params_.ray_setup_instructions);
-            set_ready(i, done);
-            stall_cycles[kIssue] += done - got;
-            if (finish_at_step_end() && s.work.steps.empty()) finish_ray(s, done);
-            continue;
-        }
-        const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
-        if (s.unit_pending) {
-            if (params_.units_shared && beyond(t)) return t;
-            s.unit_pending = false;
-            step_done(s, i, s.unit_kind, t,
-                      unit_by_kind_[s.unit_kind]->issue(t, s.unit_items, lanes));
-            continue;
-        }
-        if (s.pos == s.work.steps.size()) {  // its hit records are due (then it leaves)
-            if (beyond(t)) return t;
-            if (const uint32_t bytes = hit_record_size(s.work)) {
-                if (wait_for_write_entry(i, t)) continue;
-                count_hit_records(bytes);
-                post_write(hit_record_address(s.work.ray_id), bytes, t);
-            }
-            if (ray_buffer_) ray_buffer_->release(s.handle);
-            finish_ray(s, t);
-            continue;
-        }
-        if (ray_buffer_) {
-            // Moving to another treelet's queue is shared work (as leaving the buffer, above).
-            const uint32_t next_treelet = s.work.steps[s.pos].treelet;
-            if (next_treelet != s.treelet) {
-                if (beyond(t)) return t;
-                const Cycle done = ray_buffer_->requeue(s.handle, s.work, s.pos, next_treelet, t);
-                stall_cycles[kRayBuffer] += done - t;
-                ray_latency_cycles += done - s.start;
-                s.busy = false;
-                set_ready(i, done);
-                continue;
-            }
-        }
-        const Step& st = s.work.steps[s.pos];
-        if (params_.short_stack_entries > 0 && s.stack_pos != s.pos) {
-            // The stack's traffic before the step: spills posted, a refill waited for (the step
-            // fetches the popped entry's node). Both reach the shared levels.
-            ShortStack after = s.stack;
-            const StackTraffic traffic = after.before(st);
-            if (traffic.any() && beyond(t)) return t;
-            if (traffic.spill_entries) {
-                if (wait_for_write_entry(i, t)) continue;  // the step waits, its stack unchanged
-                post_write(stack_address(i, traffic.spill_from), count_stack_spill(traffic), t);
-            }
-            s.stack = after;
-            s.stack_pos = s.pos;
-            if (traffic.refill_entries) {
-                count_stack_refill(traffic);
-                const Cycle back =
-                    local_->access(stack_address(i, traffic.refill_from),
-                                   traffic.refill_entries * params_.stack_entry_bytes, t);
-                stall_cycles[kStack] += back - t;
-                set_ready(i, back);
-                continue;
-            }
-        }
-        // Nodes and triangles interleave unpredictably: what differs is looked up by kind.
-        const auto kind = size_t(st.kind);
-        MemoryPort* mem = mem_by_kind_[kind];
-        // Issue, then try the fetch as a private hit; a fetch that needs a shared level waits
-        // for its turn with the issue port as it was.
-        const PortCalendar saved_port = issue_port_;
-        const uint64_t saved_issue_stall = issue_stall_cycles;
-        const Cycle issued = issue(t, instructions_by_kind_[kind]);
-        AccessBreakdown bd;
-        Cycle fetched;
-        Cache* cache = cache_by_kind_[kind];
-        // A step that reads nothing (an any-hit shader without alpha data) has its data at once.
-        const bool local =
-            st.size_bytes == 0
-                ? (fetched = issued, true)
-                : !s.fetch_is_shared &&
-                      (cache ? cache->access_local(st.addr, st.size_bytes, issued, fetched, &bd)
-                             : mem->access_local(st.addr, st.size_bytes, issued, fetched, &bd));
-        if (!local) {
-            // The request leaves the core at `issued`: that is its place in the global order.
-            // (Resumed, the slot is still this core's earliest and the port the same, so it
-            // issues at the same cycle.)
-            // A miss waiting for an MSHR reaches the next level only once one frees: that is
-            // its place in the global order (sent now, it would reach the L2 and DRAM ahead of
-            // other cores' earlier requests, which then queue behind it: +15% cycles with
-            // 2 MSHRs per L1 against the time-ordered reference).
-            // A fetch of several lines whose misses outnumber the free MSHRs would send its
-            // later lines' misses as earlier ones' fills free their MSHRs, hundreds of cycles
-            // ahead of other cores' requests, which would queue behind them (BVH8 nodes, one
-            // L1 MSHR, 64 cores: +88% cycles against the time-ordered reference). It goes line
-            // by line instead, each miss held back until it can leave.
-            // Held back: the issue is undone, and the slot resumes at `at` (the same issue).
-            const auto hold_until = [&](Cycle at) {
-                issue_port_ = saved_port;
-                issue_stall_cycles = saved_issue_stall;
-                s.fetch_is_shared = true;
-                return at;
-            };
-            if (cache && (s.fetch_lines_sent > 0 || needs_line_by_line(*cache, st, issued))) {
-                const uint64_t end = st.addr + st.size_bytes;
-                const auto [first_line, last_line] = cache->line_range(st.addr, st.size_bytes);
-                for (uint64_t k = s.fetch_lines_sent; first_line + k <= last_line; ++k) {
-                    const uint64_t from = std::max(st.addr, cache->line_address(first_line + k));
-                    const uint64_t to = std::min(end, cache->line_address(first_line + k + 1));
-                    const Cycle line_leaves =
-                        cache->contains(from) ? issued : cache->miss_leaves_at(issued);
-                    if (beyond(line_leaves)) {
-                        s.fetch_lines_sent = uint8_t(k);
-                        return hold_until(line_leaves);
-                    }
-                    AccessBreakdown line_bd;
-                    const Cycle ready = mem->access(from, uint32_t(to - from), issued, &line_bd);
-                    if (k == 0 || ready > s.fetch_ready) {
-                        s.fetch_ready = ready;
-                        s.fetch_bd = line_bd;
-                    }
-                }
-                fetched = s.fetch_ready;
-                bd = s.fetch_bd;
-                s.fetch_lines_sent = 0;
-                s.fetch_is_shared = false;
-            } else {
-                const Cycle leaves = cache ? cache->miss_leaves_at(issued) : issued;
-                if (beyond(leaves)) return hold_until(leaves);
-                fetched = mem->access(st.addr, st.size_bytes, issued, &bd);
-                s.fetch_is_shared = false;
-            }
-        }
-        ++s.pos;
-        ++steps;
-        // A packet's operations occupy every lane, active or not (lockstep SIMD).
-        if (params_.packet_lanes > 0) {
-            active_lanes += st.lanes;
-            lane_slots += uint64_t(params_.packet_lanes);
-        }
-        stall_cycles[kIssue] += issued - t;
-        stall_cycles[kL1] += bd.cycles[kLevelL1];
-        stall_cycles[kL2] += bd.cycles[kLevelL2];
-        stall_cycles[kDram] += bd.cycles[kLevelDram];
-        stall_cycles[kCrossbar] += bd.cycles[kLevelCrossbar];
-        PipelinedUnit* unit = unit_by_kind_[kind];
-        // The unit serves operations in the order their data arrives. A step's fetch may arrive
-        // before that of a step run earlier (a hit after a miss): an operation booked when its
-        // step runs would hold the pipeline ahead of one whose data came first. One cycle slips
-        // into a gap; a longer run (a packet's lanes, several triangles) waits until its data is
-        // there and books then, when it is this core's earliest work (and, on a unit shared by
-        // several cores, the chip's): against the time-ordered reference, booking at once cost
-        // packets +2.3% cycles.
-        if (params_.units_shared || unit->span_cycles(st.count, lanes) > 1) {
-            s.unit_pending = true;
-            s.unit_kind = uint8_t(kind);
-            s.unit_items = st.count;
-            set_ready(i, fetched);
-            continue;
-        }
-        step_done(s, i, int(kind), fetched, unit->issue(fetched, st.count, lanes));
-        // (No host prefetch of the L1 sets the slot's next step will look up: it comes dozens
-        // of steps later, by when the prefetched lines were mostly gone again; dropping it made
-        // replays 1-5% faster on an AMD Zen 5 host.)
+        const Cycle held = run_slot(i, t, engine);
+        if (held != kRunOn) return held;
     }
 }
 

@@ -199,9 +199,30 @@ class Core : public sc_core::sc_module {
     // its private blocks (L1s, own units) follow.
     const TimeFloor* floor() const { return &floor_; }
 
-    // What the time-ordered reference (sim.fidelity = accurate) runs the core with: it keeps the
-    // ray slots itself, at each step's own cycle, and uses the core's issue port, blocks and
-    // counters, so that both fidelities report through the same code.
+    // The ray slots' state machine (models/core_slots.h), written once: slot `slot`'s next
+    // action at t, through `engine`, which says how requests reach the memory and when the slot
+    // runs again. Returns kRunOn, or the cycle of shared work the engine holds back (`beyond`).
+    static constexpr Cycle kRunOn = kNeverCycle;
+    template <class Engine>
+    Cycle run_slot(size_t slot, Cycle t, Engine& engine);
+    // How an engine's fetch of a step went: done (its data there at `cycle`, `bd` the cycles by
+    // level), held back until `cycle` (shared work past the engine's horizon), or pending (the
+    // engine calls step_fetched when the data is there).
+    struct Fetch {
+        enum Kind : uint8_t { kDone, kHold, kPending } kind = kPending;
+        Cycle cycle = 0;
+        AccessBreakdown bd;
+    };
+    // Slot `slot`'s pending fetch arrived at t, having spent `cycles_by_level` (kMemLevels)
+    // cycles at each level: charged, then its unit operations.
+    template <class Engine>
+    void step_fetched(size_t slot, Cycle t, const Cycle* cycles_by_level, Engine& engine);
+    // When slot `slot` took its ray, and since when it has had no work (parked or retired).
+    Cycle slot_start(size_t slot) const { return slots_[slot].start; }
+    Cycle slot_idle_since(size_t slot) const { return slots_[slot].idle_since; }
+    // Treelet mode: slot `slot`'s ray's ray-buffer entry.
+    uint32_t slot_handle(size_t slot) const { return slots_[slot].handle; }
+
     // Issues `instructions` (at least 1) ready at t; returns when the step's fetch can start.
     Cycle issue(Cycle t, int instructions);
     // A work item of `rays` rays that took a slot at `start` finished at `done`.
@@ -293,12 +314,12 @@ class Core : public sc_core::sc_module {
         uint64_t next[kStepKinds] = {}, end[kStepKinds] = {};  // per StepKind: lines left
     } load_;
     size_t loader_ = ~size_t(0);  // the loader's index among the ready keys (none: ~0)
-    // A step's unit operations ran from `fetched` (data there) to `done`.
-    void step_done(Slot& s, size_t slot, int kind, Cycle fetched, Cycle done) {
-        set_ready(slot, done);
-        stall_cycles[kUnitStall + kind] += done - fetched;
-        if (s.pos == s.work.steps.size() && finish_at_step_end()) finish_ray(s, done);
-    }
+    // A step's unit operations ran from `fetched` (data there) to `done`; `now`: the cycle of
+    // the action that booked them.
+    template <class Engine>
+    void step_done(size_t slot, int kind, Cycle fetched, Cycle done, Cycle now, Engine& engine);
+    // The fast engine's side of run_slot (loosely timed: requests complete at once).
+    struct LooselyTimed;
     void finish_ray(Slot& s, Cycle done) {
         count_finished(s.work.rays, s.start, done);
         s.busy = false;

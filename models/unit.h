@@ -74,7 +74,8 @@ inline Cycle PipelinedUnit::operations(int items, int rays) const {
     return Cycle(per_ray) * Cycle(rays > 1 ? rays : 1);
 }
 
-inline Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
+// (Forced: the core's step loop is large enough that gcc would otherwise call it.)
+[[gnu::always_inline]] inline Cycle PipelinedUnit::issue(Cycle ready, int items, int rays) {
     const Cycle n = operations(items, rays);
     // The n operations run back to back on one pipeline.
     const Cycle start =

@@ -3,7 +3,9 @@
 of configs and workloads and compares every field of stats.json except `host` (wall-clock times)
 and `config_files` (paths). Prints one line per case and exits 1 on the first difference.
 
-    scripts/same_stats.py OLD_RTSIM NEW_RTSIM [--only NAME,...] [--keep DIR]
+    scripts/same_stats.py OLD_RTSIM NEW_RTSIM [--only NAME,...] [--keep DIR] [--set K=V ...]
+
+`--set sim.fidelity=accurate` runs the same matrix on the time-ordered engine.
 
 The matrix covers every shipped config, every traversal mode, every replacement policy the old
 binary knows, split L1, shared units, banks, MSHR limits, ideal modes and time series.
@@ -56,6 +58,15 @@ CASES = {
     "replay": ["--trace", "{trace}", "--set", "bvh.width=4", "--set", "bvh.treelet_bytes=8192",
                "--set", "l1.size_kib=8"],
     "replay_treelet": ["--trace", "{trace}", "--config", cfg("treelet.json")],
+    # The traversal's own traffic: stack spills and refills, hit records, a small write buffer.
+    "stack_hits_writes": ["--scene", BUNNY, "--rays", "primary,diffuse", "--res", "64x64",
+                          "--set", "core.short_stack_entries=2", "--set",
+                          "core.hit_record_bytes=16", "--set", "core.write_buffer_entries=2",
+                          "--set", "dram.model=command", "--set", "l1.mshrs=2"],
+    "treelet_records_in_memory": ["--config", cfg("treelet.json"), "--scene", BUNNY, "--rays",
+                                  "diffuse", "--res", "64x64", "--set",
+                                  "ray_buffer.storage=memory", "--set",
+                                  "core.hit_record_bytes=16"],
     "ideal_units_4ch": ["--scene", BUNNY, "--rays", "ao", "--res", "64x64", "--set",
                         "sim.ideal_units=true", "--set",
                         "dram.channels=4", "--set", "crossbar.bytes_per_cycle=0"],
@@ -119,6 +130,8 @@ def main():
     ap.add_argument("new")
     ap.add_argument("--only", default="", help="comma list of case names")
     ap.add_argument("--keep", default="", help="keep the runs' folders here")
+    ap.add_argument("--set", action="append", default=[], metavar="K=V",
+                    help="a setting added to every case (e.g. sim.fidelity=accurate); repeatable")
     ap.add_argument("--allow-added", action="store_true",
                     help="fields only the new binary reports (new counters or sections) are listed, "
                          "not differences; every field both report must still be equal")
@@ -140,6 +153,8 @@ def main():
             sys.exit(f"recording the replay trace failed: {r.stderr.strip()}")
     for n in names:
         args = [x.replace("{trace}", trace) for x in CASES[n]]
+        for kv in a.set:
+            args += ["--set", kv]
         old = run(a.old, args, os.path.join(work, n, "old"))
         new = run(a.new, args, os.path.join(work, n, "new"))
         added, removed = [], []

@@ -12,10 +12,12 @@
 // in the order they were scheduled.
 //
 // It drives the same blocks as the fast model (their counters, calendars used in order, tag
-// stores and replacement policies, report sections); it keeps what only a time-ordered model
-// needs itself: fills in flight with their waiting requests, MSHR queues, and each request's
-// timeline (which level held it over which cycles), from which stalls are charged exactly.
-// Waiting on another request's fill is charged to where that fill was at each cycle.
+// stores and replacement policies, report sections) and the same ray-slot state machine
+// (Core::run_slot, models/core_slots.h: its TimeOrdered engine makes each slot action an event);
+// it keeps what only a time-ordered model needs itself: fills in flight with their waiting
+// requests, MSHR queues, and each request's timeline (which level held it over which cycles), from
+// which stalls are charged exactly. Waiting on another request's fill is charged to where that fill
+// was at each cycle.
 #include <chrono>
 #include <deque>
 #include <queue>
@@ -25,6 +27,7 @@
 
 #include "models/cache.h"
 #include "models/core.h"
+#include "models/core_slots.h"
 #include "models/crossbar.h"
 #include "models/dram.h"
 #include "models/fidelity.h"
@@ -91,7 +94,7 @@ class ReferenceScheduler final : public ChipDriver {
             slot_rank_.push_back(slots);
             slots += uint64_t(core->params().ray_slots);
             CoreState cs;
-            cs.slots.resize(size_t(core->params().ray_slots));
+            cs.write_wait_from.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
             // Ray records in memory: read and written here, each stage at its cycle.
             if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
@@ -180,30 +183,13 @@ class ReferenceScheduler final : public ChipDriver {
         // Treelet loaders (core, load generation) waiting for a free MSHR.
         std::vector<std::pair<uint32_t, uint32_t>> loaders;
     };
-    // What a slot without a running ray does next.
-    enum SlotPhase : uint8_t { kTakeWork, kReadRecord, kSetUp };
-    struct SlotState {
-        SlotPhase phase = kTakeWork;
-        RayWork work;
-        size_t pos = 0;
-        Cycle start = 0;
-        bool busy = false;
-        uint32_t handle = 0, treelet = 0;
-        int kind = 0;  // the step being fetched, and its unit's items
-        int count = 1;
-        Cycle idle_since = 0;
-        ShortStack stack;
-        size_t stack_pos = ~size_t(0);  // the step whose stack traffic has been made
-        Cycle write_wait_from = 0;      // when it began waiting for a write-buffer entry
-    };
     struct DramWrite {
         DramModel* dram = nullptr;
         DramRequest request;
     };
+    // What the engine keeps per core beside the core's own slots.
     struct CoreState {
-        std::vector<SlotState> slots;
-        std::deque<uint32_t> batch;
-        uint32_t batch_treelet = 0, loaded_treelet = ~0u;
+        std::vector<Cycle> write_wait_from;  // per slot: when it began waiting for a write entry
         // The treelet load in progress, as the fast model's (Core::load_treelet): per StepKind
         // the lines left, one requested per cycle, held while every MSHR is busy. A new load
         // replaces it (a new generation; events of older ones are dropped).
@@ -214,9 +200,60 @@ class ReferenceScheduler final : public ChipDriver {
         std::deque<uint32_t> write_waiters;
     };
 
+    // The core's side of the time-ordered engine: each slot action is an event at its cycle,
+    // each request a chain of stage events whose completion resumes the slot.
+    struct TimeOrdered {
+        static constexpr bool kTimeOrdered = true;
+        ReferenceScheduler& r;
+        uint32_t c;
+
+        bool beyond(Cycle) const { return false; }
+        void ready(size_t slot, Cycle at) { r.schedule(at, kSlot, c, uint32_t(slot)); }
+        void idle(size_t slot, Cycle t, bool retired) {
+            r.cores_[c]->set_slot_idle(slot, t, retired);
+            if (!retired) r.parked_.emplace_back(c, uint32_t(slot));
+            r.take_wakes(t);
+        }
+        void work_changed(Cycle t) { r.take_wakes(t); }
+        void records_written(Cycle t) { r.post_record_writes(r.cores_[c]->ray_buffer(), t); }
+        void load_treelet(uint32_t treelet, Cycle t) { r.load_treelet(c, treelet, t); }
+        // Records in memory: read through the level below, each stage at its cycle.
+        bool read_record(size_t slot, Cycle from) {
+            RayBuffer* rb = r.cores_[c]->ray_buffer();
+            if (!rb->params().in_memory || !rb->memory()) return false;
+            r.read_local(c, uint32_t(slot), rb->memory(),
+                         rb->record_address(r.cores_[c]->slot_handle(slot)), rb->params().ray_bytes,
+                         from, kForRecord);
+            return true;
+        }
+        bool write_entry_busy(size_t slot, Cycle t) {
+            if (!r.write_buffer_full(c)) return false;
+            r.wait_for_write_buffer(c, uint32_t(slot), t);
+            return true;
+        }
+        void post_write(uint64_t addr, uint32_t bytes, Cycle t) {
+            r.post_core_write(c, addr, bytes, t);
+        }
+        void read_stack(size_t slot, uint64_t addr, uint32_t bytes, Cycle t) {
+            r.read_local(c, uint32_t(slot), r.cores_[c]->local_memory(), addr, bytes, t, kForStack);
+        }
+        void fetch(size_t slot, const Step& st, Cycle issued, Core::Fetch& fetch) {
+            const uint32_t a =
+                r.new_access(r.cores_[c]->memory(int(st.kind)), st.addr, st.size_bytes, issued);
+            Access& A = r.accesses_[a];
+            A.for_kind = kForStep;
+            A.a = c;
+            A.b = uint32_t(slot);
+            r.schedule(issued, kArrive, a);
+            fetch.kind = Core::Fetch::kPending;  // access_done resumes the slot
+        }
+    };
+
     void run();
-    void slot_ready(uint32_t c, uint32_t i, Cycle t);
-    void step_fetched(uint32_t c, uint32_t i, Cycle t, const Timeline& timeline);
+    void slot_ready(uint32_t c, uint32_t i, Cycle t) {
+        TimeOrdered engine{*this, c};
+        cores_[c]->run_slot(i, t, engine);
+    }
     void load_treelet(uint32_t c, uint32_t treelet, Cycle t);
     void load_line(uint32_t c, uint32_t generation, Cycle t);
     void take_wakes(Cycle t);
@@ -240,7 +277,7 @@ class ReferenceScheduler final : public ChipDriver {
         return n > 0 && states_[c].writes_in_flight >= n;
     }
     void wait_for_write_buffer(uint32_t c, uint32_t i, Cycle t) {
-        states_[c].slots[i].write_wait_from = t;
+        states_[c].write_wait_from[i] = t;
         states_[c].write_waiters.push_back(i);
     }
     void post_core_write(uint32_t c, uint64_t addr, uint32_t size, Cycle t);
@@ -310,7 +347,8 @@ uint32_t ReferenceScheduler::new_access(MemoryPort* node, uint64_t addr, uint32_
 
 void ReferenceScheduler::run() {
     for (uint32_t c = 0; c < cores_.size(); ++c)
-        for (uint32_t i = 0; i < states_[c].slots.size(); ++i) schedule(0, kSlot, c, i);
+        for (uint32_t i = 0; i < uint32_t(cores_[c]->params().ray_slots); ++i)
+            schedule(0, kSlot, c, i);
     auto resumed = std::chrono::steady_clock::now();
     Cycle kernel_cycle = 0;
     while (!events_.empty()) {
@@ -370,8 +408,7 @@ void ReferenceScheduler::take_wakes(Cycle t) {
     if (!wake_ || !wake_->take_wake(at)) return;
     at = std::max(at, t);
     for (const auto& [c, i] : parked_) {
-        SlotState& s = states_[c].slots[i];
-        cores_[c]->no_work_cycles += at - std::min(at, s.idle_since);
+        cores_[c]->no_work_cycles += at - std::min(at, cores_[c]->slot_idle_since(i));
         schedule(at, kSlot, c, i);
     }
     parked_.clear();
@@ -392,7 +429,6 @@ void ReferenceScheduler::load_treelet(uint32_t c, uint32_t treelet, Cycle t) {
     schedule(t, kLoad, c, ++cs.load_generation);
     ++core.treelet_loads;
     core.treelet_load_bytes += span.bytes();
-    cs.loaded_treelet = treelet;
 }
 
 // The cache whose MSHRs a miss of `cache` takes: its own, or, for a cache with unlimited MSHRs in
@@ -429,167 +465,6 @@ void ReferenceScheduler::load_line(uint32_t c, uint32_t generation, Cycle t) {
     schedule(t + 1, kLoad, c, generation);
 }
 
-// A slot's next action at t: take a ray, finish one, move it to another treelet's queue, or
-// issue its next step (whose fetch then arrives at the L1 when issued).
-void ReferenceScheduler::slot_ready(uint32_t c, uint32_t i, Cycle t) {
-    Core& core = *cores_[c];
-    CoreState& cs = states_[c];
-    SlotState& s = cs.slots[i];
-    RayBuffer* rb = core.ray_buffer();
-    if (!s.busy) {
-        if (s.phase == kReadRecord) {  // the record is written: read it through a port
-            const Cycle got = rb->read(s.handle, t, s.work, s.pos);
-            s.phase = kSetUp;
-            if (rb->params().in_memory && rb->memory()) {  // ...or from memory
-                read_local(c, i, rb->memory(), rb->record_address(s.handle), rb->params().ray_bytes,
-                           got, kForRecord);
-                return;
-            }
-            core.stall_cycles[Core::kRayBuffer] += got - s.start;
-            schedule(got, kSlot, c, i);
-            return;
-        }
-        if (s.phase == kSetUp) {  // the ray's setup instructions, issued when it is there
-            const Cycle done = core.issue(t, core.params().ray_setup_instructions);
-            core.stall_cycles[Core::kIssue] += done - t;
-            s.phase = kTakeWork;
-            s.busy = true;
-            if (core.finish_at_step_end() && s.work.steps.empty()) {  // a root-box miss ends
-                core.count_finished(s.work.rays, s.start, done);
-                s.busy = false;
-                take_wakes(t);
-            }
-            schedule(done, kSlot, c, i);
-            return;
-        }
-        s.start = t;
-        if (!rb) {
-            if (!core.source()->next(s.work, t)) {
-                s.idle_since = t;
-                // A held ray (a sampled run's next window waits for the chip to drain): the
-                // slot parks until the source wakes it.
-                const bool held = core.source()->holding();
-                core.set_slot_idle(i, t, !held);
-                if (held) parked_.emplace_back(c, i);
-                take_wakes(t);
-                return;
-            }
-            s.pos = 0;
-            s.stack = ShortStack(core.params().short_stack_entries);
-            s.stack_pos = ~size_t(0);
-            s.phase = kSetUp;
-            slot_ready(c, i, t);
-            return;
-        }
-        if (cs.batch.empty()) {
-            const bool any = rb->next_batch(t, cs.batch_treelet, cs.batch);
-            post_record_writes(rb, t);  // admissions
-            if (!any) {
-                s.idle_since = t;
-                const bool retired = rb->finished();
-                core.set_slot_idle(i, t, retired);
-                if (!retired) parked_.emplace_back(c, i);
-                take_wakes(t);
-                return;
-            }
-            if (core.params().treelet_prefetch && cs.batch_treelet != cs.loaded_treelet)
-                load_treelet(c, cs.batch_treelet, t);
-            take_wakes(t);  // admissions queue rays
-        }
-        s.handle = cs.batch.front();
-        cs.batch.pop_front();
-        s.treelet = cs.batch_treelet;
-        s.phase = kReadRecord;
-        schedule(std::max(t, rb->record_written(s.handle)), kSlot, c, i);
-        return;
-    }
-    if (s.pos == s.work.steps.size()) {  // its hit records are due (then it leaves)
-        if (const uint32_t bytes = core.hit_record_size(s.work)) {
-            if (write_buffer_full(c)) {
-                wait_for_write_buffer(c, i, t);
-                return;
-            }
-            core.count_hit_records(bytes);
-            post_core_write(c, core.hit_record_address(s.work.ray_id), bytes, t);
-        }
-        if (rb) rb->release(s.handle);
-        core.count_finished(s.work.rays, s.start, t);
-        s.busy = false;
-        take_wakes(t);  // the ray buffer's work, or a source's held ray
-        schedule(t, kSlot, c, i);
-        return;
-    }
-    if (rb) {
-        const uint32_t next_treelet = s.work.steps[s.pos].treelet;
-        if (next_treelet != s.treelet) {
-            const Cycle done = rb->requeue(s.handle, s.work, s.pos, next_treelet, t);
-            post_record_writes(rb, t);
-            core.stall_cycles[Core::kRayBuffer] += done - t;
-            core.ray_latency_cycles += done - s.start;
-            s.busy = false;
-            take_wakes(t);
-            schedule(done, kSlot, c, i);
-            return;
-        }
-    }
-    const Step& st = s.work.steps[s.pos];
-    if (core.params().short_stack_entries > 0 && s.stack_pos != s.pos) {
-        // The stack's traffic before the step: spills posted, a refill waited for.
-        ShortStack after = s.stack;
-        const StackTraffic traffic = after.before(st);
-        if (traffic.spill_entries && write_buffer_full(c)) {
-            wait_for_write_buffer(c, i, t);
-            return;
-        }
-        s.stack = after;
-        s.stack_pos = s.pos;
-        if (traffic.spill_entries)
-            post_core_write(c, core.stack_address(i, traffic.spill_from),
-                            core.count_stack_spill(traffic), t);
-        if (traffic.refill_entries) {
-            core.count_stack_refill(traffic);
-            read_local(c, i, core.local_memory(), core.stack_address(i, traffic.refill_from),
-                       traffic.refill_entries * core.params().stack_entry_bytes, t, kForStack);
-            return;
-        }
-    }
-    const int kind = int(st.kind);
-    const Cycle issued = core.issue(t, core.params().step_instructions[kind]);
-    core.stall_cycles[Core::kIssue] += issued - t;
-    s.kind = kind;
-    s.count = st.count;
-    ++s.pos;
-    ++core.steps;
-    const int lanes = core.params().packet_lanes;
-    if (lanes > 0) {
-        core.active_lanes += st.lanes;
-        core.lane_slots += uint64_t(lanes);
-    }
-    const uint32_t a = new_access(core.memory(kind), st.addr, st.size_bytes, issued);
-    Access& A = accesses_[a];
-    A.for_kind = kForStep;
-    A.a = c;
-    A.b = i;
-    schedule(issued, kArrive, a);
-}
-
-void ReferenceScheduler::step_fetched(uint32_t c, uint32_t i, Cycle t, const Timeline& timeline) {
-    Core& core = *cores_[c];
-    SlotState& s = states_[c].slots[i];
-    uint64_t by_level[kMemLevels] = {0, 0, 0, 0};
-    timeline.charge(by_level);
-    for (int l = 0; l < kMemLevels; ++l) core.stall_cycles[Core::kL1 + l] += by_level[l];
-    const int lanes = core.params().packet_lanes > 0 ? core.params().packet_lanes : 1;
-    const Cycle done = core.unit(s.kind)->issue(t, s.count, lanes);
-    core.stall_cycles[Core::kUnitStall + s.kind] += done - t;
-    if (s.pos == s.work.steps.size() && core.finish_at_step_end()) {
-        core.count_finished(s.work.rays, s.start, done);
-        s.busy = false;
-        take_wakes(t);
-    }
-    schedule(done, kSlot, c, i);
-}
-
 // A core's posted write takes a write-buffer entry until the cache below has looked it up.
 void ReferenceScheduler::post_core_write(uint32_t c, uint64_t addr, uint32_t size, Cycle t) {
     MemoryPort* port = cores_[c]->local_memory();
@@ -609,7 +484,7 @@ void ReferenceScheduler::write_accepted(uint32_t c, Cycle t) {
     if (cs.write_waiters.empty()) return;
     const uint32_t i = cs.write_waiters.front();
     cs.write_waiters.pop_front();
-    cores_[c]->stall_cycles[Core::kWriteBuffer] += t - cs.slots[i].write_wait_from;
+    cores_[c]->stall_cycles[Core::kWriteBuffer] += t - cs.write_wait_from[i];
     schedule(t, kSlot, c, i);
 }
 
@@ -848,9 +723,13 @@ void ReferenceScheduler::access_done(uint32_t a, Cycle t) {
     const Access A = accesses_[a];
     free_accesses_.push_back(a);
     switch (A.for_kind) {
-        case kForStep:
-            step_fetched(A.a, A.b, t, A.timeline);
+        case kForStep: {
+            Cycle by_level[kMemLevels] = {0, 0, 0, 0};
+            A.timeline.charge(by_level);
+            TimeOrdered engine{*this, A.a};
+            cores_[A.a]->step_fetched(A.b, t, by_level, engine);
             break;
+        }
         case kForFill: {
             Fill& F = fills_[A.a];
             for (int p = 0; p < A.timeline.parts; ++p)
@@ -870,7 +749,7 @@ void ReferenceScheduler::access_done(uint32_t a, Cycle t) {
             if (A.for_kind == kForStack) {
                 cores_[A.a]->stall_cycles[Core::kStack] += end - A.start;
             } else {  // the ray's wait from taking the slot to its record's arrival
-                cores_[A.a]->stall_cycles[Core::kRayBuffer] += end - states_[A.a].slots[A.b].start;
+                cores_[A.a]->stall_cycles[Core::kRayBuffer] += end - cores_[A.a]->slot_start(A.b);
             }
             schedule(end, kSlot, A.a, A.b);
             break;
