@@ -128,7 +128,7 @@ uint64_t Core::retired_idle_cycles(Cycle end) const {
 
 // Starts loading a batch's treelet: the loader (run_loader) requests its lines from now on; rays
 // that need a line still filling wait for it (miss merging).
-void Core::load_treelet(uint32_t treelet, Cycle now) {
+void Core::load_treelet(uint32_t treelet) {
     const TreeletSpan& span = ray_buffer_->span(treelet);
     const size_t node = size_t(StepKind::Node), tri = size_t(StepKind::Triangle);
     load_.next[node] = span.node_addr;
@@ -138,35 +138,9 @@ void Core::load_treelet(uint32_t treelet, Cycle now) {
     const size_t inst = size_t(StepKind::Transform);
     load_.next[inst] = span.instance_addr;
     load_.end[inst] = span.instance_addr + span.instance_bytes;
-    set_ready(loader_, now);
     ++treelet_loads;
     treelet_load_bytes += span.bytes();
-}
-
-void Core::run_loader(Cycle t) {
-    size_t kind = 0;
-    while (kind < size_t(kStepKinds) && load_.next[kind] >= load_.end[kind]) ++kind;
-    Cache* cache = kind < size_t(kStepKinds) ? cache_by_kind_[kind] : nullptr;
-    if (!cache) {  // loaded (ideal memory has nothing to load into)
-        set_ready(loader_, kNeverCycle);
-        return;
-    }
-    const uint32_t line_bytes = cache->params().line_bytes;
-    const uint64_t addr = load_.next[kind] & ~uint64_t(line_bytes - 1);
-    // The breakdown is not charged (no ray waits for the load itself), but asking for one lets
-    // the L1 remember its fills' timelines for the rays that then wait on them.
-    AccessBreakdown unused;
-    Cycle ready;
-    if (!cache->access_local(addr, line_bytes, t, ready, &unused)) {
-        const Cycle leaves = cache->miss_leaves_at(t);
-        if (leaves > t) {  // every MSHR busy: wait for one
-            set_ready(loader_, leaves);
-            return;
-        }
-        cache->access(addr, line_bytes, t, &unused);
-    }
-    load_.next[kind] = addr + line_bytes;
-    set_ready(loader_, t + 1);
+    loaded_treelet_ = treelet;
 }
 
 namespace {
@@ -199,7 +173,23 @@ struct Core::LooselyTimed {
     void work_changed(Cycle) {}
     // The ray buffer writes its records to memory itself.
     void records_written(Cycle) {}
-    void load_treelet(uint32_t treelet, Cycle t) { core.load_treelet(treelet, t); }
+    // The loader is one more entry of the ready keys.
+    void start_loader(Cycle t) { core.set_ready(core.loader_, t); }
+    void loader_ready(Cycle c) { core.set_ready(core.loader_, c); }
+    bool load_line(Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
+        // The breakdown is not charged (no ray waits for the load itself), but asking for one
+        // lets the L1 remember its fills' timelines for the rays that then wait on them.
+        AccessBreakdown unused;
+        Cycle ready;
+        if (cache->access_local(addr, bytes, t, ready, &unused)) return true;
+        const Cycle leaves = cache->miss_leaves_at(t);
+        if (leaves > t) {  // every MSHR busy: wait for one
+            loader_ready(leaves);
+            return false;
+        }
+        cache->access(addr, bytes, t, &unused);
+        return true;
+    }
     // RayBuffer::read has read the record from memory already.
     bool read_record(size_t, Cycle) { return false; }
     bool write_entry_busy(size_t slot, Cycle t) { return core.wait_for_write_entry(slot, t); }
@@ -318,7 +308,7 @@ Cycle Core::advance(Cycle horizon, Cycle others_floor, bool at_horizon) {
         if (shared_floor_) shared_floor_->cycle = std::min(t, others_floor);
         if (i == loader_) {
             if (engine.beyond(t)) return t;  // its misses reach the shared levels
-            run_loader(t);
+            run_loader(t, engine);
             continue;
         }
         // Private work may run ahead of the other cores: this core's own calendars still see

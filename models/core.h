@@ -213,6 +213,10 @@ class Core : public sc_core::sc_module {
         Cycle cycle = 0;
         AccessBreakdown bd;
     };
+    // The treelet loader's next line at t (models/core_slots.h): requested through `engine`,
+    // held by it while every MSHR is busy.
+    template <class Engine>
+    void run_loader(Cycle t, Engine& engine);
     // Slot `slot`'s pending fetch arrived at t, having spent `cycles_by_level` (kMemLevels)
     // cycles at each level: charged, then its unit operations.
     template <class Engine>
@@ -304,12 +308,11 @@ class Core : public sc_core::sc_module {
 
     // Treelet mode with prefetch: a batch's treelet is loaded into the L1 (or treelet cache)
     // line by line, one line per cycle in address order (node records, then triangles), by a
-    // loader that runs as one more entry of the slots' ready keys. A line that would miss while
-    // every MSHR is busy holds the load until one frees: the loader never queues behind its
-    // MSHRs, and its requests reach the shared levels in time order. A new batch's load replaces
-    // one still running.
-    void load_treelet(uint32_t treelet, Cycle now);
-    void run_loader(Cycle t);
+    // loader (the fast engine runs it as one more entry of the slots' ready keys). A line that
+    // would miss while every MSHR is busy holds the load until one frees: the loader never
+    // queues behind its MSHRs, and its requests reach the shared levels in time order. A new
+    // batch's load replaces one still running.
+    void load_treelet(uint32_t treelet);  // the lines to load, counted
     struct TreeletLoad {
         uint64_t next[kStepKinds] = {}, end[kStepKinds] = {};  // per StepKind: lines left
     } load_;

@@ -18,7 +18,10 @@
 //   void idle(size_t slot, Cycle t, bool retired)   no work now: parked, or retired for good
 //   void work_changed(Cycle t)          rays were taken, queued or finished (parked slots may wake)
 //   void records_written(Cycle t)       the ray buffer wrote records the engine posts itself
-//   void load_treelet(uint32_t treelet, Cycle t)
+//   void start_loader(Cycle t)          a new treelet load (replacing one running) starts at t
+//   void loader_ready(Cycle c)          the loader's next line is at c (kNeverCycle: loaded)
+//   bool load_line(Cache* cache, uint64_t addr, uint32_t bytes, Cycle t)
+//                                       false: every MSHR busy, the engine resumes the loader
 //   bool read_record(size_t slot, Cycle from)   true: the record comes from memory later
 //   bool write_entry_busy(size_t slot, Cycle t) true: the write waits (the engine resumes it)
 //   void post_write(uint64_t addr, uint32_t bytes, Cycle t)
@@ -41,6 +44,22 @@ template <class Engine>
         finish_ray(s, done);
         engine.work_changed(now);
     }
+}
+
+template <class Engine>
+void Core::run_loader(Cycle t, Engine& engine) {
+    size_t kind = 0;
+    while (kind < size_t(kStepKinds) && load_.next[kind] >= load_.end[kind]) ++kind;
+    Cache* cache = kind < size_t(kStepKinds) ? cache_by_kind_[kind] : nullptr;
+    if (!cache) {  // loaded (ideal memory has nothing to load into)
+        engine.loader_ready(kNeverCycle);
+        return;
+    }
+    const uint32_t line_bytes = cache->params().line_bytes;
+    const uint64_t addr = load_.next[kind] & ~uint64_t(line_bytes - 1);
+    if (!engine.load_line(cache, addr, line_bytes, t)) return;
+    load_.next[kind] = addr + line_bytes;
+    engine.loader_ready(t + 1);
 }
 
 template <class Engine>
@@ -80,8 +99,8 @@ template <class Engine>
                         return kRunOn;
                     }
                     if (params_.treelet_prefetch && batch_treelet_ != loaded_treelet_) {
-                        engine.load_treelet(batch_treelet_, t);
-                        loaded_treelet_ = batch_treelet_;
+                        load_treelet(batch_treelet_);
+                        engine.start_loader(t);
                     }
                     engine.work_changed(t);  // admissions queue rays
                 }

@@ -84,6 +84,16 @@ struct Timeline {
     }
 };
 
+// The cache whose MSHRs a miss of `cache` takes: its own, or, for a cache with unlimited MSHRs in
+// front of another of its level (a treelet cache before its L1), that one's; nullptr: unlimited.
+Cache* limiting_cache(Cache* cache) {
+    while (cache && cache->params().mshrs == 0) {
+        auto* next = dynamic_cast<Cache*>(cache->next_level());
+        cache = next && next->level() == cache->level() ? next : nullptr;
+    }
+    return cache;
+}
+
 class ReferenceScheduler final : public ChipDriver {
   public:
     SC_HAS_PROCESS(ReferenceScheduler);
@@ -190,10 +200,7 @@ class ReferenceScheduler final : public ChipDriver {
     // What the engine keeps per core beside the core's own slots.
     struct CoreState {
         std::vector<Cycle> write_wait_from;  // per slot: when it began waiting for a write entry
-        // The treelet load in progress, as the fast model's (Core::load_treelet): per StepKind
-        // the lines left, one requested per cycle, held while every MSHR is busy. A new load
-        // replaces it (a new generation; events of older ones are dropped).
-        uint64_t load_next[kStepKinds] = {}, load_end[kStepKinds] = {};
+        // The treelet load in progress (Core::run_loader): its kLoad events' generation.
         uint32_t load_generation = 0;
         // Write-buffer entries held by posted writes not yet accepted, and slots waiting for one.
         uint32_t writes_in_flight = 0;
@@ -216,7 +223,25 @@ class ReferenceScheduler final : public ChipDriver {
         }
         void work_changed(Cycle t) { r.take_wakes(t); }
         void records_written(Cycle t) { r.post_record_writes(r.cores_[c]->ray_buffer(), t); }
-        void load_treelet(uint32_t treelet, Cycle t) { r.load_treelet(c, treelet, t); }
+        // Each load is a generation of kLoad events; a newer load drops an older one's.
+        void start_loader(Cycle t) { r.schedule(t, kLoad, c, ++r.states_[c].load_generation); }
+        void loader_ready(Cycle at) {
+            if (at != kNeverCycle) r.schedule(at, kLoad, c, r.states_[c].load_generation);
+        }
+        // A line that would miss while every MSHR it takes is busy waits for one to free.
+        bool load_line(Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
+            if (!cache->contains(addr)) {
+                if (Cache* limit = limiting_cache(cache)) {
+                    CacheState& st = r.caches_[r.cache_state(limit)];
+                    if (st.busy >= st.mshrs) {
+                        st.loaders.emplace_back(c, r.states_[c].load_generation);
+                        return false;
+                    }
+                }
+            }
+            r.arrive(r.new_access(cache, addr, bytes, t), t);
+            return true;
+        }
         // Records in memory: read through the level below, each stage at its cycle.
         bool read_record(size_t slot, Cycle from) {
             RayBuffer* rb = r.cores_[c]->ray_buffer();
@@ -254,7 +279,6 @@ class ReferenceScheduler final : public ChipDriver {
         TimeOrdered engine{*this, c};
         cores_[c]->run_slot(i, t, engine);
     }
-    void load_treelet(uint32_t c, uint32_t treelet, Cycle t);
     void load_line(uint32_t c, uint32_t generation, Cycle t);
     void take_wakes(Cycle t);
     uint32_t new_access(MemoryPort* node, uint64_t addr, uint32_t size, Cycle start);
@@ -414,55 +438,10 @@ void ReferenceScheduler::take_wakes(Cycle t) {
     parked_.clear();
 }
 
-void ReferenceScheduler::load_treelet(uint32_t c, uint32_t treelet, Cycle t) {
-    Core& core = *cores_[c];
-    CoreState& cs = states_[c];
-    const TreeletSpan& span = core.ray_buffer()->span(treelet);
-    const size_t node = size_t(StepKind::Node), tri = size_t(StepKind::Triangle);
-    cs.load_next[node] = span.node_addr;
-    cs.load_end[node] = span.node_addr + span.node_bytes;
-    cs.load_next[tri] = span.tri_addr;
-    cs.load_end[tri] = span.tri_addr + span.tri_bytes;
-    const size_t inst = size_t(StepKind::Transform);
-    cs.load_next[inst] = span.instance_addr;
-    cs.load_end[inst] = span.instance_addr + span.instance_bytes;
-    schedule(t, kLoad, c, ++cs.load_generation);
-    ++core.treelet_loads;
-    core.treelet_load_bytes += span.bytes();
-}
-
-// The cache whose MSHRs a miss of `cache` takes: its own, or, for a cache with unlimited MSHRs in
-// front of another of its level (a treelet cache before its L1), that one's; nullptr: unlimited.
-Cache* limiting_cache(Cache* cache) {
-    while (cache && cache->params().mshrs == 0) {
-        auto* next = dynamic_cast<Cache*>(cache->next_level());
-        cache = next && next->level() == cache->level() ? next : nullptr;
-    }
-    return cache;
-}
-
 void ReferenceScheduler::load_line(uint32_t c, uint32_t generation, Cycle t) {
-    CoreState& cs = states_[c];
-    if (generation != cs.load_generation) return;  // replaced by a newer load
-    size_t kind = 0;
-    while (kind < size_t(kStepKinds) && cs.load_next[kind] >= cs.load_end[kind]) ++kind;
-    if (kind == size_t(kStepKinds)) return;
-    auto* cache = dynamic_cast<Cache*>(cores_[c]->memory(int(kind)));
-    if (!cache) return;  // ideal memory: nothing to load into
-    const uint32_t line_bytes = cache->params().line_bytes;
-    const uint64_t addr = cs.load_next[kind] & ~uint64_t(line_bytes - 1);
-    if (!cache->contains(addr)) {
-        if (Cache* limit = limiting_cache(cache)) {
-            CacheState& st = caches_[cache_state(limit)];
-            if (st.busy >= st.mshrs) {  // every MSHR busy: wait for one to free
-                st.loaders.emplace_back(c, generation);
-                return;
-            }
-        }
-    }
-    arrive(new_access(cache, addr, line_bytes, t), t);
-    cs.load_next[kind] = addr + line_bytes;
-    schedule(t + 1, kLoad, c, generation);
+    if (generation != states_[c].load_generation) return;  // replaced by a newer load
+    TimeOrdered engine{*this, c};
+    cores_[c]->run_loader(t, engine);
 }
 
 // A core's posted write takes a write-buffer entry until the cache below has looked it up.
