@@ -5,6 +5,7 @@
 
 #include "fixed_memory.h"
 #include "models/core.h"
+#include "models/core_slots.h"
 #include "models/unit.h"
 
 using namespace rtsim;
@@ -299,6 +300,82 @@ void run_cores_sharing_memory(std::vector<Cycle>& times, uint64_t& rays) {
     times = mem.times;
     rays = 0;
     for (auto& c : cores) rays += c->rays;
+}
+
+namespace {
+// An engine whose fetches complete later, as the time-ordered reference's do: it records what the
+// slot state machine asks of it, and the test plays the memory.
+struct RecordingEngine {
+    static constexpr bool kTimeOrdered = true;
+    std::vector<std::pair<size_t, Cycle>> readies, idles, fetches;  // slot, cycle
+    int work_changes = 0;
+    bool retired = false;
+    bool beyond(Cycle) const { return false; }
+    void ready(size_t slot, Cycle c) { readies.emplace_back(slot, c); }
+    void idle(size_t slot, Cycle t, bool for_good) {
+        idles.emplace_back(slot, t);
+        retired = for_good;
+    }
+    void work_changed(Cycle) { ++work_changes; }
+    void records_written(Cycle) {}
+    void start_loader(Cycle) { ADD_FAILURE() << "no treelet mode here"; }
+    void loader_ready(Cycle) {}
+    bool load_line(Cache*, uint64_t, uint32_t, Cycle) { return true; }
+    bool read_record(size_t, Cycle) { return false; }
+    bool write_entry_busy(size_t, Cycle) { return false; }
+    void post_write(uint64_t, uint32_t, Cycle) { ADD_FAILURE() << "no writes here"; }
+    void read_stack(size_t, uint64_t, uint32_t, Cycle) { ADD_FAILURE() << "no stack here"; }
+    void fetch(size_t slot, const Step&, Cycle issued, Core::Fetch& f) {
+        fetches.emplace_back(slot, issued);
+        f.kind = Core::Fetch::kPending;
+    }
+};
+}  // namespace
+
+// The slot state machine both engines run, driven by hand: a ray of two node steps, issue
+// latency I, memory M (charged to DRAM), box latency L. Setup issues at 0 and is done at I; each
+// step issues one instruction (I), its fetch completes M later, its test L after that:
+// step 1 fetched at 2I + M, done at 2I + M + L; step 2 issued at 3I + M + L, done at
+// 3I + 2M + 2L, where the ray ends; then the source is empty and the slot retires.
+TEST(Core, TheSlotStateMachineFollowsItsEngineByHand) {
+    const Cycle I = 2, M = 30, L = 8;
+    test::FixedLatencyMemory mem(0);
+    PipelinedUnit box("box", UnitParams{1, L, 1, 8}), tri("tri", UnitParams{1, 18, 1});
+    SyntheticSource src(1, 2, StepKind::Node);
+    CoreParams cp;
+    cp.ray_slots = 1;
+    cp.issue_latency_cycles = I;
+    Core core("core", cp, {&mem, &mem}, {&box, &tri}, &src);
+    RecordingEngine e;
+    const Cycle by_level[kMemLevels] = {0, 0, M, 0};
+    EXPECT_EQ(core.run_slot(0, 0, e), Core::kRunOn);
+    ASSERT_EQ(e.readies.size(), 1u);
+    EXPECT_EQ(e.readies.back().second, I);  // set up
+    core.run_slot(0, I, e);
+    ASSERT_EQ(e.fetches.size(), 1u);
+    EXPECT_EQ(e.fetches.back().second, 2 * I);
+    EXPECT_EQ(e.readies.size(), 1u);  // pending: nothing until the data is there
+    core.step_fetched(0, 2 * I + M, by_level, e);
+    EXPECT_EQ(e.readies.back().second, 2 * I + M + L);
+    EXPECT_EQ(core.rays, 0u);
+    core.run_slot(0, 2 * I + M + L, e);
+    ASSERT_EQ(e.fetches.size(), 2u);
+    EXPECT_EQ(e.fetches.back().second, 3 * I + M + L);
+    const Cycle end = 3 * I + 2 * M + 2 * L;
+    core.step_fetched(0, 3 * I + 2 * M + L, by_level, e);
+    EXPECT_EQ(e.readies.back().second, end);
+    EXPECT_EQ(core.rays, 1u);  // the last step's test ends the ray
+    EXPECT_EQ(core.last_cycle, end);
+    EXPECT_EQ(e.work_changes, 1);
+    core.run_slot(0, end, e);
+    ASSERT_EQ(e.idles.size(), 1u);
+    EXPECT_EQ(e.idles.back().second, end);
+    EXPECT_TRUE(e.retired);
+    // Every cycle of the ray charged once: issue 3I, DRAM 2M, box unit 2L.
+    EXPECT_EQ(core.stall_cycles[Core::kIssue], 3 * I);
+    EXPECT_EQ(core.stall_cycles[Core::kDram], 2 * M);
+    EXPECT_EQ(core.stall_cycles[Core::kUnitStall + int(StepKind::Node)], 2 * L);
+    EXPECT_EQ(core.ray_latency_cycles, end);
 }
 
 // The largest amount by which a request arrived earlier than one before it.
