@@ -197,7 +197,7 @@ struct Core::LooselyTimed {
     void read_stack(size_t slot, uint64_t addr, uint32_t bytes, Cycle t) {
         const Cycle back = core.local_->access(addr, bytes, t);
         core.stall_cycles[kStack] += back - t;
-        core.set_ready(slot, back);
+        ready(slot, back);
     }
     // Tries the fetch as a private hit first (inline: most steps end here); a fetch that needs
     // a shared level runs only at its turn in the global order, else it is held back.
@@ -216,20 +216,14 @@ struct Core::LooselyTimed {
                    : core.mem_by_kind_[kind]->access_local(st.addr, st.size_bytes, issued, f.cycle,
                                                            &f.bd)))
             return;
-        fetch_shared(core, s, st, issued, f, horizon, at_horizon);
+        fetch_shared(s, st, issued, f);
     }
-    static void fetch_shared(Core& core, Slot& s, const Step& st, Cycle issued, Fetch& f,
-                             Cycle horizon, bool at_horizon);
+    void fetch_shared(Slot& s, const Step& st, Cycle issued, Fetch& f);
 };
 
 // Inlined as the step loop always had it (called, the loop ran 9% slower).
-[[gnu::always_inline]] inline void Core::LooselyTimed::fetch_shared(Core& core, Slot& s,
-                                                                    const Step& st, Cycle issued,
-                                                                    Fetch& f, Cycle horizon,
-                                                                    bool at_horizon) {
-    const auto beyond = [horizon, at_horizon](Cycle c) {
-        return c > horizon || (c == horizon && !at_horizon);
-    };
+[[gnu::always_inline]] inline void Core::LooselyTimed::fetch_shared(Slot& s, const Step& st,
+                                                                    Cycle issued, Fetch& f) {
     const auto kind = size_t(st.kind);
     MemoryPort* mem = core.mem_by_kind_[kind];
     Cache* cache = core.cache_by_kind_[kind];

@@ -323,6 +323,8 @@ class Core : public sc_core::sc_module {
     void step_done(size_t slot, int kind, Cycle fetched, Cycle done, Cycle now, Engine& engine);
     // The fast engine's side of run_slot (loosely timed: requests complete at once).
     struct LooselyTimed;
+    // The lanes a step's unit operations occupy (a packet's, or 1 for a single ray).
+    int unit_lanes() const { return params_.packet_lanes > 0 ? params_.packet_lanes : 1; }
     void finish_ray(Slot& s, Cycle done) {
         count_finished(s.work.rays, s.start, done);
         s.busy = false;

@@ -66,7 +66,7 @@ template <class Engine>
 void Core::step_fetched(size_t slot, Cycle t, const Cycle* cycles_by_level, Engine& engine) {
     Slot& s = slots_[slot];
     for (int l = 0; l < kMemLevels; ++l) stall_cycles[kL1 + l] += cycles_by_level[l];
-    const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
+    const int lanes = unit_lanes();
     step_done(slot, s.unit_kind, t, unit_by_kind_[s.unit_kind]->issue(t, s.unit_items, lanes), t,
               engine);
 }
@@ -144,7 +144,7 @@ template <class Engine>
         }
         return kRunOn;
     }
-    const int lanes = params_.packet_lanes > 0 ? params_.packet_lanes : 1;
+    const int lanes = unit_lanes();
     if (s.unit_pending) {
         if (params_.units_shared && engine.beyond(t)) return t;
         s.unit_pending = false;
