@@ -47,11 +47,11 @@ struct SimParams {
     uint64_t sample_paired_unit_tiles = 8, sample_paired_warmup_tiles = 1,
              sample_paired_warmup_tile_rays = 0;
     // The warm-up holds at least this many times the chip's ray slots (unpaired; paired).
-    uint64_t sample_warmup_slot_fills = 2, sample_paired_warmup_slot_fills = 0;
+    uint64_t sample_warmup_slot_fills = 4, sample_paired_warmup_slot_fills = 0;
     // An unpaired skip unit holds at least this many times the chip's ray slots in rays (0: off).
     uint64_t sample_unit_slot_fills = 0;
     // A detailed window after fast-forwarded rays starts once the rays before it have finished.
-    bool sample_window_drain = true;
+    bool sample_window_drain = false;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

@@ -73,9 +73,17 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
                 back < params_.warmup_tiles || (by_rays && rays < params_.warmup_tile_rays);
             if (!warmup && warming >= params_.warm_tiles) break;
             TileRole& r = roles_[--t];
-            // No further back than an earlier unit with rays, measured or closed.
-            if (r == TileRole::After || (r == TileRole::Measured && measured_with_rays[t / per]))
+            // No further back than an earlier unit with rays, measured or closed. A warm-up that
+            // reaches the tile closing one runs all of it: the two windows are one, the chip never
+            // runs short of rays between them, and nothing waits for a drain (which, after the
+            // closing tile's other rays were skipped, started a warm-up of less than a slot fill
+            // on an empty chip: on 64 x 32 cores the next measured unit's rays then went out at
+            // once, and one such unit took 2,241 cycles against 6,024 in the full run).
+            if (r == TileRole::After) {
+                r = TileRole::Warmup;
                 break;
+            }
+            if (r == TileRole::Measured && measured_with_rays[t / per]) break;
             ++back;
             if (by_rays) rays += params_.tile_rays[t];
             if (r == TileRole::Measured) continue;  // a unit without rays: traced anyway
@@ -146,11 +154,16 @@ void SampleDesign::draw_by_work() {
     const uint64_t draws = std::max<uint64_t>(1, budget - c);
     uint64_t begin = 0, done_work = 0;
     for (uint64_t s = 0; begin < rest.size(); ++s) {
-        // Up to the unit where the work so far reaches the next share of the rest's.
+        // Up to the unit where the work so far reaches the next share of the rest's, leaving a
+        // unit for each draw after this one: many light units share a stratum, and cut at equal
+        // work alone the strata could number fewer than the draws, a smaller sample than asked
+        // (1 in 1 of a 1080p bunny frame left 95 of its 1,188 units with work unmeasured).
         uint64_t end = begin;
         const double target = double(remaining_work) * double(s + 1) / double(draws);
+        const uint64_t keep = draws - std::min(draws, s + 1);
         while (end < rest.size() &&
-               (end == begin || s + 1 == draws || double(done_work + work[rest[end]]) <= target)) {
+               (end == begin || s + 1 == draws ||
+                (double(done_work + work[rest[end]]) <= target && rest.size() - end > keep))) {
             done_work += work[rest[end]];
             ++end;
         }

@@ -920,7 +920,8 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
     ASSERT_EQ(run_rtsim(common +
                         "--set sim.sampled=true --set sim.sample_fast_forward=skip "
                         "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=48 "
-                        "--set sim.sample_unit_slot_fills=0 --set sim.sample_seed=6 -o '" +
+                        "--set sim.sample_unit_slot_fills=0 --set sim.sample_seed=6 "
+                        "--set sim.sample_warmup_slot_fills=2 -o '" +
                         part.string() + "'")
                   .status,
               0);
@@ -962,9 +963,12 @@ TEST(Sampled, SkipDesignHonoursTargetError) {
 // = 6 (the stratified design draws from every unit), and a run configured coarser than that keeps
 // its own period.
 TEST(Sampled, APilotMeasuresAboutFortyUnits) {
+    // (A warm-up of 2 slot fills: with 4, this small frame's plan puts 57% of its rays in detail
+    // and the run goes in full.)
     const std::string frame = "run -q --scene " RTSIM_BUNNY_OBJ
                               " --rays primary --res 128x128 --set sim.sampled=true "
                               "--set sim.sample_fast_forward=skip --set sim.sample_unit_tiles=1 "
+                              "--set sim.sample_warmup_slot_fills=2 "
                               "--bvh-cache '" +
                               (work_dir() / "pilot_cache").string() + "' --target-error 50 ";
     const fs::path fine = work_dir() / "pilot_fine", coarse = work_dir() / "pilot_coarse";
@@ -1053,12 +1057,13 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     EXPECT_FALSE(sa["sampling"].contains("functional_l2"));
     EXPECT_TRUE(stats_of(ref)["sampling"].contains("functional_l2"));
     // A paired run warms up over sim.sample_paired_warmup_tiles (1 tile, whatever its rays), its
-    // reference unpaired over sim.sample_warmup_tiles (2, holding at least 128 rays); the
+    // reference unpaired over sim.sample_warmup_tiles (2, holding at least 256 rays: 4 fills of
+    // the default chip's 64 slots); the
     // matched sample runs with the paired run's warm-up, else the units below would differ.
     EXPECT_EQ(sa["sampling"]["warmup_tiles"], 1);
     EXPECT_EQ(sa["sampling"]["warmup_tile_rays"], 0);
     EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tiles"], 2);
-    EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tile_rays"], 128);
+    EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tile_rays"], 256);
     EXPECT_NE(ra.out.find("warm-up 1 tile (sim.sample_paired_warmup_*); units of 2 tiles "
                           "(sim.sample_paired_unit_tiles)"),
               std::string::npos)

@@ -394,7 +394,8 @@ TEST(Timeline, ASampledWindowStartsOnceTheOneBeforeHasDrainedByHand) {
         " --set sim.sample_first_unit=0";
     for (const char* fidelity : kFidelities) {
         SCOPED_TRACE(fidelity);
-        const json s = run_trace(trace, sampled, "drain", fidelity);
+        const json s =
+            run_trace(trace, sampled + " --set sim.sample_window_drain=true", "drain", fidelity);
         EXPECT_EQ(s["sampling"]["rays_detailed"].get<uint64_t>(), 4u);
         EXPECT_EQ(s["sampling"]["simulated_cycles"].get<uint64_t>(), 488u) << s["sampling"].dump();
         EXPECT_EQ(s["stalls"]["total"]["no_work"].get<uint64_t>(), 2u);

@@ -87,6 +87,21 @@ TEST(SkipDesign, WarmupReachesBackUntilItHoldsEnoughRays) {
         EXPECT_EQ(int(rayless.tile_role(t)), int(want_rayless[t])) << "tile " << t;
 }
 
+// A warm-up that reaches back to the tile closing the measured unit before runs all of that
+// tile: units 1 and 4 (tiles 2-3, 8-9) at 9 rays a tile and a warm-up of at least 30 rays.
+// Unit 4's goes back over tiles 7, 6 and 5 (27 rays) to tile 4, which closes unit 1: tiles 2 to
+// 9 are one window, and none of tile 4's rays is skipped between them. By hand.
+TEST(SkipDesign, AWarmupThatReachesTheWindowBeforeJoinsIt) {
+    using R = SampleDesign::TileRole;
+    SamplingParams p = skip_params();
+    p.warmup_tile_rays = 30;
+    p.tile_rays.assign(12, 9);
+    const SampleDesign d(p);
+    const R want[12] = {R::Warmup, R::Warmup, R::Measured, R::Measured, R::Warmup, R::Warmup,
+                        R::Warmup, R::Warmup, R::Measured, R::Measured, R::After,  R::Skipped};
+    for (uint64_t t = 0; t < 12; ++t) EXPECT_EQ(int(d.tile_role(t)), int(want[t])) << "tile " << t;
+}
+
 // A stratified skip design draws its last, shorter stratum among the units it has: every stratum
 // then holds exactly one measured unit, whatever the seed.
 TEST(SkipDesign, EveryStratumHasOneMeasuredUnit) {

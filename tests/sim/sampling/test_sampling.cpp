@@ -1214,6 +1214,32 @@ TEST(SampleDesignWork, CertaintyUnitsAreTheHeaviestAndTheRestSpansTheWork) {
     EXPECT_EQ(half.certainty_units(), 4u);
 }
 
+// The sample keeps its size where light units come first. 12 units of work 10 and 8 of 1, 1 in
+// 1: a budget of 20, at most 10 certainty units, and the first ten 10s are (10 x 11 >= 38 for
+// the last). The rest, two 10s and eight 1s (work 28), go in 10 strata of 2.8 each: cut by work
+// alone they made 5 (1+1, 1+1+1, 1+1+1, 10, 10), and 5 units with work went unmeasured. With a
+// unit kept for every later draw each stratum holds one unit: every unit with work is measured.
+TEST(SampleDesignWork, LightUnitsFirstStillGiveTheFullSample) {
+    SamplingParams sp;
+    sp.skip = true;
+    sp.by_work = true;
+    sp.unit_tiles = 1;
+    sp.tiles = 24;
+    sp.period_units = 1;
+    sp.unit_work.assign(24, 0);
+    for (uint32_t u = 0; u < 12; ++u) sp.unit_work[2 * u] = 10;
+    for (uint32_t u = 0; u < 8; ++u) sp.unit_work[2 * u + 1] = 1;
+    const SampleDesign every(sp);
+    EXPECT_EQ(every.certainty_units(), 10u);
+    EXPECT_EQ(every.drawn_strata(), 10u);
+    for (uint64_t u = 0; u < 24; ++u) {
+        EXPECT_EQ(every.measured_unit(u), sp.unit_work[u] > 0) << u;
+        if (sp.unit_work[u] > 0) {
+            EXPECT_EQ(every.design_weight(u), 1.0) << u;
+        }
+    }
+}
+
 // A recorded frame the method was not tuned on: every unit with rays of a 1024x768 fandisk
 // diffuse frame in 4-tile units (736 of 3,072 units; tests/data/sampling/, from a run that
 // measured every unit), whose cycles sit in few units (144 units hold 86%). Samples drawn by
