@@ -1158,18 +1158,26 @@ TEST(Sampling, JointEstimatesCalibratedToAKnownSum) {
     EXPECT_EQ(other.find("p")->value, 5.0);
 }
 
+namespace {
+// Design `work` over `tiles` one-tile units, one in `period_units`, every unit's work 0.
+SamplingParams work_design(uint64_t tiles, uint64_t period_units) {
+    SamplingParams sp;
+    sp.skip = true;
+    sp.by_work = true;
+    sp.unit_tiles = 1;
+    sp.tiles = tiles;
+    sp.period_units = period_units;
+    sp.unit_work.assign(tiles, 0);
+    return sp;
+}
+}  // namespace
+
 // Design `work`: units without work are never measured; the heaviest units are measured
 // outright while a unit's work is at least the mean work per draw left (at most half the
 // sample); the rest, in order of work, are cut into strata of equal size with one unit drawn in
 // each. Hand-worked on a frame of 40 units.
 TEST(SampleDesignWork, CertaintyUnitsAreTheHeaviestAndTheRestSpansTheWork) {
-    SamplingParams sp;
-    sp.skip = true;
-    sp.by_work = true;
-    sp.unit_tiles = 1;
-    sp.tiles = 40;
-    sp.period_units = 4;
-    sp.unit_work.assign(40, 0);
+    SamplingParams sp = work_design(40, 4);
     // 32 units with work: one of 1000 (unit 3), one of 300 (unit 20), thirty of 10 (units 5
     // and 8..37 but 20); 8 empty.
     sp.unit_work[3] = 1000;
@@ -1220,13 +1228,7 @@ TEST(SampleDesignWork, CertaintyUnitsAreTheHeaviestAndTheRestSpansTheWork) {
 // alone they made 5 (1+1, 1+1+1, 1+1+1, 10, 10), and 5 units with work went unmeasured. With a
 // unit kept for every later draw each stratum holds one unit: every unit with work is measured.
 TEST(SampleDesignWork, LightUnitsFirstStillGiveTheFullSample) {
-    SamplingParams sp;
-    sp.skip = true;
-    sp.by_work = true;
-    sp.unit_tiles = 1;
-    sp.tiles = 24;
-    sp.period_units = 1;
-    sp.unit_work.assign(24, 0);
+    SamplingParams sp = work_design(24, 1);
     for (uint32_t u = 0; u < 12; ++u) sp.unit_work[2 * u] = 10;
     for (uint32_t u = 0; u < 8; ++u) sp.unit_work[2 * u + 1] = 1;
     const SampleDesign every(sp);
