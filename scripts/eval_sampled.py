@@ -39,10 +39,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from rtsim_run import CGAL, ROOT, run_stats, write_results  # noqa: E402
 
 # Meshes the sampling method was never tuned on (bench_sampled.py uses bunny, armadillo, camel,
-# elephant, homer and the Cornell box; lion, cow and dino have since served to diagnose and set
-# the window drain and warm-up, so they are tuning meshes too).
+# elephant, homer and the Cornell box; lion, cow, dino and diplodocus have since served to
+# diagnose and set the window drain and warm-up, so they are tuning meshes too).
 HELD_OUT = ["fandisk_large", "mannequin-devil", "man", "ChineseDragon-10kv", "bull", "elk",
-            "hand", "bear", "diplodocus"]
+            "hand", "bear", "anchor_dense", "bear_bis"]
 KINDS = {"primary": ["--rays", "primary"],
          "ao": ["--rays", "ao"],
          "diffuse": ["--rays", "diffuse", "--diffuse-depth", "1"],

@@ -207,6 +207,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_unit_slot_fills", M(sim.sample_unit_slot_fills)),
         field("sim.sample_paired_warmup_slot_fills", M(sim.sample_paired_warmup_slot_fills)),
         field("sim.sample_window_drain", M(sim.sample_window_drain)),
+        field("sim.sample_warmup_work", M(sim.sample_warmup_work)),
         field("energy.sram_8kib_pj", M(energy.sram_8kib_pj), 1, kNotMirrored),
         field("energy.sram_32kib_pj", M(energy.sram_32kib_pj), 1, kNotMirrored),
         field("energy.sram_1mib_pj", M(energy.sram_1mib_pj), 1, kNotMirrored),

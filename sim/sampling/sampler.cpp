@@ -49,6 +49,7 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
     // stopped at such a unit left the next measured unit 20% short of its L2 misses).
     const uint64_t per = params_.unit_tiles, tiles = params_.tiles;
     const bool by_rays = params_.tile_rays.size() == tiles;
+    const bool by_work = params_.tile_work.size() == tiles;
     auto unit_end = [&](uint64_t u) { return std::min(tiles, (u + 1) * per); };
     auto has_rays = [&](uint64_t u) {
         return !by_rays || std::any_of(params_.tile_rays.begin() + long(u * per),
@@ -67,10 +68,11 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
     }
     for (uint64_t u = 0; u < units(); ++u) {
         if (!measured_with_rays[u]) continue;
-        uint64_t t = u * per, back = 0, rays = 0, warming = 0;
+        uint64_t t = u * per, back = 0, rays = 0, work = 0, warming = 0;
         while (t > 0) {
-            const bool warmup =
-                back < params_.warmup_tiles || (by_rays && rays < params_.warmup_tile_rays);
+            const bool warmup = back < params_.warmup_tiles ||
+                                (by_rays && rays < params_.warmup_tile_rays) ||
+                                (by_work && work < params_.warmup_work);
             if (!warmup && warming >= params_.warm_tiles) break;
             TileRole& r = roles_[--t];
             // No further back than an earlier unit with rays, measured or closed. A warm-up that
@@ -86,6 +88,7 @@ SampleDesign::SampleDesign(const SamplingParams& params) : params_(params) {
             if (r == TileRole::Measured && measured_with_rays[t / per]) break;
             ++back;
             if (by_rays) rays += params_.tile_rays[t];
+            if (by_work) work += params_.tile_work[t];
             if (r == TileRole::Measured) continue;  // a unit without rays: traced anyway
             if (warmup) {
                 r = TileRole::Warmup;

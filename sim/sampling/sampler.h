@@ -78,6 +78,14 @@ struct SamplingParams {
     // until it holds warmup_tile_rays rays: the slots hold the last rays before the unit whatever
     // tiles they came from, and background tiles bring none.
     std::vector<uint32_t> tile_rays;
+    // Skip design: per tile, its work (steps and rays; empty: unknown), and the least work the
+    // warm-up holds besides its rays. The rays of the last window still run when the next one
+    // starts, as they did in the full run for about as long as their work takes; a warm-up of
+    // background rays (no steps, no time) does not outlast them, and the measured unit after it
+    // shares the chip with rays from far away. Reaching back until it holds its rays' share of
+    // the frame's work, it holds what in the full run was in flight when the unit started.
+    std::vector<uint64_t> tile_work;
+    uint64_t warmup_work = 0;
     // Skip design: the frame's units in the order the strata are cut from (empty: the frame's
     // own order, so a stratum is period_units neighbouring units). Units sorted by what they
     // cost in a run that measured every unit (--sample-order; a paired run's reference) put

@@ -102,6 +102,32 @@ TEST(SkipDesign, AWarmupThatReachesTheWindowBeforeJoinsIt) {
     for (uint64_t t = 0; t < 12; ++t) EXPECT_EQ(int(d.tile_role(t)), int(want[t])) << "tile " << t;
 }
 
+// A warm-up reaches back until it holds warmup_work besides its rays: units 1 and 4 (tiles 2-3,
+// 8-9), 4 rays a tile, a one-tile warm-up, a least work of 50. Tiles 7 to 5 hold background rays
+// (work 4 each), tile 4 closes unit 1: unit 4's warm-up goes back over 7, 6, 5 (work 12) and
+// joins unit 1's window at tile 4. With work 100 in tile 7 it stops there. Unit 1's reaches the
+// frame's start. By hand.
+TEST(SkipDesign, AWarmupReachesBackUntilItHoldsEnoughWork) {
+    using R = SampleDesign::TileRole;
+    SamplingParams p = skip_params();
+    p.warm_tiles = 0;
+    p.warmup_tile_rays = 0;
+    p.tile_rays.assign(12, 4);
+    p.tile_work.assign(12, 4);
+    p.warmup_work = 50;
+    const SampleDesign light(p);
+    const R joined[12] = {R::Warmup, R::Warmup, R::Measured, R::Measured, R::Warmup, R::Warmup,
+                          R::Warmup, R::Warmup, R::Measured, R::Measured, R::After,  R::Skipped};
+    for (uint64_t t = 0; t < 12; ++t)
+        EXPECT_EQ(int(light.tile_role(t)), int(joined[t])) << "tile " << t;
+    p.tile_work[7] = 100;
+    const SampleDesign heavy(p);
+    const R apart[12] = {R::Warmup,  R::Warmup, R::Measured, R::Measured, R::After, R::Skipped,
+                         R::Skipped, R::Warmup, R::Measured, R::Measured, R::After, R::Skipped};
+    for (uint64_t t = 0; t < 12; ++t)
+        EXPECT_EQ(int(heavy.tile_role(t)), int(apart[t])) << "tile " << t;
+}
+
 // A stratified skip design draws its last, shorter stratum among the units it has: every stratum
 // then holds exactly one measured unit, whatever the seed.
 TEST(SkipDesign, EveryStratumHasOneMeasuredUnit) {
