@@ -163,7 +163,7 @@ void SampleDesign::draw_by_work() {
         // (1 in 1 of a 1080p bunny frame left 95 of its 1,188 units with work unmeasured).
         uint64_t end = begin;
         const double target = double(remaining_work) * double(s + 1) / double(draws);
-        const uint64_t keep = draws - std::min(draws, s + 1);
+        const uint64_t keep = draws - (s + 1);  // s + 1 == draws takes the rest
         while (end < rest.size() &&
                (end == begin || s + 1 == draws ||
                 (double(done_work + work[rest[end]]) <= target && rest.size() - end > keep))) {

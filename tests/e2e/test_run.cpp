@@ -1061,8 +1061,8 @@ TEST(Sampled, ReferenceOfTheSameDesignGivesItsTotals) {
     EXPECT_TRUE(stats_of(ref)["sampling"].contains("functional_l2"));
     // A paired run warms up over sim.sample_paired_warmup_tiles (1 tile, whatever its rays), its
     // reference unpaired over sim.sample_warmup_tiles (2, holding at least 256 rays: 4 fills of
-    // the default chip's 64 slots); the
-    // matched sample runs with the paired run's warm-up, else the units below would differ.
+    // the default chip's 64 slots); the matched sample runs with the paired run's warm-up, else
+    // the units below would differ.
     EXPECT_EQ(sa["sampling"]["warmup_tiles"], 1);
     EXPECT_EQ(sa["sampling"]["warmup_tile_rays"], 0);
     EXPECT_EQ(stats_of(ref)["sampling"]["warmup_tiles"], 2);
