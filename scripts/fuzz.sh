@@ -10,8 +10,10 @@ cd "$(dirname "$0")/.."
 seconds="${1:-10}"
 dir="${FUZZ_BUILD_DIR:-build-fuzz}"
 targets=(off ray_file trace config sweep mesh)
-# -O1 -g1, as libFuzzer advises: quick to build, fast enough to fuzz, symbols for the reports.
-CC=clang CXX=clang++ cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE= -DCMAKE_CXX_FLAGS="-O1 -g1" \
+# -O1 -g1 by default, as libFuzzer advises: fast enough to fuzz, symbols for the reports
+# (FUZZ_CXX_FLAGS to change it; build type None, so that no build type's -O3 follows them).
+flags="${FUZZ_CXX_FLAGS:--O1 -g1}"
+CC=clang CXX=clang++ cmake -S . -B "$dir" -DCMAKE_BUILD_TYPE=None -DCMAKE_CXX_FLAGS="$flags" \
     -DRTSIM_FUZZ=ON -DRTSIM_BUILD_TESTS=OFF >/dev/null
 cmake --build "$dir" -j"$(nproc)" --target "${targets[@]/#/fuzz_}" >/dev/null
 # No LeakSanitizer: it needs to stop the process's threads the way a debugger does, which
