@@ -62,29 +62,53 @@ def wilson(k, n, z=1.96):
     return (max(0.0, c - h), min(1.0, c + h))
 
 
-def parse_frames(text, rng):
-    """FRAME,... as MESH:KIND:WxH; 'random:N' draws N frames from the held-out meshes."""
-    if text.startswith("random:"):
-        n = int(text.split(":")[1])
-        meshes = [m for m in HELD_OUT if os.path.exists(os.path.join(CGAL, m + ".off"))]
-        # Distinct meshes while there are enough, then distinct (mesh, kind) pairs.
-        pool = [(m, k) for m in meshes for k in KINDS]
-        rng.shuffle(pool)
-        out, seen = [], set()
-        for m, k in pool:
-            if len(out) == n:
-                break
-            if m in seen and len(seen) < len(meshes):
-                continue
-            seen.add(m)
-            out.append((m, k, rng.choice(["512x512", "1024x768"])))
-        return out
-    frames = []
+# Chips a frame can name: the default config's 8 cores, or a large one.
+CHIPS = {"default": [], "64x32": ["--set", "core.count=64", "--set", "core.ray_slots=32"]}
+
+
+def draw_frames(n, rng, spp, heavy, used):
+    """N frames on held-out meshes, distinct meshes while there are enough (none of `used`, the
+    meshes drawn already), then distinct (mesh, kind) pairs. Cheap: 512x512 or 1024x768 at `spp`
+    on the default chip. Heavy: 1920x1080, 8 spp, a diffuse path on 64 x 32 cores (full fast
+    runs of 10 s or more here), where sampling has most to save."""
+    meshes = [m for m in HELD_OUT if os.path.exists(os.path.join(CGAL, m + ".off"))]
+    kinds = ["diffuse", "path2"] if heavy else list(KINDS)
+    pool = [(m, k) for m in meshes for k in kinds]
+    rng.shuffle(pool)
+    pool.sort(key=lambda mk: mk[0] in used)  # meshes not drawn yet first
+    out, seen = [], set()
+    for m, k in pool:
+        if len(out) == n:
+            break
+        if m in seen and len(seen) < len(meshes):
+            continue
+        seen.add(m)
+        if heavy:
+            out.append((m, k, "1920x1080", 8, "64x32"))
+        else:
+            out.append((m, k, rng.choice(["512x512", "1024x768"]), spp, "default"))
+    used.update(seen)
+    return out
+
+
+def parse_frames(text, rng, spp=1):
+    """FRAME,... as MESH:KIND:WxH[:SPP[:CHIP]]; 'random:N' draws N cheap frames from the held-out
+    meshes and 'heavy:N' N heavy ones (draw_frames)."""
+    frames, used = [], set()
     for f in text.split(","):
-        mesh, kind, res = f.split(":")
+        if f.startswith(("random:", "heavy:")):
+            frames += draw_frames(int(f.split(":")[1]), rng, spp, f.startswith("heavy:"), used)
+            continue
+        parts = f.split(":")
+        if len(parts) < 3 or len(parts) > 5:
+            sys.exit(f"eval_sampled: frame {f}: MESH:KIND:WxH[:SPP[:CHIP]]")
+        mesh, kind, res = parts[:3]
         if kind not in KINDS:
             sys.exit(f"eval_sampled: unknown kind {kind} (known: {', '.join(KINDS)})")
-        frames.append((mesh, kind, res))
+        chip = parts[4] if len(parts) > 4 else "default"
+        if chip not in CHIPS:
+            sys.exit(f"eval_sampled: unknown chip {chip} (known: {', '.join(CHIPS)})")
+        frames.append((mesh, kind, res, int(parts[3]) if len(parts) > 3 else spp, chip))
     return frames
 
 
@@ -118,7 +142,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     seed = a.seed if a.seed is not None else int(time.time()) % 1000000
     rng = random.Random(seed)
-    frames = parse_frames(a.frames, rng)
+    frames = parse_frames(a.frames, rng, a.spp)
     periods = [int(p) for p in a.periods.split(",")]
     designs = a.designs.split(",")
     # Sample seeds far from the 1-100 the method was tuned with.
@@ -127,9 +151,10 @@ def main(argv=None):
     rows, cells = [], []
     with tempfile.TemporaryDirectory() as tmp:
         cache = os.path.join(tmp, "cache")
-        for fi, (mesh, kind, res) in enumerate(frames):
+        for fi, (mesh, kind, res, spp, chip) in enumerate(frames):
             scene = os.path.join(CGAL, mesh + ".off")
-            frame = ["--scene", scene, "--spp", str(a.spp), "--bvh-cache", cache] + KINDS[kind]
+            frame = (["--scene", scene, "--spp", str(spp), "--bvh-cache", cache] + KINDS[kind] +
+                     CHIPS[chip])
             for kv in a.set:
                 frame += ["--set", kv]
             base = frame + ["--res", res]
@@ -164,7 +189,8 @@ def main(argv=None):
             for key, job in jobs:
                 by_cell.setdefault(key, []).append(job.result())
             for (d, p), runs in by_cell.items():
-                cell = {"mesh": mesh, "kind": kind, "res": res, "design": d, "period": p,
+                cell = {"mesh": mesh, "kind": kind, "res": res, "spp": spp, "chip": chip,
+                        "design": d, "period": p,
                         "full_cycles": truth["cycles"], "full_dram": truth["dram"],
                         "full_host_s": full["host"]["run_time_s"], "profile_s": profile_s,
                         "runs": []}
@@ -197,7 +223,8 @@ def profile_build_seconds(stats, frame):
 
 
 def summarise(cell):
-    out = {k: cell[k] for k in ("mesh", "kind", "res", "design", "period")}
+    out = {k: cell[k] for k in ("mesh", "kind", "res", "spp", "chip", "design", "period")}
+    out["full_host_s"] = cell["full_host_s"]
     for name, truth in (("cycles", cell["full_cycles"]), ("dram", cell["full_dram"])):
         errs, covered, zero, unbounded, n = [], 0, 0, 0, 0
         for r in cell["runs"]:
@@ -216,7 +243,8 @@ def summarise(cell):
                 zero += 1
             covered += e["lo"] <= truth <= e["hi"]
         errs.sort()
-        out[name] = {"n": n, "mean": statistics.mean(errs) if errs else float("nan"),
+        out[name] = {"n": n, "errs": errs,
+                     "mean": statistics.mean(errs) if errs else float("nan"),
                      "p95": errs[min(len(errs) - 1, int(math.ceil(0.95 * len(errs))) - 1)]
                      if errs else float("nan"),
                      "covered": covered, "zero": zero, "unbounded": unbounded,
@@ -229,7 +257,8 @@ def summarise(cell):
 
 def format_row(r):
     c, d = r["cycles"], r["dram"]
-    return (f"| {r['mesh']} | {r['kind']} | {r['res']} | {r['design']} | 1/{r['period']} | "
+    return (f"| {r['mesh']} | {r['kind']} | {r['res']} | {r['spp']} | {r['chip']} | "
+            f"{r['full_host_s']:.2f} | {r['design']} | 1/{r['period']} | "
             f"{c['mean']:.2f}% | {c['p95']:.2f}% | "
             f"{100 * c['covered'] / max(1, c['n'] - c['unbounded']):.0f}% "
             f"({100 * c['wilson'][0]:.0f}-{100 * c['wilson'][1]:.0f}) | {c['zero']} | "
@@ -241,20 +270,55 @@ def format_row(r):
 def report(seed, a, frames, rows):
     lines = ["# Sampled simulation on held-out frames (scripts/eval_sampled.py)", "",
              f"Seed {seed} (frames and sample seeds drawn from it); {a.runs} runs per cell; "
-             f"{a.spp} spp; settings: {' '.join(a.set) or 'defaults'}"
+             f"settings: {' '.join(a.set) or 'defaults'}"
              f"{f'; --target-error {a.target_error}' if a.target_error is not None else ''}; "
-             f"frames {', '.join(f'{m} {k} {r}' for m, k, r in frames)}. Meshes and seeds never "
+             f"frames {', '.join(f'{m} {k} {r} {n} spp {c}' for m, k, r, n, c in frames)}. "
+             "Meshes and seeds never "
              "used to tune the method. Each cell's truth is the full fast run of the frame. "
              "'no int.': runs whose estimate carried no interval (the data could not bound it); "
              "coverage is over the others. 'zero': zero-width intervals on an inexact figure. "
              "x: the full run's host.run_time_s over the sampled run's median; x+p adds the host "
              "time of building the frame's profile (and functional L2 count), once per frame.",
              "",
-             "| mesh | kind | res | design | rate | cycles mean abs err | p95 | coverage (Wilson) "
-             "| zero | no int. | DRAM mean abs err | p95 | DRAM cov | x | x+p |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| mesh | kind | res | spp | chip | full s | design | rate | cycles mean abs err "
+             "| p95 | coverage (Wilson) | zero | no int. | DRAM mean abs err | p95 | DRAM cov "
+             "| x | x+p |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     lines += [format_row(r) for r in rows]
+    lines += targets(rows)
     return "\n".join(lines) + "\n"
+
+
+def targets(rows):
+    """The rows pooled per design and rate, against the targets sampled runs are held to: mean
+    |error| <= 1% and 95th percentile <= 3% (cycles, DRAM bytes), coverage >= 93% in every frame
+    (Wilson lower bound >= 90%), no zero-width interval on an inexact figure, x >= 5 on frames
+    whose full run takes 10 s or more, never below 1 / 1.1 on the others."""
+    out = ["", "## Against the targets, per design and rate (all frames pooled)", "",
+           "| design | rate | cycles mean / p95 | DRAM mean / p95 | worst frame's coverage "
+           "(Wilson low) | zero | x+p on frames of 10 s or more (min) | x+p on the others (min) |",
+           "|---|---|---|---|---|---|---|---|"]
+    for key in sorted({(r["design"], r["period"]) for r in rows}):
+        rs = [r for r in rows if (r["design"], r["period"]) == key]
+        cells = []
+        for name in ("cycles", "dram"):
+            errs = sorted(e for r in rs for e in r[name]["errs"])
+            if not errs:
+                cells.append("n/a")
+                continue
+            p95 = errs[min(len(errs) - 1, int(math.ceil(0.95 * len(errs))) - 1)]
+            cells.append(f"{statistics.mean(errs):.2f}% / {p95:.2f}%")
+        worst = min(rs, key=lambda r: r["cycles"]["wilson"][0])
+        c = worst["cycles"]
+        cov = f"{100 * c['covered'] / max(1, c['n'] - c['unbounded']):.0f}% " \
+              f"({100 * c['wilson'][0]:.0f}%)"
+        zero = sum(r["cycles"]["zero"] + r["dram"]["zero"] for r in rs)
+        heavy = [r["x_with_profile"] for r in rs if r["full_host_s"] >= 10]
+        cheap = [r["x_with_profile"] for r in rs if r["full_host_s"] < 10]
+        xs = [f"{statistics.median(v):.2f} ({min(v):.2f})" if v else "none" for v in (heavy, cheap)]
+        out.append(f"| {key[0]} | 1/{key[1]} | {cells[0]} | {cells[1]} | {cov} | {zero} | "
+                   f"{xs[0]} | {xs[1]} |")
+    return out
 
 
 if __name__ == "__main__":
