@@ -49,8 +49,8 @@ seeds drawn from it too. --eval-frames (default random:8,heavy:4) names them: ch
 8 spp, a diffuse path on 64 x 32 cores, full runs of 10 s or more here, where sampling matters).
 The skip design `work` at --periods (its first), --runs per frame (400 for a coverage claim
 without its Wilson interval), or --target-errors (its first) to size each run with a pilot; the
-x+p column counts the profile built cold. Writes bench/results/sampled_evaluation.md (or
---name):
+x+p column counts the profile built cold; runs are timed one at a time. Writes
+bench/results/sampled_evaluation.md (or --name):
 
     scripts/bench_sampled.py --evaluate [--seed S] [--runs 20] [--target-errors 2]
 """
@@ -222,8 +222,10 @@ def svg_plot(cells, path):
 def evaluate(args):
     """The evaluation set through eval_sampled.py (its own seed, meshes and report)."""
     import eval_sampled  # noqa: E402 (beside this script)
+    # One run at a time: the full run is timed alone, and a sampled run timed beside another
+    # (each traces on a helper thread) took up to twice as long on 2 cores.
     argv = ["--rtsim", args.rtsim, "--frames", args.eval_frames, "--designs", "work",
-            "--periods", args.periods.split(",")[0], "--runs", str(args.runs), "-j", str(args.j),
+            "--periods", args.periods.split(",")[0], "--runs", str(args.runs), "-j", "1",
             "--out", args.out, "--name", args.name or "sampled_evaluation"]
     if args.seed is not None:
         argv += ["--seed", str(args.seed)]

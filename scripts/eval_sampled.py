@@ -21,6 +21,10 @@ clock), so that no figure it prints was tuned on. For each frame it runs the ful
         [--designs stratified,work] [--frames fandisk_large:diffuse:1024x768,...] [-j 2]
         [--spp N] [--set KEY=VALUE ...] [--target-error P] [--out bench/results]
 
+-j runs that many sampled runs at a time: the x columns are then measured under that load
+against a full run timed alone (on 2 cores, -j 2 made heavy frames' sampled runs up to twice as
+slow); time with -j 1.
+
 --set gives every run (full and sampled) a config field, for example a large chip:
 --set core.count=64 --set core.ray_slots=32. --target-error P sizes each sampled run with a pilot
 (the periods are then the pilots' own); its host time counts the pilot.
