@@ -315,36 +315,84 @@ constexpr double kFullRunShare = 0.5;
 // residual degrees of freedom for its spread on the regression's auxiliaries.
 constexpr uint64_t kPilotUnits = 40;
 
+// A skip-design plan first runs a quick pilot of about this many units; where its spread already
+// asks for this many times the share that sends a frame in full, the frame runs in full without
+// the pilot of kPilotUnits. With 10 units on up to six auxiliaries the spread is known to within
+// a factor of about 2.8 in the units it asks for (95%, chi-square on 4 degrees of freedom), and a
+// frame sent in full is exact, so the margin only costs frames that sampling would have won by
+// little. Where the quick pilot gives no interval or a smaller need, the pilot of kPilotUnits
+// runs as before (and the quick one's host time is counted with it). Heavy frames on 64 x 32
+// cores asked for +-2% had run in full after a pilot of 20-23% of their rays in detail:
+// 1.27-1.57x the full run's time (docs/benchmarks.md).
+constexpr uint64_t kQuickPilotUnits = 10;
+constexpr double kQuickFullMargin = 8;
+
+// The units a plan may draw from (the work design's are those with work, its period counts
+// them), and the ones a +-target% interval on the pilot's worst figure needs before any floor.
+struct PilotNeed {
+    double worst_pct, units_measured, drawable, needed;
+};
+PilotNeed pilot_need(const json& sm, double target_pct) {
+    PilotNeed p;
+    p.worst_pct = half_width_pct_of(sm["total_cycles"]);
+    if (sm["counters"].contains("dram.bytes"))
+        p.worst_pct = std::max(p.worst_pct, half_width_pct_of(sm["counters"]["dram.bytes"]));
+    p.units_measured = sm["units_measured"].get<double>();
+    p.drawable = sm.contains("drawn_population")
+                     ? sm["drawn_population"].get<double>() + sm.value("certainty_units", 0.0)
+                     : sm["units"].get<double>();
+    // The finite-population correction makes the pilot's n look better than it is near N; n
+    // (h / P)^2 with h measured at n is then an overestimate, which only errs towards detail.
+    // A quarter more: the pilot's spread is itself an estimate (n = 49 sized for 10% met 11.3%
+    // without it, on the built-in cornell box at 512x512).
+    const double ratio = p.worst_pct / target_pct;
+    p.needed = std::ceil(1.25 * p.units_measured * ratio * ratio);
+    return p;
+}
+
 json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
+    double quick_host_s = 0;
+    // Not for a paired run, whose regression on its reference narrows the spread and whose
+    // pilots each sample the reference too (a child run and a matched table per pilot).
+    if (sp.skip && opt.reference_dir.empty()) {
+        const json quick =
+            run_child(opt, {"--pilot-units", std::to_string(kQuickPilotUnits)}, "--target-error");
+        quick_host_s = quick["host"]["run_time_s"].get<double>();
+        const json& qm = quick["sampling"];
+        if (qm.contains("total_cycles")) {
+            const PilotNeed q = pilot_need(qm, opt.target_error_pct);
+            if (std::isfinite(q.worst_pct) &&
+                q.needed >= kQuickFullMargin * kFullRunShare * q.drawable)
+                return {{"target_error_pct", opt.target_error_pct},
+                        {"pilot_period_units", qm["period_units"]},
+                        {"pilot_units_measured", q.units_measured},
+                        {"pilot_half_width_pct", q.worst_pct},
+                        {"units_needed", q.needed},
+                        {"pilot_host_s", quick_host_s},
+                        {"in_full", true},
+                        {"note", fmt::format("a quick pilot of {:.0f} units (+-{:.1f}%) needed "
+                                             "about {:.0f} of {:.0f} units: sampling cannot beat "
+                                             "the full run, so the frame ran in full, exact",
+                                             q.units_measured, q.worst_pct, q.needed, q.drawable)}};
+        }
+    }
     const json pilot =
         run_child(opt, {"--pilot-units", std::to_string(kPilotUnits)}, "--target-error");
+    const double pilot_host_s = pilot["host"]["run_time_s"].get<double>() + quick_host_s;
     const json& sm = pilot["sampling"];
     if (!sm.contains("total_cycles")) {
         // Too short a frame to sample at this period: run it in full.
         return {{"pilot_period_units", sm.value("period_units", 0)},
                 {"in_full", true},
                 {"note", "the pilot measured fewer than 2 units: the frame ran in full, exact"},
-                {"pilot_host_s", pilot["host"]["run_time_s"]}};
+                {"pilot_host_s", pilot_host_s}};
     }
-    double worst = half_width_pct_of(sm["total_cycles"]);
-    if (sm["counters"].contains("dram.bytes"))
-        worst = std::max(worst, half_width_pct_of(sm["counters"]["dram.bytes"]));
-    const double n_pilot = sm["units_measured"].get<double>();
-    const double units = sm["units"].get<double>();
-    const double ratio = worst / opt.target_error_pct;
-    // The finite-population correction makes the pilot's n look better than it is near N; n
-    // (h / P)^2 with h measured at n is then an overestimate, which only errs towards detail.
-    // A quarter more: the pilot's spread is itself an estimate (n = 49 sized for 10% met 11.3%
-    // without it, on the built-in cornell box at 512x512).
+    const PilotNeed need = pilot_need(sm, opt.target_error_pct);
+    const double worst = need.worst_pct, n_pilot = need.units_measured, drawable = need.drawable;
     // At least 30 units: with fewer, the regression on four auxiliaries has too few degrees of
     // freedom for its spread to be known (8 units, sized for 15% from a pilot's 6.2% at 36 units
     // of a 192x192 bunny frame, gave 36.8%).
-    // The units a plan draws from: the work design's are those with work, its period counts them.
-    const double drawable = sm.contains("drawn_population") ? sm["drawn_population"].get<double>() +
-                                                                  sm.value("certainty_units", 0.0)
-                                                            : units;
-    const double needed =
-        std::min(drawable, std::max(kMinTargetUnits, std::ceil(1.25 * n_pilot * ratio * ratio)));
+    const double needed = std::min(drawable, std::max(kMinTargetUnits, need.needed));
     sp.period_units = std::max<uint64_t>(1, uint64_t(drawable / std::max(2.0, needed)));
     // The share of the frame's rays the plan would run in detail, scaled from the pilot's: the
     // work design's draws lean to heavy units, so half its units can be two thirds of the rays
@@ -357,7 +405,7 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
                  {"pilot_units_measured", n_pilot},
                  {"pilot_half_width_pct", worst},
                  {"units_needed", needed},
-                 {"pilot_host_s", pilot["host"]["run_time_s"]}};
+                 {"pilot_host_s", pilot_host_s}};
     if (needed >= kFullRunShare * drawable || detailed >= kFullRunShare) {
         plan.update({{"in_full", true},
                      {"detailed_share_planned", detailed},

@@ -987,6 +987,28 @@ TEST(Sampled, APilotMeasuresAboutFortyUnits) {
     EXPECT_EQ(stats_of(coarse)["sampling"]["target"]["pilot_period_units"], 8);
 }
 
+// A target far beyond what a sample of the frame could reach is seen by a quick pilot of about 10
+// units, and the frame runs in full without the pilot of about 40 (whose rays in detail, with
+// their warm-ups, had cost heavy frames 27-57% of the full run before it ran in full).
+TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
+    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 192x192 ";
+    const fs::path full = work_dir() / "quick_full", asked = work_dir() / "quick_asked";
+    ASSERT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
+    const Result r = run_rtsim(frame +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --target-error 0.05 -o '" +
+                               asked.string() + "'");
+    ASSERT_EQ(r.status, 0) << r.err;
+    json a = stats_of(asked), f = stats_of(full);
+    const json& plan = a["sampling"]["target"];
+    ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
+    EXPECT_NE(plan["note"].get<std::string>().find("quick pilot"), std::string::npos) << plan;
+    EXPECT_LE(plan["pilot_units_measured"].get<double>(), 15.0) << plan;
+    a["counters"].erase("l2.first_fills");  // a counter sampled configs register
+    for (const char* k : {"total_cycles", "counters", "caches", "bandwidth"})
+        EXPECT_EQ(a[k], f[k]) << k;
+}
+
 // A target no sample can reach cheaper than the whole frame: the run says so and runs the frame
 // in full, its statistics the full fast run's, field for field (a skip run measuring half the
 // units or more costs more than the full run: each unit's warm-up and cache replay besides).
