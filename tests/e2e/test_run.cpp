@@ -987,24 +987,39 @@ TEST(Sampled, APilotMeasuresAboutFortyUnits) {
     EXPECT_EQ(stats_of(coarse)["sampling"]["target"]["pilot_period_units"], 8);
 }
 
+namespace {
+
+// A bunny primary + AO frame at `res`, asked for +-`target_pct`% with the work design and run in
+// full: the asked run's stats.json (without l2.first_fills, a counter only sampled configs
+// register) and the full run's; `out`: what the asked run printed.
+std::pair<json, json> asked_and_full(const std::string& res, const std::string& target_pct,
+                                     const std::string& name, std::string* out) {
+    const std::string frame =
+        "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res " + res + " ";
+    const fs::path full = work_dir() / (name + "_full"), asked = work_dir() / (name + "_asked");
+    EXPECT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
+    const Result r = run_rtsim(frame +
+                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                               "--set sim.sample_design=work --target-error " +
+                               target_pct + " -o '" + asked.string() + "'");
+    EXPECT_EQ(r.status, 0) << r.err;
+    if (out) *out = r.out;
+    json a = stats_of(asked);
+    a["counters"].erase("l2.first_fills");
+    return {a, stats_of(full)};
+}
+
+}  // namespace
+
 // A target far beyond what a sample of the frame could reach is seen by a quick pilot of about 10
 // units, and the frame runs in full without the pilot of about 40 (whose rays in detail, with
 // their warm-ups, had cost heavy frames 27-57% of the full run before it ran in full).
 TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
-    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 192x192 ";
-    const fs::path full = work_dir() / "quick_full", asked = work_dir() / "quick_asked";
-    ASSERT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
-    const Result r = run_rtsim(frame +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_design=work --target-error 0.05 -o '" +
-                               asked.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    json a = stats_of(asked), f = stats_of(full);
+    const auto [a, f] = asked_and_full("192x192", "0.05", "quick", nullptr);
     const json& plan = a["sampling"]["target"];
     ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
     EXPECT_NE(plan["note"].get<std::string>().find("quick pilot"), std::string::npos) << plan;
     EXPECT_LE(plan["pilot_units_measured"].get<double>(), 15.0) << plan;
-    a["counters"].erase("l2.first_fills");  // a counter sampled configs register
     for (const char* k : {"total_cycles", "counters", "caches", "bandwidth"})
         EXPECT_EQ(a[k], f[k]) << k;
 }
@@ -1013,18 +1028,10 @@ TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
 // in full, its statistics the full fast run's, field for field (a skip run measuring half the
 // units or more costs more than the full run: each unit's warm-up and cache replay besides).
 TEST(Sampled, ATargetThatNeedsMostUnitsRunsTheFrameInFull) {
-    const std::string frame = "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 64x64 ";
-    const fs::path full = work_dir() / "infull_full", asked = work_dir() / "infull_asked";
-    ASSERT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
-    const Result r = run_rtsim(frame +
-                               "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                               "--set sim.sample_design=work --target-error 0.1 -o '" +
-                               asked.string() + "'");
-    ASSERT_EQ(r.status, 0) << r.err;
-    EXPECT_NE(r.out.find("sampling cannot beat the full run"), std::string::npos) << r.out;
-    json a = stats_of(asked), f = stats_of(full);
+    std::string out;
+    const auto [a, f] = asked_and_full("64x64", "0.1", "infull", &out);
+    EXPECT_NE(out.find("sampling cannot beat the full run"), std::string::npos) << out;
     ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
-    a["counters"].erase("l2.first_fills");  // a counter sampled configs register
     EXPECT_GE(a["sampling"]["target"]["units_needed"].get<double>(),
               0.5 * a["sampling"]["target"]["pilot_units_measured"].get<double>());
     EXPECT_FALSE(a["sampling"].contains("total_cycles"));  // nothing estimated
