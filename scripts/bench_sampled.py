@@ -66,6 +66,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from rtsim_run import ROOT, SCENES, run_stats, write_results  # noqa: E402
+import eval_sampled  # noqa: E402  (the evaluation set: --evaluate)
 
 WORKLOADS = {"primary": ["--rays", "primary"],
              "ao": ["--rays", "ao"],
@@ -221,7 +222,6 @@ def svg_plot(cells, path):
 
 def evaluate(args):
     """The evaluation set through eval_sampled.py (its own seed, meshes and report)."""
-    import eval_sampled  # noqa: E402 (beside this script)
     # One run at a time: the full run is timed alone, and a sampled run timed beside another
     # (each traces on a helper thread) took up to twice as long on 2 cores.
     argv = ["--rtsim", args.rtsim, "--frames", args.eval_frames, "--designs", "work",

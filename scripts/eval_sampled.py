@@ -215,6 +215,16 @@ def main(argv=None):
     print(text)
 
 
+def p95(errs):
+    """The 95th percentile of sorted errors (the nearest rank)."""
+    return errs[min(len(errs) - 1, int(math.ceil(0.95 * len(errs))) - 1)]
+
+
+def coverage_pct(c):
+    """A figure's coverage over the runs that gave an interval, in percent."""
+    return 100 * c["covered"] / max(1, c["n"] - c["unbounded"])
+
+
 def profile_build_seconds(stats, frame):
     """The host seconds a sampled run spent building its frame's profile and functional L2
     count (not reading them from the cache)."""
@@ -249,8 +259,7 @@ def summarise(cell):
         errs.sort()
         out[name] = {"n": n, "errs": errs,
                      "mean": statistics.mean(errs) if errs else float("nan"),
-                     "p95": errs[min(len(errs) - 1, int(math.ceil(0.95 * len(errs))) - 1)]
-                     if errs else float("nan"),
+                     "p95": p95(errs) if errs else float("nan"),
                      "covered": covered, "zero": zero, "unbounded": unbounded,
                      "wilson": wilson(covered, n - unbounded)}
     hs = [r["host_s"] for r in cell["runs"]]
@@ -264,10 +273,10 @@ def format_row(r):
     return (f"| {r['mesh']} | {r['kind']} | {r['res']} | {r['spp']} | {r['chip']} | "
             f"{r['full_host_s']:.2f} | {r['design']} | 1/{r['period']} | "
             f"{c['mean']:.2f}% | {c['p95']:.2f}% | "
-            f"{100 * c['covered'] / max(1, c['n'] - c['unbounded']):.0f}% "
+            f"{coverage_pct(c):.0f}% "
             f"({100 * c['wilson'][0]:.0f}-{100 * c['wilson'][1]:.0f}) | {c['zero']} | "
             f"{c['unbounded']} | {d['mean']:.2f}% | {d['p95']:.2f}% | "
-            f"{100 * d['covered'] / max(1, d['n'] - d['unbounded']):.0f}% | {r['x']:.1f} | "
+            f"{coverage_pct(d):.0f}% | {r['x']:.1f} | "
             f"{r['x_with_profile']:.2f} |")
 
 
@@ -310,12 +319,10 @@ def targets(rows):
             if not errs:
                 cells.append("n/a")
                 continue
-            p95 = errs[min(len(errs) - 1, int(math.ceil(0.95 * len(errs))) - 1)]
-            cells.append(f"{statistics.mean(errs):.2f}% / {p95:.2f}%")
+            cells.append(f"{statistics.mean(errs):.2f}% / {p95(errs):.2f}%")
         worst = min(rs, key=lambda r: r["cycles"]["wilson"][0])
         c = worst["cycles"]
-        cov = f"{100 * c['covered'] / max(1, c['n'] - c['unbounded']):.0f}% " \
-              f"({100 * c['wilson'][0]:.0f}%)"
+        cov = f"{coverage_pct(c):.0f}% ({100 * c['wilson'][0]:.0f}%)"
         zero = sum(r["cycles"]["zero"] + r["dram"]["zero"] for r in rs)
         heavy = [r["x_with_profile"] for r in rs if r["full_host_s"] >= 10]
         cheap = [r["x_with_profile"] for r in rs if r["full_host_s"] < 10]

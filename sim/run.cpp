@@ -350,6 +350,17 @@ PilotNeed pilot_need(const json& sm, double target_pct) {
     return p;
 }
 
+// A plan's record of the pilot it came from: what the pilot measured, and the units it needs.
+json pilot_record(double target_pct, const json& sm, const PilotNeed& need, double units_needed,
+                  double host_s) {
+    return {{"target_error_pct", target_pct},
+            {"pilot_period_units", sm["period_units"]},
+            {"pilot_units_measured", need.units_measured},
+            {"pilot_half_width_pct", need.worst_pct},
+            {"units_needed", units_needed},
+            {"pilot_host_s", host_s}};
+}
+
 json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     double quick_host_s = 0;
     // Not for a paired run, whose regression on its reference narrows the spread and whose
@@ -362,18 +373,16 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
         if (qm.contains("total_cycles")) {
             const PilotNeed q = pilot_need(qm, opt.target_error_pct);
             if (std::isfinite(q.worst_pct) &&
-                q.needed >= kQuickFullMargin * kFullRunShare * q.drawable)
-                return {{"target_error_pct", opt.target_error_pct},
-                        {"pilot_period_units", qm["period_units"]},
-                        {"pilot_units_measured", q.units_measured},
-                        {"pilot_half_width_pct", q.worst_pct},
-                        {"units_needed", q.needed},
-                        {"pilot_host_s", quick_host_s},
-                        {"in_full", true},
-                        {"note", fmt::format("a quick pilot of {:.0f} units (+-{:.1f}%) needed "
-                                             "about {:.0f} of {:.0f} units: sampling cannot beat "
-                                             "the full run, so the frame ran in full, exact",
-                                             q.units_measured, q.worst_pct, q.needed, q.drawable)}};
+                q.needed >= kQuickFullMargin * kFullRunShare * q.drawable) {
+                json plan = pilot_record(opt.target_error_pct, qm, q, q.needed, quick_host_s);
+                plan.update(
+                    {{"in_full", true},
+                     {"note", fmt::format("a quick pilot of {:.0f} units (+-{:.1f}%) needed about "
+                                          "{:.0f} of {:.0f} units: sampling cannot beat the full "
+                                          "run, so the frame ran in full, exact",
+                                          q.units_measured, q.worst_pct, q.needed, q.drawable)}});
+                return plan;
+            }
         }
     }
     const json pilot =
@@ -388,7 +397,7 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
                 {"pilot_host_s", pilot_host_s}};
     }
     const PilotNeed need = pilot_need(sm, opt.target_error_pct);
-    const double worst = need.worst_pct, n_pilot = need.units_measured, drawable = need.drawable;
+    const double drawable = need.drawable;
     // At least 30 units: with fewer, the regression on four auxiliaries has too few degrees of
     // freedom for its spread to be known (8 units, sized for 15% from a pilot's 6.2% at 36 units
     // of a 192x192 bunny frame, gave 36.8%).
@@ -400,12 +409,7 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
     const double pilot_period = sm["period_units"].get<double>();
     const double detailed =
         std::min(1.0, sm.value("detailed_share", 0.0) * pilot_period / double(sp.period_units));
-    json plan = {{"target_error_pct", opt.target_error_pct},
-                 {"pilot_period_units", sm["period_units"]},
-                 {"pilot_units_measured", n_pilot},
-                 {"pilot_half_width_pct", worst},
-                 {"units_needed", needed},
-                 {"pilot_host_s", pilot_host_s}};
+    json plan = pilot_record(opt.target_error_pct, sm, need, needed, pilot_host_s);
     if (needed >= kFullRunShare * drawable || detailed >= kFullRunShare) {
         plan.update({{"in_full", true},
                      {"detailed_share_planned", detailed},
