@@ -205,6 +205,7 @@ std::vector<FieldBinding> make_bindings() {
         field("sim.sample_paired_warmup_tile_rays", M(sim.sample_paired_warmup_tile_rays)),
         field("sim.sample_warmup_slot_fills", M(sim.sample_warmup_slot_fills)),
         field("sim.sample_unit_slot_fills", M(sim.sample_unit_slot_fills)),
+        field("sim.sample_startup_slot_fills", M(sim.sample_startup_slot_fills)),
         field("sim.sample_paired_warmup_slot_fills", M(sim.sample_paired_warmup_slot_fills)),
         field("sim.sample_window_drain", M(sim.sample_window_drain)),
         field("sim.sample_warmup_work", M(sim.sample_warmup_work)),

@@ -50,6 +50,7 @@ struct SimParams {
     uint64_t sample_warmup_slot_fills = 4, sample_paired_warmup_slot_fills = 0;
     // An unpaired skip unit holds at least this many times the chip's ray slots in rays (0: off).
     uint64_t sample_unit_slot_fills = 0;
+    uint64_t sample_startup_slot_fills = 8;
     // A detailed window after fast-forwarded rays starts once the rays before it have finished;
     // a skip warm-up also holds its rays' share of the frame's work.
     bool sample_window_drain = false, sample_warmup_work = true;

@@ -179,8 +179,13 @@ std::function<bool(int)> prepare_skip_design(const RunOptions& opt, const Config
     sp.tile_rays.assign(w.profile->tile_rays.begin(), w.profile->tile_rays.end());
     if (sp.by_work) {
         sp.unit_work.resize(w.profile->units.size());
-        for (size_t u = 0; u < w.profile->units.size(); ++u)
+        sp.unit_ray_counts.resize(w.profile->units.size());
+        for (size_t u = 0; u < w.profile->units.size(); ++u) {
             sp.unit_work[u] = w.profile->units[u][kAuxWork];
+            sp.unit_ray_counts[u] = w.profile->units[u][kAuxRays];
+        }
+        sp.startup_rays = cfg.typed.sim.sample_startup_slot_fills * uint64_t(cfg.typed.core_count) *
+                          uint64_t(cfg.typed.core.ray_slots);
     }
     // The order strata are cut from, before the design is made: another run's units by their
     // cycles, or (a paired run) the reference's, once it is known to be this frame's.

@@ -96,6 +96,10 @@ struct SamplingParams {
     // profile. The sample is then drawn where the work is (SampleDesign says how).
     bool by_work = false;
     std::vector<uint64_t> unit_work;
+    // Design `work`: per unit, its rays (from the profile), and the rays of the frame's first
+    // units with work that are measured outright as its start-up (0: none).
+    std::vector<uint64_t> unit_ray_counts;
+    uint64_t startup_rays = 0;
 };
 
 // An estimate as stats.json holds it ({value, lo, hi, half_width_pct}), scaled by `scale` and

@@ -959,6 +959,74 @@ TEST(Sampled, SkipDesignHonoursTargetError) {
     EXPECT_EQ(s["profile"]["cache"], "hit");
 }
 
+// Design `work` measures a frame's start-up outright: its first units with work, until their
+// rays fill the chip's slots sim.sample_startup_slot_fills times (counted here from an every-unit
+// run's table), are certainty units that stand for themselves, and the regression runs over the
+// other units with work. The counters the profile knows exactly (box and triangle operations, L1
+// accesses) stay the full run's with certainty units in the sample: calibrated to the frame's
+// totals, not to those of the units left to draw.
+TEST(Sampled, WorkDesignMeasuresTheStartUpOutright) {
+    // AO rays in a closed room: the first units with work have node steps (a primary frame's
+    // first rows see background, whose rays take none).
+    const std::string frame =
+        "run -q --scene builtin:cornell --rays ao --res 96x96 --set core.count=4 "
+        "--set core.ray_slots=8 --bvh-cache '" +
+        (work_dir() / "startup_cache").string() + "' ";
+    const std::string sampled =
+        "--set sim.sampled=true --set sim.sample_fast_forward=skip --set sim.sample_design=work "
+        "--set sim.sample_unit_tiles=1 --set sim.sample_startup_slot_fills=3 ";
+    const fs::path full = work_dir() / "startup_full", all = work_dir() / "startup_all",
+                   sample = work_dir() / "startup_sample";
+    ASSERT_EQ(run_rtsim(frame + "-o '" + full.string() + "'").status, 0);
+    ASSERT_EQ(
+        run_rtsim(frame + sampled + "--set sim.sample_period_units=1 -o '" + all.string() + "'")
+            .status,
+        0);
+    ASSERT_EQ(
+        run_rtsim(frame + sampled + "--set sim.sample_period_units=8 -o '" + sample.string() + "'")
+            .status,
+        0);
+    // The start-up by hand: units with work in frame order until 3 x 4 x 8 = 96 rays.
+    const UnitsCsv every = read_units_csv(all / "sampled_units.csv");
+    const std::vector<double>&units = every.cols.at("unit"), &rays = every.cols.at("rays"),
+          &work = every.cols.at("work");
+    std::vector<double> startup;
+    double startup_rays = 0;
+    size_t with_work = 0;
+    for (size_t i = 0; i < units.size(); ++i) {
+        if (work[i] <= 0) continue;
+        ++with_work;
+        if (startup_rays < 96) {
+            startup.push_back(units[i]);
+            startup_rays += rays[i];
+        }
+    }
+    ASSERT_GE(startup.size(), 2u) << "the frame's first units should each hold under 96 rays";
+    const UnitsCsv s = read_units_csv(sample / "sampled_units.csv");
+    std::map<double, std::pair<double, double>> certainty;  // unit: (certainty, design weight)
+    for (size_t i = 0; i < s.cols.at("unit").size(); ++i)
+        certainty[s.cols.at("unit")[i]] = {s.cols.at("certainty")[i],
+                                           s.cols.at("design_weight")[i]};
+    for (double u : startup) {
+        ASSERT_TRUE(certainty.count(u)) << "start-up unit " << u << " not measured";
+        EXPECT_EQ(certainty[u], std::make_pair(1.0, 1.0)) << "unit " << u;
+    }
+    const json f = stats_of(full), st = stats_of(sample);
+    const json& sm = st["sampling"];
+    ASSERT_GE(sm["certainty_units"].get<size_t>(), startup.size());
+    EXPECT_EQ(sm["drawn_population"].get<size_t>(),
+              with_work - sm["certainty_units"].get<size_t>());
+    EXPECT_EQ(sm["regression"]["totals"]["unit_with_work"].get<double>(),
+              sm["drawn_population"].get<double>());
+    for (const auto& [prefixes, suffix] :
+         std::vector<std::pair<std::vector<std::string>, std::string>>{
+             {{"box_unit["}, ".ops"}, {{"triangle_unit["}, ".ops"}, {{"l1["}, ".accesses"}}) {
+        const auto [full_count, estimated] = full_and_estimated(f, st, prefixes, suffix);
+        EXPECT_GT(full_count, 0) << suffix;
+        EXPECT_NEAR(estimated, full_count, 1e-9 * full_count) << prefixes[0] << suffix;
+    }
+}
+
 // A skip-design pilot measures about 40 units, not one in the configured period: 256 units of a
 // 128x128 frame (8x8-pixel tiles, one a unit) at a configured 1 in 2 make a pilot of 1 in 256 / 40
 // = 6 (the stratified design draws from every unit), and a run configured coarser than that keeps

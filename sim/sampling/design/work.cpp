@@ -16,7 +16,7 @@ RTSIM_REGISTER(SampleDesignEntry,
                {"work",
                 "where the work is: the heaviest units measured outright, the rest drawn in strata "
                 "of like work (needs sample_fast_forward = skip)",
-                {"sample_period_units", "sample_seed"},
+                {"sample_period_units", "sample_seed", "sample_startup_slot_fills"},
                 &configure_work,
                 true})
 
