@@ -50,7 +50,8 @@ seeds drawn from it too. --eval-frames (default random:8,heavy:4) names them: ch
 The skip design `work` at --periods (its first), --runs per frame (400 for a coverage claim
 without its Wilson interval), or --target-errors (its first) to size each run with a pilot; the
 x+p column counts the profile built cold; runs are timed one at a time. Writes
-bench/results/sampled_evaluation.md (or --name):
+bench/results/sampled_evaluation.md, with --target-errors P sampled_evaluation_targetP.md (or
+--name):
 
     scripts/bench_sampled.py --evaluate [--seed S] [--runs 20] [--target-errors 2]
 """
@@ -226,11 +227,15 @@ def evaluate(args):
     # (each traces on a helper thread) took up to twice as long on 2 cores.
     argv = ["--rtsim", args.rtsim, "--frames", args.eval_frames, "--designs", "work",
             "--periods", args.periods.split(",")[0], "--runs", str(args.runs), "-j", "1",
-            "--out", args.out, "--name", args.name or "sampled_evaluation"]
+            "--out", args.out]
+    # A run sized by a pilot reports beside the plain one, not over it.
+    target = args.target_errors.split(",")[0] if args.target_errors else None
+    default_name = "sampled_evaluation" + (f"_target{target.replace('.', '_')}" if target else "")
+    argv += ["--name", args.name or default_name]
     if args.seed is not None:
         argv += ["--seed", str(args.seed)]
-    if args.target_errors:  # given: each run sized by a pilot
-        argv += ["--target-error", args.target_errors.split(",")[0]]
+    if target:  # given: each run sized by a pilot
+        argv += ["--target-error", target]
     for kv in args.set:
         argv += ["--set", kv]
     eval_sampled.main(argv)
