@@ -156,6 +156,14 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     std::pair<uint64_t, uint64_t> line_range(uint64_t addr, uint32_t size_bytes) const {
         return {addr >> line_shift_, (addr + std::max<uint32_t>(size_bytes, 1) - 1) >> line_shift_};
     }
+    // A miss asks for one of a limited number of MSHRs at `t`: counted in mshr_out_of_order
+    // when an earlier request came at a later cycle. The fast model's misses ask here from
+    // fill(); the time-ordered reference, which keeps its own MSHR queue, asks as each miss
+    // reaches it, so both engines' counts come from the cache.
+    void request_mshr(Cycle t) {
+        mshr_out_of_order += t < latest_mshr_request_;
+        latest_mshr_request_ = std::max(latest_mshr_request_, t);
+    }
     // MSHRs free at `t`, for misses from then on (UINT32_MAX when they are unlimited).
     uint32_t free_mshrs_at(Cycle t) const;
     // A miss looked up from `now` on: the cycle it can first leave for the next level, when all

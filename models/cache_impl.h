@@ -119,8 +119,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     Cycle issue_at = lookup_done;
     const bool limited = few_mshrs_ || !mshr_free_.empty();
     if (limited) {
-        mshr_out_of_order += lookup_done < latest_mshr_request_;
-        latest_mshr_request_ = std::max(latest_mshr_request_, lookup_done);
+        request_mshr(lookup_done);
         issue_at = std::max(lookup_done, earliest_mshr());
         mshr_wait_cycles += issue_at - lookup_done;
     }

@@ -36,7 +36,12 @@ MUTANTS = [
     ("merge_without_wait", "merge", "accurate", "models/fidelity/accurate.cpp",
      "if (it != caches_[cs].in_flight.end()) {  // still filling",
      "if (false && it != caches_[cs].in_flight.end()) {  // still filling"),
-    ("hit_on_fill_without_wait", "merge", "fast", "models/cache_impl.h",
+    ("hit_on_fill_without_wait", "merge", "fast", "models/cache.h",
+     "merged_misses += ready > lookup_done;  // no branch: which lines are still filling is "
+     "random\n        return ready;",
+     "merged_misses += ready > lookup_done;  // no branch: which lines are still filling is "
+     "random\n        return lookup_done + 0 * ready;"),
+    ("multi_line_hit_on_fill_without_wait", "merge", "fast", "models/cache_impl.h",
      "slowest.hit(lookup_done, ready, line_addr);\n        return std::max(lookup_done, ready);",
      "slowest.hit(lookup_done, lookup_done, line_addr);\n        return lookup_done + 0 * ready;"),
     ("no_bank_conflicts", "bank conflicts", "both", "models/cache.h",
@@ -97,6 +102,10 @@ def main(argv=None):
     else:
         run(["git", "checkout", "--detach", "-f", head], work)
     build = os.path.join(work, "build")
+    # The meshes scripts/setup.sh fetched (not in git): the tests read them from the tree.
+    cache = os.path.join(work, ".cache")
+    if not os.path.exists(cache) and os.path.isdir(os.path.join(ROOT, ".cache")):
+        os.symlink(os.path.join(ROOT, ".cache"), cache)
     try:
         for m in mutants:  # every mutant's text is there once before anything is built
             text = open(os.path.join(work, m[3])).read()

@@ -608,6 +608,7 @@ void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
     F.waiters.push_back({a, k, t});
     CacheState& st = caches_[cs];
     st.in_flight[line] = f;  // an older fill of the line (evicted while filling) ends unseen
+    if (st.mshrs) cache->request_mshr(t);
     if (st.mshrs == 0 || st.busy < st.mshrs) {
         if (st.mshrs) ++st.busy;
         issue_fill(f, t);

@@ -213,6 +213,12 @@ TEST(Cache, LatenciesAndMissMerging) {
     EXPECT_EQ(c.access(0x2030, 32, 1000), 1000u + 4 + 100);
     EXPECT_EQ(mem.addrs.size(), 3u);
     EXPECT_EQ(c.accesses, 5u);
+    // A request spanning two lines, one a plain hit and one still filling, waits for the fill:
+    // 0x3040 is there from 1604; 0x3000's fill, asked at 2000, returns at 2000 + 4 + 100.
+    EXPECT_EQ(c.access(0x3040, 64, 1500), 1500u + 4 + 100);
+    EXPECT_EQ(c.access(0x3000, 64, 2000), 2104u);
+    EXPECT_EQ(c.access(0x3020, 64, 2010), 2104u);
+    EXPECT_EQ(c.merged_misses, 2u);
 }
 
 TEST(Cache, BreakdownChargesEachLevelItsCycles) {
