@@ -331,6 +331,13 @@ constexpr uint64_t kPilotUnits = 40;
 // 1.27-1.57x the full run's time (docs/benchmarks.md).
 constexpr uint64_t kQuickPilotUnits = 10;
 constexpr double kQuickFullMargin = 8;
+// The quick pilot also sends a frame in full when the rays its need would put in detail (each
+// measured unit brings its warm-up) are half the frame's even at the low end of that range: a
+// need 2.8 times smaller. A 1024x768 bull frame of primary rays asked for +-2% had a quick pilot
+// that needed about 2,000 of its 3,070 units (over 100% of the rays in detail at its units' cost)
+// and then ran the pilot of 40 as well, whose plan (848 units, 85% of the rays) ran in full: two
+// pilots' process starts and units before a 0.4 s full run.
+constexpr double kQuickShareMargin = 2.8;
 
 // The units a plan may draw from (the work design's are those with work, its period counts
 // them), and the ones a +-target% interval on the pilot's worst figure needs before any floor.
@@ -377,15 +384,24 @@ json plan_for_target(const RunOptions& opt, SamplingParams& sp) {
         const json& qm = quick["sampling"];
         if (qm.contains("total_cycles")) {
             const PilotNeed q = pilot_need(qm, opt.target_error_pct);
+            // The share of the rays in detail at that need, from the quick pilot's share per
+            // unit measured (not clipped at 1: how far beyond the frame the need reaches).
+            const double detailed_per_unit =
+                qm.value("detailed_share", 0.0) / std::max(1.0, q.units_measured);
+            const double detailed = detailed_per_unit * std::max(kMinTargetUnits, q.needed);
             if (std::isfinite(q.worst_pct) &&
-                q.needed >= kQuickFullMargin * kFullRunShare * q.drawable) {
+                (q.needed >= kQuickFullMargin * kFullRunShare * q.drawable ||
+                 detailed >= kQuickShareMargin * kFullRunShare)) {
                 json plan = pilot_record(opt.target_error_pct, qm, q, q.needed, quick_host_s);
                 plan.update(
                     {{"in_full", true},
+                     {"detailed_share_planned", detailed},
                      {"note", fmt::format("a quick pilot of {:.0f} units (+-{:.1f}%) needed about "
-                                          "{:.0f} of {:.0f} units: sampling cannot beat the full "
-                                          "run, so the frame ran in full, exact",
-                                          q.units_measured, q.worst_pct, q.needed, q.drawable)}});
+                                          "{:.0f} of {:.0f} units ({:.0f}% of the rays in "
+                                          "detail): sampling cannot beat the full run, so the "
+                                          "frame ran in full, exact",
+                                          q.units_measured, q.worst_pct, q.needed, q.drawable,
+                                          100 * detailed)}});
                 return plan;
             }
         }

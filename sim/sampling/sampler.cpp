@@ -727,6 +727,11 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
     return counters;
 }
 
+// Informative units drawn (with work) from which the unit count is an auxiliary of the
+// regression: 20 residual degrees of freedom beyond up to 7 auxiliaries, where the jackknife
+// alone sets the interval (Sampler::report).
+constexpr size_t kUnitCountMinUnits = 27;
+
 json Sampler::report(Cycle end_cycle) {
     finish();
     wait_functional_l2();
@@ -873,24 +878,6 @@ json Sampler::report(Cycle end_cycle) {
     std::array<double, kAuxiliaries> frame{};
     for (size_t k = 0; k < kAuxiliaries; ++k)
         frame[k] = skip ? aux[k].total : double(total_aux_[k]);
-    // Skip design: a unit's cycles also hold a part that does not scale with its work: they run
-    // from the hand-out of its first ray to that of the next unit's, and a unit of a few cheap
-    // rays waits for as many slots to free from the heavier rays before it. A regression through
-    // the origin on work and the rays' misses reads such a unit's cycles as a high cost per work
-    // and carries it to every light unit: on a tuning frame (cow AO, 1024x768, 1 in 10) one
-    // drawn unit of 12 rays and 2,162 cycles standing for 57 units put an estimate 50% high.
-    // With the units themselves (1 per unit with work) as an auxiliary, fitted second, the
-    // error's standard deviation over 60 seeds of that frame fell from 6.6% to 2.1%; on 9 other
-    // tuning frames the mean |error| moved by at most 0.17 points.
-    if (skip) {
-        Auxiliary units_with_work;
-        units_with_work.x.resize(cycles_.size());
-        for (size_t i = 0; i < cycles_.size(); ++i)
-            units_with_work.x[i] = aux[kWork].x[i] > 0 ? 1.0 : 0.0;
-        for (const Aux& u : profile_->units) units_with_work.total += u[kWork] > 0 ? 1.0 : 0.0;
-        aux.insert(aux.begin() + 1, std::move(units_with_work));
-        aux_names.insert(aux_names.begin() + 1, "unit_with_work");
-    }
     // Design `work`: the certainty units are measured, their figures known; the regression
     // and its spread cover the units drawn, over the units that could be drawn (those with
     // work that are not certainty units; units without work hold none of anything).
@@ -915,6 +902,38 @@ json Sampler::report(Cycle end_cycle) {
         out["drawn_strata"] = design_->drawn_strata();
     } else {
         for (size_t i = 0; i < cycles_.size(); ++i) drawn_pos_.push_back(i);
+    }
+    // Skip design: a unit's cycles also hold a part that does not scale with its work: they run
+    // from the hand-out of its first ray to that of the next unit's, and a unit of a few cheap
+    // rays waits for as many slots to free from the heavier rays before it. A regression through
+    // the origin on work and the rays' misses reads such a unit's cycles as a high cost per work
+    // and carries it to every light unit: on a tuning frame (cow AO, 1024x768, 1 in 10) one
+    // drawn unit of 12 rays and 2,162 cycles standing for 57 units put an estimate 50% high.
+    // With the units themselves (1 per unit with work) as an auxiliary, fitted second, the
+    // error's standard deviation over 60 seeds of that frame fell from 6.6% to 2.1%; on 9 other
+    // tuning frames the mean |error| moved by at most 0.17 points. Only where the jackknife
+    // alone sets the interval (kUnitCountMinUnits informative units drawn): below that the
+    // fit's model's prediction variance floors it (sim/sampling/estimators.h), and the count's
+    // coefficient, carried to every unit not measured, read +-224% on a quick pilot of 11 drawn
+    // units of a 512x512 bunny frame where the fit without it read +-18% on the same estimate.
+    if (skip) {
+        Auxiliary units_with_work;
+        units_with_work.x.resize(aux[kWork].x.size());
+        size_t informative = 0;
+        for (size_t j = 0; j < aux[kWork].x.size(); ++j) {
+            units_with_work.x[j] = aux[kWork].x[j] > 0 ? 1.0 : 0.0;
+            informative += aux[kWork].x[j] > 0;
+        }
+        // Over the units the regression draws from: those with work, less the certainty units.
+        if (params_.by_work) {
+            units_with_work.total = double(population);
+        } else {
+            for (const Aux& u : profile_->units) units_with_work.total += u[kWork] > 0 ? 1.0 : 0.0;
+        }
+        if (informative >= kUnitCountMinUnits) {
+            aux.insert(aux.begin() + 1, std::move(units_with_work));
+            aux_names.insert(aux_names.begin() + 1, "unit_with_work");
+        }
     }
     // Totals by regression on the auxiliaries (sim/sampling/estimators.h says which it fits), the
     // reference design's figure in the same unit first where there is one.

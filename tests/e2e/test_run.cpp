@@ -983,7 +983,7 @@ TEST(Sampled, WorkDesignMeasuresTheStartUpOutright) {
             .status,
         0);
     ASSERT_EQ(
-        run_rtsim(frame + sampled + "--set sim.sample_period_units=8 -o '" + sample.string() + "'")
+        run_rtsim(frame + sampled + "--set sim.sample_period_units=2 -o '" + sample.string() + "'")
             .status,
         0);
     // The start-up by hand: units with work in frame order until 3 x 4 x 8 = 96 rays.
@@ -1016,8 +1016,16 @@ TEST(Sampled, WorkDesignMeasuresTheStartUpOutright) {
     ASSERT_GE(sm["certainty_units"].get<size_t>(), startup.size());
     EXPECT_EQ(sm["drawn_population"].get<size_t>(),
               with_work - sm["certainty_units"].get<size_t>());
+    // The unit count is an auxiliary over the units drawn from (here about 40 of them), and not
+    // for a sample too small for the jackknife alone to set its interval (1 in 8: about 10).
     EXPECT_EQ(sm["regression"]["totals"]["unit_with_work"].get<double>(),
               sm["drawn_population"].get<double>());
+    const fs::path few = work_dir() / "startup_few";
+    ASSERT_EQ(
+        run_rtsim(frame + sampled + "--set sim.sample_period_units=8 -o '" + few.string() + "'")
+            .status,
+        0);
+    EXPECT_FALSE(stats_of(few)["sampling"]["regression"]["totals"].contains("unit_with_work"));
     for (const auto& [prefixes, suffix] :
          std::vector<std::pair<std::vector<std::string>, std::string>>{
              {{"box_unit["}, ".ops"}, {{"triangle_unit["}, ".ops"}, {{"l1["}, ".accesses"}}) {
@@ -1090,6 +1098,32 @@ TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
     EXPECT_LE(plan["pilot_units_measured"].get<double>(), 15.0) << plan;
     for (const char* k : {"total_cycles", "counters", "caches", "bandwidth"})
         EXPECT_EQ(a[k], f[k]) << k;
+}
+
+// The quick pilot also sends a frame in full when the units its need asks for, each with its
+// warm-up, would put the frame's rays in detail 1.4 times over (half of them at a need 2.8 times
+// smaller), though they are fewer than 4 times the frame's units: a 1024x768 camel frame of
+// primary rays (3,072 units of 4 tiles, every one with rays) asked for +-2%.
+TEST(Sampled, AQuickPilotSendsAFrameInFullWhenItsNeedPutsTheRaysInDetail) {
+    const std::string frame = "run -q --scene " RTSIM_CGAL_MESH_DIR
+                              "/camel.off --rays primary --res 1024x768 --bvh-cache '" +
+                              (work_dir() / "quick_share_cache").string() + "' ";
+    const fs::path full = work_dir() / "quick_share_full", asked = work_dir() / "quick_share";
+    ASSERT_EQ(run_rtsim(frame + "-o '" + full.string() + "'").status, 0);
+    ASSERT_EQ(run_rtsim(frame +
+                        "--set sim.sampled=true --set sim.sample_fast_forward=skip "
+                        "--set sim.sample_design=work --target-error 2 -o '" +
+                        asked.string() + "'")
+                  .status,
+              0);
+    const json a = stats_of(asked), f = stats_of(full);
+    const json& plan = a["sampling"]["target"];
+    ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << plan;
+    EXPECT_NE(plan["note"].get<std::string>().find("quick pilot"), std::string::npos) << plan;
+    EXPECT_LE(plan["pilot_units_measured"].get<double>(), 15.0) << plan;
+    EXPECT_LT(plan["units_needed"].get<double>(), 4.0 * 3072) << plan;
+    EXPECT_GE(plan["detailed_share_planned"].get<double>(), 1.4) << plan;
+    EXPECT_EQ(a["total_cycles"], f["total_cycles"]);
 }
 
 // A target no sample can reach cheaper than the whole frame: the run says so and runs the frame
