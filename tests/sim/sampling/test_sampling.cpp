@@ -1242,6 +1242,79 @@ TEST(SampleDesignWork, LightUnitsFirstStillGiveTheFullSample) {
     }
 }
 
+namespace {
+
+// A recorded every-unit table spread over the frame's N units: each unit's cycles, and per name
+// its column (unit_with_work: 1 where the unit has work), 0 for units the table does not list.
+struct RecordedFrame {
+    std::vector<double> cycles;
+    std::vector<std::vector<double>> column;
+};
+RecordedFrame spread_units(const UnitTable& table, size_t N,
+                           const std::vector<std::string>& names) {
+    RecordedFrame f{std::vector<double>(N, 0.0),
+                    std::vector<std::vector<double>>(names.size(), std::vector<double>(N, 0.0))};
+    for (size_t row = 0; row < table.rows; ++row) {
+        const size_t unit = size_t(table.cols.at("unit")[row]);
+        EXPECT_LT(unit, N);
+        if (unit >= N) continue;
+        f.cycles[unit] = table.cols.at("cycles")[row];
+        for (size_t k = 0; k < names.size(); ++k)
+            f.column[k][unit] = names[k] == "unit_with_work"
+                                    ? double(table.cols.at("work")[row] > 0)
+                                    : table.cols.at(names[k])[row];
+    }
+    return f;
+}
+
+struct ReplayOutcome {
+    int runs = 0, covered = 0, unbounded = 0, zero_width = 0;
+    double abs_error = 0;
+};
+// `seeds` samples of the design `sp` describes (seeds first_seed + 1 on), each unit's recorded
+// cycles as its measurement, estimated as the sampler estimates: the certainty units' cycles
+// known, the rest regressed on the columns over the units that could be drawn (design `work`)
+// or every unit. The sample's own error and coverage, without the simulation's.
+ReplayOutcome replay_samples(SamplingParams sp, const RecordedFrame& f, uint64_t first_seed,
+                             uint64_t seeds) {
+    ReplayOutcome o;
+    const double truth = total(f.cycles);
+    const size_t N = f.cycles.size(), K = f.column.size();
+    for (uint64_t seed = 1; seed <= seeds; ++seed) {
+        sp.seed = first_seed + seed;
+        const SampleDesign d(sp);
+        double certain = 0;
+        std::vector<double> y, expansion;
+        std::vector<Auxiliary> aux(K);
+        for (size_t k = 0; k < K; ++k) aux[k].total = total(f.column[k]);
+        for (size_t u = 0; u < N; ++u) {
+            if (!d.measured_unit(u)) continue;
+            if (d.certainty_unit(u)) {
+                certain += f.cycles[u];
+                for (size_t k = 0; k < K; ++k) aux[k].total -= f.column[k][u];
+                continue;
+            }
+            y.push_back(f.cycles[u]);
+            expansion.push_back(d.design_weight(u));
+            for (size_t k = 0; k < K; ++k) aux[k].x.push_back(f.column[k][u]);
+        }
+        const uint64_t population = sp.by_work ? d.drawn_population() : N;
+        Estimate e = RegressionDesign(aux, population, sp.by_work ? &expansion : nullptr).total(y);
+        e.value += certain;
+        ++o.runs;
+        o.abs_error += std::fabs(e.value / truth - 1);
+        if (!std::isfinite(e.half_width)) {
+            ++o.unbounded;
+            continue;
+        }
+        o.zero_width += e.half_width == 0;
+        o.covered += e.lo() <= truth && truth <= e.hi();
+    }
+    return o;
+}
+
+}  // namespace
+
 // A recorded frame the method was not tuned on: every unit with rays of a 1024x768 fandisk
 // diffuse frame in 4-tile units (736 of 3,072 units; tests/data/sampling/, from a run that
 // measured every unit), whose cycles sit in few units (144 units hold 86%). Samples drawn by
@@ -1254,65 +1327,16 @@ TEST(SampleDesignWork, ASkewedRecordedFrameIsCoveredAtItsNominalRate) {
     const UnitTable table = recorded_units("fandisk_diffuse_1024x768_u4_units.csv");
     ASSERT_EQ(table.rows, 736u);
     const size_t N = 3072;
-    const std::vector<std::string> names = {"work", "new_line_rays", "node_steps", "rays"};
-    std::vector<double> cycles(N, 0.0);
-    std::vector<std::vector<double>> column(names.size(), std::vector<double>(N, 0.0));
-    for (size_t row = 0; row < table.rows; ++row) {
-        const size_t unit = size_t(table.cols.at("unit")[row]);
-        ASSERT_LT(unit, N);
-        cycles[unit] = table.cols.at("cycles")[row];
-        for (size_t k = 0; k < names.size(); ++k) column[k][unit] = table.cols.at(names[k])[row];
-    }
-    const double truth = total(cycles);
+    const RecordedFrame f = spread_units(table, N, {"work", "new_line_rays", "node_steps", "rays"});
     SamplingParams sp;
     sp.skip = true;
     sp.unit_tiles = 1;
     sp.tiles = N;
-    sp.by_work = true;
-    for (size_t u = 0; u < N; ++u) sp.unit_work.push_back(uint64_t(column[0][u]));
-    struct Outcome {
-        int runs = 0, covered = 0, unbounded = 0, zero_width = 0;
-        double abs_error = 0;
-    };
-    auto trial = [&](uint64_t period, bool by_work, uint64_t seeds) {
-        Outcome o;
-        sp.period_units = period;
-        sp.by_work = by_work;
-        for (uint64_t seed = 1; seed <= seeds; ++seed) {
-            sp.seed = 7000 + seed;
-            const SampleDesign d(sp);
-            double certain = 0;
-            std::vector<double> y, expansion;
-            std::vector<Auxiliary> aux(names.size());
-            for (size_t k = 0; k < names.size(); ++k) aux[k].total = total(column[k]);
-            uint64_t population = N;
-            for (size_t u = 0; u < N; ++u) {
-                if (!d.measured_unit(u)) continue;
-                if (d.certainty_unit(u)) {
-                    certain += cycles[u];
-                    for (size_t k = 0; k < names.size(); ++k) aux[k].total -= column[k][u];
-                    continue;
-                }
-                y.push_back(cycles[u]);
-                expansion.push_back(d.design_weight(u));
-                for (size_t k = 0; k < names.size(); ++k) aux[k].x.push_back(column[k][u]);
-            }
-            if (by_work) population = d.drawn_population();
-            Estimate e = RegressionDesign(aux, population, by_work ? &expansion : nullptr).total(y);
-            e.value += certain;
-            ++o.runs;
-            o.abs_error += std::fabs(e.value / truth - 1);
-            if (!std::isfinite(e.half_width)) {
-                ++o.unbounded;
-                continue;
-            }
-            o.zero_width += e.half_width == 0;
-            o.covered += e.lo() <= truth && truth <= e.hi();
-        }
-        return o;
-    };
+    for (size_t u = 0; u < N; ++u) sp.unit_work.push_back(uint64_t(f.column[0][u]));
     for (const uint64_t period : {10u, 20u}) {
-        const Outcome w = trial(period, true, 400);
+        sp.period_units = period;
+        sp.by_work = true;
+        const ReplayOutcome w = replay_samples(sp, f, 7000, 400);
         const int bounded = w.runs - w.unbounded;
         EXPECT_EQ(w.zero_width, 0) << period;
         EXPECT_GE(bounded, w.runs * 9 / 10) << period;
@@ -1324,13 +1348,15 @@ TEST(SampleDesignWork, ASkewedRecordedFrameIsCoveredAtItsNominalRate) {
     }
     // The same frame in frame order at 1 in 50: the sample misses most heavy units; its
     // intervals, where it gives any, are not to be trusted (this is why the design exists).
-    const Outcome f = trial(50, false, 400);
-    EXPECT_EQ(f.zero_width, 0);
+    sp.period_units = 50;
+    sp.by_work = false;
+    const ReplayOutcome o = replay_samples(sp, f, 7000, 400);
+    EXPECT_EQ(o.zero_width, 0);
     fmt::print(
         "fandisk diffuse, frame order, 1 in 50: mean abs error {:.1f}%, coverage {:.1f}% "
         "of {} bounded runs\n",
-        100 * f.abs_error / f.runs, 100.0 * f.covered / std::max(1, f.runs - f.unbounded),
-        f.runs - f.unbounded);
+        100 * o.abs_error / o.runs, 100.0 * o.covered / std::max(1, o.runs - o.unbounded),
+        o.runs - o.unbounded);
 }
 
 // A recorded frame no setting was tuned on: mushroom.off (a CGAL demo mesh in neither the tuning
@@ -1344,67 +1370,27 @@ TEST(SampleDesignWork, AHeldOutRecordedFrameIsCoveredAtItsNominalRate) {
     const UnitTable table = recorded_units("mushroom_diffuse_1024x768_u4_units.csv");
     ASSERT_EQ(table.rows, 918u);
     const size_t N = 3072;
-    const std::vector<std::string> names = {"work",       "unit_with_work", "new_line_rays",
-                                            "node_steps", "rays",           "functional_l1_misses"};
-    std::vector<double> cycles(N, 0.0);
-    std::vector<std::vector<double>> column(names.size(), std::vector<double>(N, 0.0));
-    for (size_t row = 0; row < table.rows; ++row) {
-        const size_t unit = size_t(table.cols.at("unit")[row]);
-        ASSERT_LT(unit, N);
-        cycles[unit] = table.cols.at("cycles")[row];
-        for (size_t k = 0; k < names.size(); ++k)
-            column[k][unit] =
-                k == 1 ? double(table.cols.at("work")[row] > 0) : table.cols.at(names[k])[row];
-    }
-    const double truth = total(cycles);
+    const RecordedFrame f = spread_units(
+        table, N,
+        {"work", "unit_with_work", "new_line_rays", "node_steps", "rays", "functional_l1_misses"});
     SamplingParams sp;
     sp.skip = true;
     sp.unit_tiles = 1;
     sp.tiles = N;
     sp.by_work = true;
     sp.period_units = 10;
+    sp.startup_rays = 8 * 64;
     for (size_t u = 0; u < N; ++u) {
-        sp.unit_work.push_back(uint64_t(column[0][u]));
-        sp.unit_ray_counts.push_back(uint64_t(column[4][u]));
+        sp.unit_work.push_back(uint64_t(f.column[0][u]));
+        sp.unit_ray_counts.push_back(uint64_t(f.column[4][u]));
     }
-    int runs = 0, covered = 0, unbounded = 0, zero_width = 0;
-    double abs_error = 0;
-    for (uint64_t seed = 1; seed <= 400; ++seed) {
-        sp.seed = 91000 + seed;
-        sp.startup_rays = 8 * 64;
-        const SampleDesign d(sp);
-        double certain = 0;
-        std::vector<double> y, expansion;
-        std::vector<Auxiliary> aux(names.size());
-        for (size_t k = 0; k < names.size(); ++k) aux[k].total = total(column[k]);
-        for (size_t u = 0; u < N; ++u) {
-            if (!d.measured_unit(u)) continue;
-            if (d.certainty_unit(u)) {
-                certain += cycles[u];
-                for (size_t k = 0; k < names.size(); ++k) aux[k].total -= column[k][u];
-                continue;
-            }
-            y.push_back(cycles[u]);
-            expansion.push_back(d.design_weight(u));
-            for (size_t k = 0; k < names.size(); ++k) aux[k].x.push_back(column[k][u]);
-        }
-        Estimate e = RegressionDesign(aux, d.drawn_population(), &expansion).total(y);
-        e.value += certain;
-        ++runs;
-        abs_error += std::fabs(e.value / truth - 1);
-        if (!std::isfinite(e.half_width)) {
-            ++unbounded;
-            continue;
-        }
-        zero_width += e.half_width == 0;
-        covered += e.lo() <= truth && truth <= e.hi();
-    }
-    const int bounded = runs - unbounded;
-    EXPECT_EQ(zero_width, 0);
-    EXPECT_GE(bounded, runs * 9 / 10);
-    EXPECT_GE(double(covered) / bounded, 0.92);
+    const ReplayOutcome o = replay_samples(sp, f, 91000, 400);
+    const int bounded = o.runs - o.unbounded;
+    EXPECT_EQ(o.zero_width, 0);
+    EXPECT_GE(bounded, o.runs * 9 / 10);
+    EXPECT_GE(double(o.covered) / bounded, 0.92);
     fmt::print(
         "mushroom diffuse, design work, 1 in 10: mean abs error {:.2f}%, coverage {:.1f}% "
         "of {} bounded runs\n",
-        100 * abs_error / runs, 100.0 * covered / bounded, bounded);
+        100 * o.abs_error / o.runs, 100.0 * o.covered / bounded, bounded);
 }
