@@ -1065,13 +1065,12 @@ TEST(Sampled, APilotMeasuresAboutFortyUnits) {
 
 namespace {
 
-// A bunny primary + AO frame at `res`, asked for +-`target_pct`% with the work design and run in
-// full: the asked run's stats.json (without l2.first_fills, a counter only sampled configs
-// register) and the full run's; `out`: what the asked run printed.
-std::pair<json, json> asked_and_full(const std::string& res, const std::string& target_pct,
+// A frame (`rtsim run` arguments naming its scene, rays and size), asked for +-`target_pct`%
+// with the work design and run in full: the asked run's stats.json (without l2.first_fills, a
+// counter only sampled configs register) and the full run's; `out`: what the asked run printed.
+std::pair<json, json> asked_and_full(const std::string& frame_args, const std::string& target_pct,
                                      const std::string& name, std::string* out) {
-    const std::string frame =
-        "run --scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res " + res + " ";
+    const std::string frame = "run " + frame_args + " ";
     const fs::path full = work_dir() / (name + "_full"), asked = work_dir() / (name + "_asked");
     EXPECT_EQ(run_rtsim(frame + "-q -o '" + full.string() + "'").status, 0);
     const Result r = run_rtsim(frame +
@@ -1091,7 +1090,8 @@ std::pair<json, json> asked_and_full(const std::string& res, const std::string& 
 // units, and the frame runs in full without the pilot of about 40 (whose rays in detail, with
 // their warm-ups, had cost heavy frames 27-57% of the full run before it ran in full).
 TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
-    const auto [a, f] = asked_and_full("192x192", "0.05", "quick", nullptr);
+    const auto [a, f] = asked_and_full(
+        "--scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 192x192", "0.05", "quick", nullptr);
     const json& plan = a["sampling"]["target"];
     ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
     EXPECT_NE(plan["note"].get<std::string>().find("quick pilot"), std::string::npos) << plan;
@@ -1105,18 +1105,9 @@ TEST(Sampled, AQuickPilotSendsAFrameFarFromItsTargetInFull) {
 // smaller), though they are fewer than 4 times the frame's units: a 1024x768 camel frame of
 // primary rays (3,072 units of 4 tiles, every one with rays) asked for +-2%.
 TEST(Sampled, AQuickPilotSendsAFrameInFullWhenItsNeedPutsTheRaysInDetail) {
-    const std::string frame = "run -q --scene " RTSIM_CGAL_MESH_DIR
-                              "/camel.off --rays primary --res 1024x768 --bvh-cache '" +
-                              (work_dir() / "quick_share_cache").string() + "' ";
-    const fs::path full = work_dir() / "quick_share_full", asked = work_dir() / "quick_share";
-    ASSERT_EQ(run_rtsim(frame + "-o '" + full.string() + "'").status, 0);
-    ASSERT_EQ(run_rtsim(frame +
-                        "--set sim.sampled=true --set sim.sample_fast_forward=skip "
-                        "--set sim.sample_design=work --target-error 2 -o '" +
-                        asked.string() + "'")
-                  .status,
-              0);
-    const json a = stats_of(asked), f = stats_of(full);
+    const auto [a, f] =
+        asked_and_full("--scene " RTSIM_CGAL_MESH_DIR "/camel.off --rays primary --res 1024x768",
+                       "2", "quick_share", nullptr);
     const json& plan = a["sampling"]["target"];
     ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << plan;
     EXPECT_NE(plan["note"].get<std::string>().find("quick pilot"), std::string::npos) << plan;
@@ -1131,7 +1122,8 @@ TEST(Sampled, AQuickPilotSendsAFrameInFullWhenItsNeedPutsTheRaysInDetail) {
 // units or more costs more than the full run: each unit's warm-up and cache replay besides).
 TEST(Sampled, ATargetThatNeedsMostUnitsRunsTheFrameInFull) {
     std::string out;
-    const auto [a, f] = asked_and_full("64x64", "0.1", "infull", &out);
+    const auto [a, f] = asked_and_full("--scene " RTSIM_BUNNY_OBJ " --rays primary,ao --res 64x64",
+                                       "0.1", "infull", &out);
     EXPECT_NE(out.find("sampling cannot beat the full run"), std::string::npos) << out;
     ASSERT_TRUE(a["sampling"]["in_full"].get<bool>()) << a["sampling"];
     EXPECT_GE(a["sampling"]["target"]["units_needed"].get<double>(),
