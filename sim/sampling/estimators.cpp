@@ -31,11 +31,6 @@ constexpr size_t kMinRegressionUnits = 4;
 // fits over a few units are identities. The fit that showed no spread though it could not (one
 // unit alone carrying an auxiliary) is ruled out by the admission rules above.
 constexpr size_t kExactFitDegrees = 2;
-// Below this many residual degrees of freedom a total's variance is at least its fit's model's.
-// The jackknife's own relative standard error is about sqrt(2 / df): 32% at 20, where Student's
-// t (2.09) is near the normal's 1.96; the sparse frames that need the floor have 3-10 (1080p
-// camel and elephant frames of AO, diffuse and path rays, 1 in 50), dense ones 76-157.
-constexpr size_t kModelFloorDegrees = 20;
 
 // Solves the p x p system m x = v (row-major m) by Gaussian elimination with partial pivoting,
 // overwriting m and v; false when it is (nearly) singular. Regression fits have p of 6 or fewer.

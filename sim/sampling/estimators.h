@@ -61,6 +61,13 @@ struct Auxiliary {
     double total = 0;
 };
 
+// Below this many residual degrees of freedom a regression total's variance is at least its fit's
+// model's (regression_total). The jackknife's own relative standard error is about sqrt(2 / df):
+// 32% at 20, where Student's t (2.09) is near the normal's 1.96; the sparse frames that need the
+// floor have 3-10 (1080p camel and elephant frames of AO, diffuse and path rays, 1 in 50), dense
+// ones 76-157.
+constexpr size_t kModelFloorDegrees = 20;
+
 // The population total of y from n of N units by regression through the origin on auxiliary
 // figures whose population totals are known (Cochran 1977, ch. 7; Sarndal et al. 1992, the GREG
 // estimator): y ~ sum_k b_k x_k fitted on the measured units by least squares weighted for a

@@ -728,9 +728,9 @@ json Sampler::counter_estimates(const TotalFn& total, double frame_first_fills,
 }
 
 // Informative units drawn (with work) from which the unit count is an auxiliary of the
-// regression: 20 residual degrees of freedom beyond up to 7 auxiliaries, where the jackknife
-// alone sets the interval (Sampler::report).
-constexpr size_t kUnitCountMinUnits = 27;
+// regression: kModelFloorDegrees residual degrees of freedom beyond the 7 auxiliaries a skip
+// regression fits at most, where the jackknife alone sets the interval (Sampler::report).
+constexpr size_t kUnitCountMinUnits = kModelFloorDegrees + 7;
 
 json Sampler::report(Cycle end_cycle) {
     finish();
@@ -916,24 +916,19 @@ json Sampler::report(Cycle end_cycle) {
     // fit's model's prediction variance floors it (sim/sampling/estimators.h), and the count's
     // coefficient, carried to every unit not measured, read +-224% on a quick pilot of 11 drawn
     // units of a 512x512 bunny frame where the fit without it read +-18% on the same estimate.
-    if (skip) {
+    const std::vector<double>& drawn_work = aux[kWork].x;
+    if (skip && size_t(std::count_if(drawn_work.begin(), drawn_work.end(),
+                                     [](double w) { return w > 0; })) >= kUnitCountMinUnits) {
         Auxiliary units_with_work;
-        units_with_work.x.resize(aux[kWork].x.size());
-        size_t informative = 0;
-        for (size_t j = 0; j < aux[kWork].x.size(); ++j) {
-            units_with_work.x[j] = aux[kWork].x[j] > 0 ? 1.0 : 0.0;
-            informative += aux[kWork].x[j] > 0;
-        }
+        for (double w : drawn_work) units_with_work.x.push_back(w > 0 ? 1.0 : 0.0);
         // Over the units the regression draws from: those with work, less the certainty units.
         if (params_.by_work) {
             units_with_work.total = double(population);
         } else {
             for (const Aux& u : profile_->units) units_with_work.total += u[kWork] > 0 ? 1.0 : 0.0;
         }
-        if (informative >= kUnitCountMinUnits) {
-            aux.insert(aux.begin() + 1, std::move(units_with_work));
-            aux_names.insert(aux_names.begin() + 1, "unit_with_work");
-        }
+        aux.insert(aux.begin() + 1, std::move(units_with_work));
+        aux_names.insert(aux_names.begin() + 1, "unit_with_work");
     }
     // Totals by regression on the auxiliaries (sim/sampling/estimators.h says which it fits), the
     // reference design's figure in the same unit first where there is one.
