@@ -131,6 +131,8 @@ const char* removed_key(const std::string& path) {
     if (path == "sim.quantum_cycles")
         return "removed: the temporal-decoupling quantum bought 1.06x-1.13x speed for mean cycle "
                "errors up to +159% (bench/results/fidelity_quanta.md); delete the key";
+    if (path == "sim.sample_window_drain")
+        return "replaced by sim.sample_window_hold: write \"drain\" for true, \"none\" for false";
     return nullptr;
 }
 

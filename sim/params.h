@@ -51,9 +51,14 @@ struct SimParams {
     // An unpaired skip unit holds at least this many times the chip's ray slots in rays (0: off).
     uint64_t sample_unit_slot_fills = 0;
     uint64_t sample_startup_slot_fills = 8;
-    // A detailed window after fast-forwarded rays starts once the rays before it have finished;
-    // a skip warm-up also holds its rays' share of the frame's work.
-    bool sample_window_drain = false, sample_warmup_work = true;
+    // A detailed window after fast-forwarded rays starts after the cycles the skipped work would
+    // have taken ("predicted"), once the rays before it have finished ("drain"), or at once
+    // ("none"); a skip warm-up also holds its rays' share of the frame's work.
+    std::string sample_window_hold = "predicted";
+    // A predicted hold ends early once no more than this share of the chip's slots still
+    // run rays from before the window.
+    double sample_window_hold_release_share = 0.5;
+    bool sample_warmup_work = true;
 };
 
 // energy.* (sim/energy.h): per-access and per-operation energies; the schema holds the defaults

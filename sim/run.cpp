@@ -558,7 +558,15 @@ int run_command(const RunOptions& opt) {
             recorder = r.get();
             return r;
         };
-    if (sampled && cfg.typed.sim.sample_window_drain) source.hold_windows();
+    if (sampled) {
+        const std::string& hold = cfg.typed.sim.sample_window_hold;
+        source.hold_windows(
+            hold == "drain"       ? CountingSource::WindowHold::Drain
+            : hold == "predicted" ? CountingSource::WindowHold::Predicted
+                                  : CountingSource::WindowHold::None,
+            uint64_t(cfg.typed.sim.sample_window_hold_release_share * double(cfg.typed.core_count) *
+                     double(cfg.typed.core.ray_slots)));
+    }
     Chip chip(cfg.typed, &source, w.layout(), front);
     std::unique_ptr<Sampler> sampler;
     if (sampled) {

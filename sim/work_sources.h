@@ -5,6 +5,7 @@
 
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <condition_variable>
 #include <cstdio>
 #include <deque>
@@ -41,7 +42,8 @@ class CountingSource : public RayWorkSource, public WakeSource {
     bool next(RayWork& work, Cycle now) override {
         if (!held_) {
             if (!produce_next(work)) return false;
-            if (!holds_windows_ || !sampler_ || !sampler_->window_start() || !draining(now)) {
+            if (hold_ == WindowHold::None || !sampler_ || !sampler_->window_start() ||
+                !start_hold(now)) {
                 hand_out(now);
                 return true;
             }
@@ -53,10 +55,12 @@ class CountingSource : public RayWorkSource, public WakeSource {
             held_ = false;
             return false;
         }
-        // The window waits for every ray before it to finish, and from the cycle the last of
-        // them does (a slot may ask earlier: it parks, and is woken then).
-        if (draining(now)) {
-            if (in_flight_ == 0) wake_at(last_done_);
+        // Drain: the window waits for every ray before it to finish, and from the cycle the
+        // last of them does. Predicted: until hold_until_, or until no more than
+        // hold_release_in_flight_ rays before it are still running. A slot that asks earlier
+        // parks, and is woken when a ray finishes past that point (finished()).
+        if (hold_ == WindowHold::Drain ? draining(now) : !released(now)) {
+            if (in_flight_ == 0) wake_at(hold_ == WindowHold::Drain ? last_done_ : hold_until_);
             return false;
         }
         held_ = false;
@@ -68,10 +72,19 @@ class CountingSource : public RayWorkSource, public WakeSource {
     void finished(uint32_t /*rays*/, Cycle done) override {
         --in_flight_;
         last_done_ = std::max(last_done_, done);
-        if (held_ && in_flight_ == 0) wake_at(last_done_);
+        if (!held_) return;
+        if (hold_ == WindowHold::Drain) {
+            if (in_flight_ == 0) wake_at(last_done_);
+        } else if (released(done)) {
+            wake_at(done);
+        } else if (in_flight_ == 0) {
+            wake_at(hold_until_);
+        }
     }
-    WakeSource* wakes() override { return holds_windows_ ? this : nullptr; }
-    const bool* wake_pending() const override { return holds_windows_ ? &wake_pending_ : nullptr; }
+    WakeSource* wakes() override { return hold_ != WindowHold::None ? this : nullptr; }
+    const bool* wake_pending() const override {
+        return hold_ != WindowHold::None ? &wake_pending_ : nullptr;
+    }
     bool take_wake(Cycle& at) override {
         if (!wake_pending_) return false;
         wake_pending_ = false;
@@ -82,12 +95,17 @@ class CountingSource : public RayWorkSource, public WakeSource {
     // Sampled simulation: rays pass through `sampler` (sim/sampling/sampler.h), which keeps most of
     // them from the cores.
     void set_sampler(Sampler* sampler) { sampler_ = sampler; }
-    // Sampled simulation (sim.sample_window_drain), before the chip is built: the first ray of a
-    // detailed window after fast-forwarded rays is held until the rays in flight have finished.
-    // Fast-forwarded rays take no simulated time, so the rays of the window before would
-    // otherwise share the cores with the new window's warm-up and measured unit, where in the
-    // full run they finished long before.
-    void hold_windows() { holds_windows_ = true; }
+    // Sampled simulation (sim.sample_window_hold), before the chip is built: the first ray of
+    // a detailed window after fast-forwarded rays is held for the cycles the sampler predicts
+    // the skipped work would have taken (Predicted) or until the rays in flight have finished
+    // (Drain). Fast-forwarded rays take no simulated time, so the rays of the window before
+    // would otherwise share the cores with the new window's warm-up and measured unit, where
+    // in the full run the skipped work's cycles lay between them.
+    enum class WindowHold { None, Predicted, Drain };
+    void hold_windows(WindowHold hold, uint64_t release_in_flight = 0) {
+        hold_ = hold;
+        hold_release_in_flight_ = release_in_flight;
+    }
 
     void finish_progress() {
         if (progress_ && printed_) std::fprintf(stderr, "\r%100s\r", "");
@@ -159,6 +177,15 @@ class CountingSource : public RayWorkSource, public WakeSource {
     // Rays handed out before now are still running (a core reports a ray finished once it
     // knows when, so `done` may be ahead of `now`).
     bool draining(Cycle now) const { return in_flight_ > 0 || last_done_ > now; }
+    bool released(Cycle now) const {
+        return now >= hold_until_ || in_flight_ <= hold_release_in_flight_;
+    }
+    // Whether the window starting at `now` waits (and until when, if predicted).
+    bool start_hold(Cycle now) {
+        if (hold_ == WindowHold::Drain) return draining(now);
+        hold_until_ = now + Cycle(std::llround(sampler_->window_hold_cycles()));
+        return !released(now);
+    }
     void hand_out(Cycle now) {
         if (sampler_) sampler_->handed_out(now);
         ++in_flight_;
@@ -167,11 +194,13 @@ class CountingSource : public RayWorkSource, public WakeSource {
         wake_pending_ = true;
         wake_cycle_ = at;
     }
-    // Held windows: work items handed out and not finished, the latest finish reported (the
-    // held item goes from then), the held item.
-    bool holds_windows_ = false, held_ = false, wake_pending_ = false;
-    uint64_t in_flight_ = 0;
-    Cycle last_done_ = 0, wake_cycle_ = 0;
+    // Held windows: how, work items handed out and not finished (and how few of them release
+    // a predicted hold), the latest finish reported (a drained hold's item goes from then), the
+    // end of a predicted hold, the held item.
+    WindowHold hold_ = WindowHold::None;
+    bool held_ = false, wake_pending_ = false;
+    uint64_t in_flight_ = 0, hold_release_in_flight_ = 0;
+    Cycle last_done_ = 0, wake_cycle_ = 0, hold_until_ = 0;
     RayWork held_work_;
 };
 

@@ -517,6 +517,22 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
                 for (uint64_t k = from; k < t && !gap_; ++k) gap_ = params_.tile_rays[k] > 0;
             }
         }
+        // The tiles skipped since the last traced one, each its unit's share by rays (their work
+        // is known only per unit).
+        if (new_tile && profile_)
+            for (uint64_t k = uint64_t(last_tile_ + 1); k < t; ++k) {
+                const uint64_t u = k / params_.unit_tiles;
+                if (u >= profile_->units.size()) break;
+                const AuxFigures& unit = profile_->units[u];
+                const double share = unit[kAuxRays] > 0 && k < profile_->tile_rays.size()
+                                         ? double(profile_->tile_rays[k]) / double(unit[kAuxRays])
+                                         : 0.0;
+                skipped_terms_[0] += 1.0 / double(params_.unit_tiles);
+                for (size_t a : {size_t(kAuxWork), size_t(kAuxNewLines), size_t(kAuxRays)})
+                    skipped_terms_[a == kAuxWork       ? 1
+                                   : a == kAuxNewLines ? 2
+                                                       : 3] += share * double(unit[a]);
+            }
         last_tile_ = tile;
         // The tiles skipped since the last traced one fetched their first lines before it.
         if (new_tile) replay_skipped_tiles(t);
@@ -544,6 +560,8 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
     }
     window_start_ = detailed && gap_;
     if (detailed) {
+        if (window_start_) window_skipped_terms_ = skipped_terms_;
+        skipped_terms_.fill(0.0);
         gap_ = false;
         detailed_ += work.rays;
         for (size_t k = 0; k < kAuxiliaries; ++k) detailed_aux_[k] += a[k];
@@ -551,6 +569,9 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
         detailed_fetch_bytes_ += fetch_bytes;
         return false;
     }
+    // A ray of a unit not skipped whole: its share of the unit count (the skip design's units
+    // are tiles, counted as skipped above).
+    add_skipped(a, params_.skip ? 0.0 : double(work.rays) / double(params_.unit_rays));
     if (!ports_.empty()) {
         const auto& mem = ports_[next_core_];
         for (const Step& s : work.steps) mem[size_t(s.kind)]->warm(s.addr, s.size_bytes);
@@ -600,6 +621,55 @@ void Sampler::handed_out(Cycle now) {
         for (size_t k = 0; k < kAuxiliaries; ++k) unit_aux_[k] += current_aux_[k];
 }
 
+void SkippedCyclesFit::add(const Terms& x, double y) {
+    for (size_t i = 0; i < kTerms; ++i) {
+        for (size_t j = 0; j < kTerms; ++j) xtx[i][j] += x[i] * x[j];
+        xty[i] += x[i] * y;
+    }
+    ++units;
+    cycles += y;
+    work += x[1];
+}
+
+double SkippedCyclesFit::predict(const Terms& x) const {
+    constexpr uint64_t kFitUnits = 2 * kTerms;
+    if (units == 0) return 0.0;
+    if (units < kFitUnits)
+        return std::max(0.0, work > 0 ? cycles / work * x[1] : cycles / double(units) * x[0]);
+    // Scaled to unit diagonal (a term no unit carries, such as new lines where none are
+    // counted, has a zero coefficient), with a small ridge so that collinear terms (rays and
+    // the count where every unit has as many rays) share their coefficient instead of failing.
+    Terms scale{};
+    for (size_t i = 0; i < kTerms; ++i) scale[i] = xtx[i][i] > 0 ? std::sqrt(xtx[i][i]) : 0.0;
+    std::array<std::array<double, kTerms + 1>, kTerms> m{};
+    for (size_t i = 0; i < kTerms; ++i) {
+        for (size_t j = 0; j < kTerms; ++j)
+            m[i][j] = scale[i] > 0 && scale[j] > 0 ? xtx[i][j] / (scale[i] * scale[j]) : 0.0;
+        m[i][i] += 1e-6 + (scale[i] > 0 ? 0.0 : 1.0);
+        m[i][kTerms] = scale[i] > 0 ? xty[i] / scale[i] : 0.0;
+    }
+    // Symmetric positive definite: elimination without pivoting.
+    for (size_t c = 0; c < kTerms; ++c)
+        for (size_t r = c + 1; r < kTerms; ++r) {
+            const double f = m[r][c] / m[c][c];
+            for (size_t k = c; k <= kTerms; ++k) m[r][k] -= f * m[c][k];
+        }
+    Terms beta{};
+    for (size_t c = kTerms; c-- > 0;) {
+        double v = m[c][kTerms];
+        for (size_t k = c + 1; k < kTerms; ++k) v -= m[c][k] * beta[k];
+        beta[c] = v / m[c][c];
+    }
+    double y = 0;
+    for (size_t i = 0; i < kTerms; ++i)
+        if (scale[i] > 0) y += beta[i] / scale[i] * x[i];
+    return std::max(0.0, y);
+}
+
+double Sampler::window_hold_cycles() const {
+    return hold_fit_.predict(window_skipped_terms_);
+}
+
 void Sampler::held(Cycle now) {
     if (open_ && current_unit_ != open_unit_) close_unit(unit_aux_, now);
 }
@@ -617,6 +687,13 @@ void Sampler::finish() {
 }
 
 void Sampler::close_unit(const Aux& aux, Cycle end) {
+    // The hold's fit takes the profile's figures where skipped tiles are known only by them.
+    const Aux& known = params_.skip && profile_ && open_unit_ < profile_->units.size()
+                           ? profile_->units[open_unit_]
+                           : aux;
+    hold_fit_.add(
+        {1.0, double(known[kAuxWork]), double(known[kAuxNewLines]), double(known[kAuxRays])},
+        double(end) - double(open_cycle_));
     for (size_t k = 0; k < kAuxiliaries; ++k) aux_[k].push_back(double(aux[k]));
     unit_index_.push_back(open_unit_);
     // Signed: cores take work within a horizon of each other, so hand-out cycles are not

@@ -262,6 +262,21 @@ class CoreLinePass {
     bool enabled_ = false;
 };
 
+// What skipped work would have taken: a least-squares fit of measured units' cycles on
+// [1, work, new lines, rays], kept as running normal equations as units close. Below 8 units
+// (twice its terms) it predicts cycles in proportion to work; with none, 0.
+struct SkippedCyclesFit {
+    static constexpr size_t kTerms = 4;
+    using Terms = std::array<double, kTerms>;
+    std::array<Terms, kTerms> xtx{};
+    Terms xty{};
+    uint64_t units = 0;
+    double cycles = 0, work = 0;
+    void add(const Terms& x, double y);
+    // Never below 0.
+    double predict(const Terms& x) const;
+};
+
 class Sampler {
   public:
     // `ports`: per core, per StepKind, where its fetches enter the memory hierarchy (warmed in
@@ -284,6 +299,11 @@ class Sampler {
     // Whether the ray just judged detailed starts a window: rays were fast-forwarded, or tiles
     // with rays skipped, since the last detailed one.
     bool window_start() const { return window_start_; }
+    // The cycles the work fast-forwarded or skipped right before the window that the ray just
+    // judged starts would have taken in the full run: predicted from the units measured so far
+    // (SkippedCyclesFit), 0 before any. The window waits that long (sim.sample_window_hold =
+    // predicted).
+    double window_hold_cycles() const;
     // The ray just judged detailed, which starts a window, is held at `now` until the chip has
     // drained: a measured unit still open ends now, where a slot asked for the next ray.
     void held(Cycle now);
@@ -363,6 +383,16 @@ class Sampler {
         kRays = kAuxRays
     };
     using Aux = AuxFigures;
+    SkippedCyclesFit hold_fit_;
+    // The fit's terms of the work skipped since the last detailed ray, and of the work skipped
+    // before the window the last detailed ray started.
+    SkippedCyclesFit::Terms skipped_terms_{}, window_skipped_terms_{};
+    void add_skipped(const Aux& aux, double units) {
+        skipped_terms_[0] += units;
+        skipped_terms_[1] += double(aux[kAuxWork]);
+        skipped_terms_[2] += double(aux[kAuxNewLines]);
+        skipped_terms_[3] += double(aux[kAuxRays]);
+    }
     // Skip design, at the first ray of traced tile `tile`: loads the caches with the lines of
     // the tiles skipped since the last traced one, tile by tile: each line into the L1s of as
     // many cores as the tile had rays fetching it, and through them the L2. (Into the L2 alone,

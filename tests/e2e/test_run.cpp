@@ -922,7 +922,8 @@ TEST(Sampled, SkipDesignKnowsTheFirstFillsWhenNoMeasuredUnitFetched) {
                         "--set sim.sample_unit_tiles=1 --set sim.sample_period_units=48 "
                         "--set sim.sample_unit_slot_fills=0 --set sim.sample_seed=6 "
                         "--set sim.sample_warmup_slot_fills=2 --set sim.sample_warmup_work=false "
-                        "-o '" +
+                        // (no window hold: held, one measured unit takes in a 64-byte fill)
+                        "--set sim.sample_window_hold=none -o '" +
                         part.string() + "'")
                   .status,
               0);
@@ -2900,6 +2901,19 @@ TEST(Fidelity, UnknownLevelAndRemovedQuantumAreRefused) {
     std::ofstream(cfg) << R"({"sim": {"quantum_cycles": 0}})";
     expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
                           "sim.quantum_cycles: removed");
+}
+
+TEST(Sampled, TheWindowDrainSwitchIsReplacedByTheHoldWithAOneLineMessage) {
+    // sim.sample_window_drain (a boolean) became sim.sample_window_hold (predicted, drain,
+    // none): an old config is told what to write, not silently read otherwise.
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.sample_window_drain=true"),
+                          "sim.sample_window_drain: replaced by sim.sample_window_hold");
+    const fs::path cfg = work_dir() / "old_drain.json";
+    std::ofstream(cfg) << R"({"sim": {"sample_window_drain": false}})";
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
+                          "write \"drain\" for true, \"none\" for false");
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.sample_window_hold=always"),
+                          "sim.sample_window_hold");
 }
 
 namespace {

@@ -395,13 +395,60 @@ TEST(Timeline, ASampledWindowStartsOnceTheOneBeforeHasDrainedByHand) {
     for (const char* fidelity : kFidelities) {
         SCOPED_TRACE(fidelity);
         const json s =
-            run_trace(trace, sampled + " --set sim.sample_window_drain=true", "drain", fidelity);
+            run_trace(trace, sampled + " --set sim.sample_window_hold=drain", "drain", fidelity);
         EXPECT_EQ(s["sampling"]["rays_detailed"].get<uint64_t>(), 4u);
         EXPECT_EQ(s["sampling"]["simulated_cycles"].get<uint64_t>(), 488u) << s["sampling"].dump();
         EXPECT_EQ(s["stalls"]["total"]["no_work"].get<uint64_t>(), 2u);
         // Without the drain the second window overlaps the first: another timeline.
-        const json free = run_trace(trace, sampled + " --set sim.sample_window_drain=false",
-                                    "no_drain", fidelity);
+        const json free =
+            run_trace(trace, sampled + " --set sim.sample_window_hold=none", "no_drain", fidelity);
         EXPECT_LT(free["sampling"]["simulated_cycles"].get<uint64_t>(), 488u);
+    }
+}
+
+// A sampled replay whose window waits for the predicted cycles of what it skipped. Six rays, each
+// with its own node line (triangle 0 shared), two slots, units of two rays, one unit in two
+// from unit 0, no warm-up: rays 0-1 and 4-5 are measured, ray 2 closes unit 0, ray 3 is
+// fast-forwarded.
+//   0    rays 0 and 1: A's node misses to DRAM (column 51, +150 -> 219, box 227), B's follows
+//        on the open row (column 55, burst after A's, -> 223, box 231); A's triangle misses
+//        (column 262 -> 430, triangle 448), B's merges into it (triangle 449)
+//   448  A takes ray 2 (closes unit 0: 448 cycles): node 2 misses (fetch 450, L2 miss 484,
+//        column 484 -> 652, box 660), triangle hits (fetch 661 -> 665, triangle 683)
+//   449  B asks: ray 3 is fast-forwarded and ray 4 starts a window. One unit measured, so the
+//        hold is cycles in proportion to work, 448 x 3 / 6 = 224: until 673. Ray 2 is still
+//        running, one of two slots: with a release share of 0 the window waits; past 673
+//        it goes with the next finish, ray 2's at 683.
+//   683  rays 4 (A) and 5 (B): setups 684 and 685, node fetches 686 and 687, L2 misses 720 and
+//        721, DRAM columns 720 and 724 -> 888 and 892, boxes 896 and 900, triangles (L1 hits)
+//        919 and 923. No work: B from 449 to 683, A from 919 to 923.
+// With the default release share (0.5) one running ray of two slots does not hold the window:
+// ray 4 goes out at 449 as without a hold.
+TEST(Timeline, ASampledWindowWaitsForThePredictedCyclesOfWhatItSkippedByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "hold.rtt", 6, true);
+    const std::string sampled =
+        " --set core.ray_slots=2 --set sim.sampled=true --set sim.sample_fast_forward=warm"
+        " --set sim.sample_unit_rays=2 --set sim.sample_period_units=2"
+        " --set sim.sample_warmup_rays=0 --set sim.sample_design=systematic"
+        " --set sim.sample_first_unit=0 --set sim.sample_window_hold=predicted";
+    for (const char* fidelity : kFidelities) {
+        SCOPED_TRACE(fidelity);
+        const json held = run_trace(
+            trace, sampled + " --set sim.sample_window_hold_release_share=0", "hold", fidelity);
+        EXPECT_EQ(held["sampling"]["rays_detailed"].get<uint64_t>(), 5u);
+        EXPECT_EQ(held["sampling"]["simulated_cycles"].get<uint64_t>(), 923u);
+        EXPECT_EQ(held["stalls"]["total"]["no_work"].get<uint64_t>(), (683u - 449) + (923 - 919));
+        const json shared = run_trace(trace, sampled, "hold_share", fidelity);
+        const json none =
+            run_trace(trace,
+                      " --set core.ray_slots=2 --set sim.sampled=true"
+                      " --set sim.sample_fast_forward=warm --set sim.sample_unit_rays=2"
+                      " --set sim.sample_period_units=2 --set sim.sample_warmup_rays=0"
+                      " --set sim.sample_design=systematic --set sim.sample_first_unit=0"
+                      " --set sim.sample_window_hold=none",
+                      "hold_none", fidelity);
+        EXPECT_LT(none["sampling"]["simulated_cycles"].get<uint64_t>(), 923u);
+        EXPECT_EQ(shared["sampling"]["simulated_cycles"], none["sampling"]["simulated_cycles"]);
+        EXPECT_EQ(shared["stalls"]["total"]["no_work"], none["stalls"]["total"]["no_work"]);
     }
 }

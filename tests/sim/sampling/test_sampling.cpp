@@ -1394,3 +1394,50 @@ TEST(SampleDesignWork, AHeldOutRecordedFrameIsCoveredAtItsNominalRate) {
         "of {} bounded runs\n",
         100 * o.abs_error / o.runs, 100.0 * o.covered / bounded, bounded);
 }
+
+// The window hold's fit of skipped work's cycles, on populations whose cycles are known
+// functions of their terms.
+TEST(SkippedCyclesFit, PredictsNothingBeforeAnyUnitAndInProportionToWorkBeforeEight) {
+    SkippedCyclesFit fit;
+    EXPECT_EQ(fit.predict({1, 100, 5, 64}), 0.0);
+    fit.add({1, 200, 0, 64}, 1000);
+    fit.add({1, 600, 0, 64}, 1000);
+    // 2,000 cycles over 800 work: 2.5 per work.
+    EXPECT_DOUBLE_EQ(fit.predict({2, 400, 9, 128}), 1000.0);
+}
+
+TEST(SkippedCyclesFit, RecoversAnExactLinearModelAndCarriesItToPartialStretches) {
+    // cycles = 30 per unit + 2 per work + 50 per new line + 0.5 per ray, over varied units.
+    SkippedCyclesFit fit;
+    auto cycles = [](double u, double w, double l, double r) {
+        return 30 * u + 2 * w + 50 * l + 0.5 * r;
+    };
+    for (int i = 0; i < 40; ++i) {
+        const double w = 100 + 37 * (i % 7), l = (i * 5) % 11, r = 64 + 16 * (i % 3);
+        fit.add({1, w, l, r}, cycles(1, w, l, r));
+    }
+    // Three and a half units' worth of skipped work (the sums of their terms).
+    const double want = cycles(3.5, 900, 14, 240);
+    EXPECT_NEAR(fit.predict({3.5, 900, 14, 240}), want, 1e-3 * want);
+}
+
+TEST(SkippedCyclesFit, ATermNoUnitCarriesIsDroppedAndCollinearTermsShareTheirWeight) {
+    // No new lines counted, and every unit has 64 rays (rays and the count collinear):
+    // cycles = 100 per unit + 3 per work.
+    SkippedCyclesFit fit;
+    for (int i = 0; i < 20; ++i) {
+        const double w = 50 + 25 * i;
+        fit.add({1, w, 0, 64}, 100 + 3 * w);
+    }
+    EXPECT_NEAR(fit.predict({2, 300, 0, 128}), 200 + 900, 1.0);
+    // Never negative, whatever the terms: a stretch of no work but many new lines on a fit
+    // that never met any.
+    EXPECT_GE(fit.predict({0, 0, 1000, 0}), 0.0);
+}
+
+TEST(SkippedCyclesFit, NeverPredictsBelowZero) {
+    // cycles fall with work here (a fit that extrapolates below zero on a stretch of much work).
+    SkippedCyclesFit fit;
+    for (int i = 0; i < 20; ++i) fit.add({1, double(i), 0, 1}, 1000 - 40 * i);
+    EXPECT_EQ(fit.predict({1, 100, 0, 1}), 0.0);
+}
