@@ -527,11 +527,7 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
                 const double share = unit[kAuxRays] > 0 && k < profile_->tile_rays.size()
                                          ? double(profile_->tile_rays[k]) / double(unit[kAuxRays])
                                          : 0.0;
-                skipped_terms_[0] += 1.0 / double(params_.unit_tiles);
-                for (size_t a : {size_t(kAuxWork), size_t(kAuxNewLines), size_t(kAuxRays)})
-                    skipped_terms_[a == kAuxWork       ? 1
-                                   : a == kAuxNewLines ? 2
-                                                       : 3] += share * double(unit[a]);
+                add_skipped(unit, 1.0 / double(params_.unit_tiles), share);
             }
         last_tile_ = tile;
         // The tiles skipped since the last traced one fetched their first lines before it.
@@ -621,6 +617,11 @@ void Sampler::handed_out(Cycle now) {
         for (size_t k = 0; k < kAuxiliaries; ++k) unit_aux_[k] += current_aux_[k];
 }
 
+SkippedCyclesFit::Terms SkippedCyclesFit::terms(const AuxFigures& aux, double units, double share) {
+    return {units, share * double(aux[kAuxWork]), share * double(aux[kAuxNewLines]),
+            share * double(aux[kAuxRays])};
+}
+
 void SkippedCyclesFit::add(const Terms& x, double y) {
     for (size_t i = 0; i < kTerms; ++i) {
         for (size_t j = 0; j < kTerms; ++j) xtx[i][j] += x[i] * x[j];
@@ -691,9 +692,7 @@ void Sampler::close_unit(const Aux& aux, Cycle end) {
     const Aux& known = params_.skip && profile_ && open_unit_ < profile_->units.size()
                            ? profile_->units[open_unit_]
                            : aux;
-    hold_fit_.add(
-        {1.0, double(known[kAuxWork]), double(known[kAuxNewLines]), double(known[kAuxRays])},
-        double(end) - double(open_cycle_));
+    hold_fit_.add(SkippedCyclesFit::terms(known, 1.0), double(end) - double(open_cycle_));
     for (size_t k = 0; k < kAuxiliaries; ++k) aux_[k].push_back(double(aux[k]));
     unit_index_.push_back(open_unit_);
     // Signed: cores take work within a horizon of each other, so hand-out cycles are not

@@ -268,6 +268,8 @@ class CoreLinePass {
 struct SkippedCyclesFit {
     static constexpr size_t kTerms = 4;
     using Terms = std::array<double, kTerms>;
+    // The terms of `share` of a unit's (or a tile's, a ray's) figures, counted as `units` units.
+    static Terms terms(const AuxFigures& aux, double units, double share = 1.0);
     std::array<Terms, kTerms> xtx{};
     Terms xty{};
     uint64_t units = 0;
@@ -387,11 +389,10 @@ class Sampler {
     // The fit's terms of the work skipped since the last detailed ray, and of the work skipped
     // before the window the last detailed ray started.
     SkippedCyclesFit::Terms skipped_terms_{}, window_skipped_terms_{};
-    void add_skipped(const Aux& aux, double units) {
-        skipped_terms_[0] += units;
-        skipped_terms_[1] += double(aux[kAuxWork]);
-        skipped_terms_[2] += double(aux[kAuxNewLines]);
-        skipped_terms_[3] += double(aux[kAuxRays]);
+    // `share` of the work of `aux` skipped, as `units` units.
+    void add_skipped(const Aux& aux, double units, double share = 1.0) {
+        const SkippedCyclesFit::Terms x = SkippedCyclesFit::terms(aux, units, share);
+        for (size_t i = 0; i < SkippedCyclesFit::kTerms; ++i) skipped_terms_[i] += x[i];
     }
     // Skip design, at the first ray of traced tile `tile`: loads the caches with the lines of
     // the tiles skipped since the last traced one, tile by tile: each line into the L1s of as

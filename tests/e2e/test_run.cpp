@@ -2892,26 +2892,32 @@ TEST(Fidelity, FastEngineKeepsSharedRequestsInTimeOrder) {
     }
 }
 
+namespace {
+// A config key that no longer exists, set by --set KEY=VALUE and in a config file holding
+// `file_json` (`file` names it): both refused with a one-line error containing `message`.
+void expect_retired_key(const std::string& key_value, const std::string& file,
+                        const std::string& file_json, const std::string& message) {
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --set " + key_value), message);
+    const fs::path cfg = work_dir() / file;
+    std::ofstream(cfg) << file_json;
+    expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"), message);
+}
+}  // namespace
+
 TEST(Fidelity, UnknownLevelAndRemovedQuantumAreRefused) {
     expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.fidelity=exact"), "sim.fidelity");
     // The quantum was removed for buying too little speed: a config that still sets it is told.
-    expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.quantum_cycles=100"),
-                          "sim.quantum_cycles: removed");
-    const fs::path cfg = work_dir() / "old_quantum.json";
-    std::ofstream(cfg) << R"({"sim": {"quantum_cycles": 0}})";
-    expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
-                          "sim.quantum_cycles: removed");
+    expect_retired_key("sim.quantum_cycles=100", "old_quantum.json",
+                       R"({"sim": {"quantum_cycles": 0}})", "sim.quantum_cycles: removed");
 }
 
 TEST(Sampled, TheWindowDrainSwitchIsReplacedByTheHoldWithAOneLineMessage) {
     // sim.sample_window_drain (a boolean) became sim.sample_window_hold (predicted, drain,
     // none): an old config is told what to write, not silently read otherwise.
-    expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.sample_window_drain=true"),
-                          "sim.sample_window_drain: replaced by sim.sample_window_hold");
-    const fs::path cfg = work_dir() / "old_drain.json";
-    std::ofstream(cfg) << R"({"sim": {"sample_window_drain": false}})";
-    expect_one_line_error(run_rtsim("run -q --res 8x8 --config '" + cfg.string() + "'"),
-                          "write \"drain\" for true, \"none\" for false");
+    expect_retired_key("sim.sample_window_drain=true", "old_drain.json",
+                       R"({"sim": {"sample_window_drain": false}})",
+                       "sim.sample_window_drain: replaced by sim.sample_window_hold: write "
+                       "\"drain\" for true, \"none\" for false");
     expect_one_line_error(run_rtsim("run -q --res 8x8 --set sim.sample_window_hold=always"),
                           "sim.sample_window_hold");
 }
