@@ -1395,6 +1395,41 @@ TEST(SampleDesignWork, AHeldOutRecordedFrameIsCoveredAtItsNominalRate) {
         100 * o.abs_error / o.runs, 100.0 * o.covered / bounded, bounded);
 }
 
+// The window hold's length in a run (warm fast-forward): units of 2 rays, one in 3 measured
+// from unit 0 (rays 0-1, 6-7, 12-13; rays 2, 8 and 14 close them), no warm-up, 4 work per ray.
+// Rays 3-5 and 9-11 are fast-forwarded, 12 work each time. By hand, cycles in proportion to
+// work while fewer than 8 units are measured:
+//   ray 6 starts a window: unit 0 took 30 cycles for 8 work -> 30 / 8 x 12 = 45
+//   ray 12 starts one: units 0 and 3 took 30 + 25 for 16 work -> 55 / 16 x 12 = 41.25 (the
+//   work skipped before the first window is not counted again)
+TEST(Sampling, AWindowWaitsForTheWorkSkippedSinceTheLastAtTheMeasuredCyclesPerWorkByHand) {
+    StatsRegistry reg;
+    uint64_t bytes = 0;
+    reg.add("dram", "bytes", &bytes, "test counter");
+    SamplingParams sp;
+    sp.unit_rays = 2;
+    sp.period_units = 3;
+    sp.stratified = false;
+    sp.first_unit = 0;
+    sp.warmup_rays = 0;
+    Sampler s(sp, {}, reg);
+    RayWork w;
+    w.steps.resize(3);
+    const Cycle handed_out[] = {0, 10, 30, 0, 0, 0, 100, 105, 125, 0, 0, 0, 200};
+    const double hold[] = {0, 0, 0, 0, 0, 0, 45.0, 0, 0, 0, 0, 0, 41.25};
+    for (int i = 0; i < 13; ++i) {
+        SCOPED_TRACE(i);
+        const bool fast_forwarded = (i >= 3 && i <= 5) || (i >= 9 && i <= 11);
+        ASSERT_EQ(s.fast_forward(w), fast_forwarded);
+        if (fast_forwarded) continue;
+        EXPECT_EQ(s.window_start(), hold[i] > 0);
+        if (s.window_start()) {
+            EXPECT_DOUBLE_EQ(s.window_hold_cycles(), hold[i]);
+        }
+        s.handed_out(handed_out[i]);
+    }
+}
+
 // The window hold's fit of skipped work's cycles, on populations whose cycles are known
 // functions of their terms.
 TEST(SkippedCyclesFit, PredictsNothingBeforeAnyUnitAndInProportionToWorkBeforeEight) {
