@@ -71,10 +71,6 @@ void add_outer_product(double* __restrict m, const double* __restrict x, double 
     }
 }
 
-bool solve_small(std::vector<double> m, std::vector<double> v, std::vector<double>& x) {
-    return solve_in_place(m, v, x);
-}
-
 // Continued fraction for the regularised incomplete beta I_x(a, b) (modified Lentz), valid and
 // quickly convergent for x < (a + 1) / (a + b + 2).
 double beta_continued_fraction(double a, double b, double x) {
@@ -121,6 +117,10 @@ double t_quantile_for(double confidence, uint64_t n) {
 }
 
 }  // namespace
+
+bool solve_small(std::vector<double> m, std::vector<double> v, std::vector<double>& x) {
+    return solve_in_place(m, v, x);
+}
 
 double student_t_cdf(double t, double df) {
     const double x = df / (df + t * t);

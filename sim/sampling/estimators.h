@@ -61,6 +61,10 @@ struct Auxiliary {
     double total = 0;
 };
 
+// Solves the p x p system m x = v (row-major m, p small) by Gaussian elimination with partial
+// pivoting; false when it is (nearly) singular.
+bool solve_small(std::vector<double> m, std::vector<double> v, std::vector<double>& x);
+
 // Below this many residual degrees of freedom a regression total's variance is at least its fit's
 // model's (regression_total). The jackknife's own relative standard error is about sqrt(2 / df):
 // 32% at 20, where Student's t (2.09) is near the normal's 1.96; the sparse frames that need the

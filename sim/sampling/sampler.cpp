@@ -627,40 +627,28 @@ void SkippedCyclesFit::add(const Terms& x, double y) {
         for (size_t j = 0; j < kTerms; ++j) xtx[i][j] += x[i] * x[j];
         xty[i] += x[i] * y;
     }
-    ++units;
-    cycles += y;
-    work += x[1];
 }
 
 double SkippedCyclesFit::predict(const Terms& x) const {
-    constexpr uint64_t kFitUnits = 2 * kTerms;
+    // Measured units enter with a count term of 1: the sums of 1, work and cycles over them are
+    // in the normal equations' first row.
+    const double units = xtx[0][0], work = xtx[0][1], cycles = xty[0];
     if (units == 0) return 0.0;
-    if (units < kFitUnits)
-        return std::max(0.0, work > 0 ? cycles / work * x[1] : cycles / double(units) * x[0]);
+    if (units < double(2 * kTerms))
+        return std::max(0.0, work > 0 ? cycles / work * x[1] : cycles / units * x[0]);
     // Scaled to unit diagonal (a term no unit carries, such as new lines where none are
     // counted, has a zero coefficient), with a small ridge so that collinear terms (rays and
     // the count where every unit has as many rays) share their coefficient instead of failing.
     Terms scale{};
     for (size_t i = 0; i < kTerms; ++i) scale[i] = xtx[i][i] > 0 ? std::sqrt(xtx[i][i]) : 0.0;
-    std::array<std::array<double, kTerms + 1>, kTerms> m{};
+    std::vector<double> m(kTerms * kTerms, 0.0), v(kTerms, 0.0), beta;
     for (size_t i = 0; i < kTerms; ++i) {
         for (size_t j = 0; j < kTerms; ++j)
-            m[i][j] = scale[i] > 0 && scale[j] > 0 ? xtx[i][j] / (scale[i] * scale[j]) : 0.0;
-        m[i][i] += 1e-6 + (scale[i] > 0 ? 0.0 : 1.0);
-        m[i][kTerms] = scale[i] > 0 ? xty[i] / scale[i] : 0.0;
+            if (scale[i] > 0 && scale[j] > 0) m[i * kTerms + j] = xtx[i][j] / (scale[i] * scale[j]);
+        m[i * kTerms + i] += 1e-6 + (scale[i] > 0 ? 0.0 : 1.0);
+        v[i] = scale[i] > 0 ? xty[i] / scale[i] : 0.0;
     }
-    // Symmetric positive definite: elimination without pivoting.
-    for (size_t c = 0; c < kTerms; ++c)
-        for (size_t r = c + 1; r < kTerms; ++r) {
-            const double f = m[r][c] / m[c][c];
-            for (size_t k = c; k <= kTerms; ++k) m[r][k] -= f * m[c][k];
-        }
-    Terms beta{};
-    for (size_t c = kTerms; c-- > 0;) {
-        double v = m[c][kTerms];
-        for (size_t k = c + 1; k < kTerms; ++k) v -= m[c][k] * beta[k];
-        beta[c] = v / m[c][c];
-    }
+    if (!solve_small(std::move(m), std::move(v), beta)) return 0.0;
     double y = 0;
     for (size_t i = 0; i < kTerms; ++i)
         if (scale[i] > 0) y += beta[i] / scale[i] * x[i];

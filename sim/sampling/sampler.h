@@ -272,8 +272,7 @@ struct SkippedCyclesFit {
     static Terms terms(const AuxFigures& aux, double units, double share = 1.0);
     std::array<Terms, kTerms> xtx{};
     Terms xty{};
-    uint64_t units = 0;
-    double cycles = 0, work = 0;
+    // A measured unit's terms (its count term 1) and cycles.
     void add(const Terms& x, double y);
     // Never below 0.
     double predict(const Terms& x) const;
