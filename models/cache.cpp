@@ -65,6 +65,22 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
                                         why);
     }
     policy.bind(*this);
+    const PrefetcherEntry& prefetcher = PrefetcherRegistry::at(params_.prefetcher);
+    if (prefetcher.make) {
+        PrefetcherParams pp;
+        pp.degree = std::max(1, params_.prefetch_degree);
+        prefetcher_ = prefetcher.make(pp);
+        prefetched_.assign(params_.sets() * uint64_t(params_.ways), 0);
+    }
+}
+
+void Cache::prefetch_candidates(uint64_t line, std::vector<uint64_t>& out) {
+    out.clear();
+    prefetcher_->on_miss(line, out);
+    const uint64_t limit_line = (params_.address_limit_bytes - 1) >> line_shift_;
+    out.erase(std::remove_if(out.begin(), out.end(),
+                             [&](uint64_t l) { return l == line || l > limit_line; }),
+              out.end());
 }
 
 void Cache::look_up(uint64_t first, uint64_t last, Cycle now, Cycle* done) {
@@ -236,6 +252,13 @@ void Cache::register_stats(StatsRegistry& reg) {
         reg.add(block, "first_fills", &first_fills,
                 "misses on lines of the BVH never held before (compulsory misses; sampled runs)");
     if (level_ == kLevelL1) return;  // the L1s are read-only
+    if (prefetcher_) {
+        reg.add(block, "prefetches", &prefetches, "lines fetched by the prefetcher");
+        reg.add(block, "prefetches_dropped", &prefetches_dropped,
+                "lines the prefetcher named that found no free MSHR (never fetched)");
+        reg.add(block, "prefetch_hits", &prefetch_hits,
+                "prefetched lines a demand lookup found before they left (useful prefetches)");
+    }
     reg.add(block, "write_requests", &write_requests, "writes from the level above");
     reg.add(block, "write_bytes", &write_bytes, "bytes written from the level above");
     reg.add(block, "write_hits", &write_hits, "written lines that were present");
@@ -253,10 +276,19 @@ nlohmann::json cache_entry(uint64_t accesses, uint64_t hits, uint64_t misses, ui
             {"merged_misses", merged},
             {"hit_rate", ReportContext::ratio(double(hits), double(accesses))}};
 }
+
+// The prefetcher's figures, in a cache section that has one.
+void add_prefetch_entry(nlohmann::json& e, uint64_t issued, uint64_t dropped, uint64_t useful) {
+    e["prefetch"] = {{"issued", issued},
+                     {"dropped", dropped},
+                     {"useful", useful},
+                     {"accuracy", ReportContext::ratio(double(useful), double(issued))}};
+}
 }  // namespace
 
 nlohmann::json Cache::report(const ReportContext&) const {
     nlohmann::json e = cache_entry(accesses, hits, misses, merged_misses);
+    if (prefetcher_) add_prefetch_entry(e, prefetches, prefetches_dropped, prefetch_hits);
     if (level_ != kLevelL1) {
         e["write_requests"] = write_requests;
         e["write_bytes"] = write_bytes;
@@ -268,8 +300,14 @@ nlohmann::json Cache::report(const ReportContext&) const {
 }
 
 nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, const ReportContext&) {
-    return cache_entry(sum_of(caches, &Cache::accesses), sum_of(caches, &Cache::hits),
-                       sum_of(caches, &Cache::misses), sum_of(caches, &Cache::merged_misses));
+    nlohmann::json e =
+        cache_entry(sum_of(caches, &Cache::accesses), sum_of(caches, &Cache::hits),
+                    sum_of(caches, &Cache::misses), sum_of(caches, &Cache::merged_misses));
+    if (!caches.empty() && caches.front()->prefetching())
+        add_prefetch_entry(e, sum_of(caches, &Cache::prefetches),
+                           sum_of(caches, &Cache::prefetches_dropped),
+                           sum_of(caches, &Cache::prefetch_hits));
+    return e;
 }
 
 }  // namespace rtsim

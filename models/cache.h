@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "models/calendar.h"
+#include "models/prefetcher.h"
 #include "models/replacement.h"
 #include "models/stats.h"
 #include "models/timing.h"
@@ -39,6 +40,10 @@ struct CacheParams {
     // a written line dirty until it is evicted (allocating a missing line without fetching it:
     // the writer supplies the bytes it reads back), write_through sends every write on.
     bool write_back = true;
+    // A registered prefetcher (models/prefetcher.h; "none": demand misses only) and the lines it
+    // may name per demand miss.
+    std::string prefetcher = "none";
+    int prefetch_degree = 1;
     // Addresses stay below this: tags are stored in 32 bits (the constructor refuses a cache
     // whose tags would not fit).
     uint64_t address_limit_bytes = uint64_t(1) << 36;
@@ -99,6 +104,15 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     template <typename P>
     static void use_policy(Cache& cache);
     // The earliest cycle a lookup may still come at (the requesters' floor).
+    // Whether a prefetcher is configured (the time-ordered reference then runs its prefetches).
+    bool prefetching() const { return prefetcher_ != nullptr; }
+    // The lines the prefetcher names after a demand miss of `line` (line addresses), those
+    // beyond the cache's address limit left out; into `out`, replacing what it held.
+    void prefetch_candidates(uint64_t line, std::vector<uint64_t>& out);
+    // The reference's prefetch of `line` at `at`, its MSHR already taken: installed as a miss
+    // installs a line (a dirty victim queued, queued_writebacks) and counted; false, changing
+    // nothing, when the line is held or filling.
+    bool install_prefetch(uint64_t line, Cycle at) { return prefetch_fn_(*this, line, at); }
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
     }
@@ -194,8 +208,35 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint64_t write_requests = 0, write_hits = 0, write_misses = 0, write_bytes = 0;
     uint64_t writebacks = 0, writeback_bytes = 0;
     uint64_t first_fills = 0;  // with count_first_fills: misses on lines never held before
+    // With a prefetcher: lines prefetched, prefetches dropped for want of a free MSHR, and
+    // demand lookups that found a prefetched line before any other demand lookup had (useful).
+    uint64_t prefetches = 0, prefetches_dropped = 0, prefetch_hits = 0;
 
   private:
+    // Per set and way with a prefetcher: 1 while the line there came by a prefetch and no
+    // demand lookup has found it yet.
+    std::vector<uint8_t> prefetched_;
+    std::unique_ptr<Prefetcher> prefetcher_;
+    std::vector<uint64_t> prefetch_lines_;  // scratch: the prefetcher's lines for one miss
+    void note_prefetch_hit(uint64_t set, int way) {
+        uint8_t& p = prefetched_[set * uint64_t(params_.ways) + uint64_t(way)];
+        prefetch_hits += p;
+        p = 0;
+    }
+    // A way refilled by anything but a prefetch.
+    [[gnu::always_inline]] void clear_prefetched(uint64_t set, int way) {
+        if (!prefetched_.empty()) prefetched_[set * uint64_t(params_.ways) + uint64_t(way)] = 0;
+    }
+    // Installs a prefetched line in `set` at `at` (victim, write-back per `mode`, counters);
+    // returns its way. Its fill cycle is the caller's to set.
+    template <int G, typename P>
+    int install_prefetched(uint64_t set, uint64_t line, Cycle at, int mode);
+    // The fast model's prefetches after a demand miss of `line` looked up at `at`.
+    template <int G, typename P>
+    [[gnu::noinline]] void prefetch(uint64_t line, Cycle at);
+    bool (*prefetch_fn_)(Cache&, uint64_t, Cycle) = nullptr;
+    template <int G, typename P>
+    static bool prefetch_entry(Cache& c, uint64_t line, Cycle at);
     // A line filled (by a miss or by warming; `counted`: a counted miss): counts a first fill.
     [[gnu::always_inline]] void mark_filled(uint64_t line, bool counted) {
         if (!held_.empty()) mark_held(line, counted);
@@ -308,6 +349,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     template <int G, typename P>
     Cycle hit(uint64_t set, int way, Cycle lookup_done) {
         ++hits;
+        if (!prefetched_.empty()) note_prefetch_hit(set, way);
         P::template hit<G>(stamps<G>(set), way, repl_);
         const Cycle ready = fill_ready<G>(set)[way];
         merged_misses += ready > lookup_done;  // no branch: which lines are still filling is random

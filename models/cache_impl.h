@@ -18,6 +18,7 @@ void Cache::use_policy(Cache& c) {
             c.tag_fn_ = &Cache::tag_entry<1, P>;
             c.warm_fn_ = &Cache::tag_entry<1, P, false>;
             c.write_fn_ = &Cache::write_entry<1, P>;
+            c.prefetch_fn_ = &Cache::prefetch_entry<1, P>;
             break;
         case 2:
             c.access_fn_ = &Cache::access_entry<2, P>;
@@ -25,6 +26,7 @@ void Cache::use_policy(Cache& c) {
             c.tag_fn_ = &Cache::tag_entry<2, P>;
             c.warm_fn_ = &Cache::tag_entry<2, P, false>;
             c.write_fn_ = &Cache::write_entry<2, P>;
+            c.prefetch_fn_ = &Cache::prefetch_entry<2, P>;
             break;
         case 4:
             c.access_fn_ = &Cache::access_entry<4, P>;
@@ -32,6 +34,7 @@ void Cache::use_policy(Cache& c) {
             c.tag_fn_ = &Cache::tag_entry<4, P>;
             c.warm_fn_ = &Cache::tag_entry<4, P, false>;
             c.write_fn_ = &Cache::write_entry<4, P>;
+            c.prefetch_fn_ = &Cache::prefetch_entry<4, P>;
             break;
         default:
             c.access_fn_ = &Cache::access_entry<0, P>;
@@ -39,6 +42,7 @@ void Cache::use_policy(Cache& c) {
             c.tag_fn_ = &Cache::tag_entry<0, P>;
             c.warm_fn_ = &Cache::tag_entry<0, P, false>;
             c.write_fn_ = &Cache::write_entry<0, P>;
+            c.prefetch_fn_ = &Cache::prefetch_entry<0, P>;
     }
 }
 
@@ -48,7 +52,10 @@ bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     const uint64_t set = c.set_of(line);
     const int found = c.find_way<G>(set, line);
     if (found >= 0) {
-        if constexpr (kCount) ++c.hits;
+        if constexpr (kCount) {
+            ++c.hits;
+            if (!c.prefetched_.empty()) c.note_prefetch_hit(set, found);
+        }
         P::template hit<G>(c.stamps<G>(set), found, c.repl_);
         return true;
     }
@@ -63,8 +70,54 @@ bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     }
     c.tags<G>(set)[victim] = c.tag_of(line);
     c.fill_ready<G>(set)[victim] = 0;  // the reference keeps fills in flight itself
+    c.clear_prefetched(set, victim);
     P::template filled<G>(c.stamps<G>(set), victim, c.repl_);
     return false;
+}
+
+template <int G, typename P>
+int Cache::install_prefetched(uint64_t set, uint64_t line, Cycle at, int mode) {
+    const int victim = P::template victim<G>(tags<G>(set), stamps<G>(set), repl_);
+    evict(set, victim, tags<G>(set)[victim], at, WritebackMode(mode));
+    mark_filled(line, true);
+    ++prefetches;
+    fill_bytes += params_.line_bytes;
+    if (fill_series_) fill_series_->add(at, params_.line_bytes);
+    tags<G>(set)[victim] = tag_of(line);
+    fill_ready<G>(set)[victim] = 0;
+    prefetched_[set * uint64_t(params_.ways) + uint64_t(victim)] = 1;
+    P::template filled<G>(stamps<G>(set), victim, repl_);
+    return victim;
+}
+
+template <int G, typename P>
+bool Cache::prefetch_entry(Cache& c, uint64_t line, Cycle at) {
+    const uint64_t set = c.set_of(line);
+    if (c.find_way<G>(set, line) >= 0) return false;
+    c.install_prefetched<G, P>(set, line, at, kQueueWriteBack);
+    return true;
+}
+
+template <int G, typename P>
+void Cache::prefetch(uint64_t line, Cycle at) {
+    prefetch_candidates(line, prefetch_lines_);
+    const bool limited = few_mshrs_ || !mshr_free_.empty();
+    for (const uint64_t l : prefetch_lines_) {
+        const uint64_t set = set_of(l);
+        if (find_way<G>(set, l) >= 0) continue;  // held or filling
+        if (limited && earliest_mshr() > at) {   // never waits for an MSHR
+            ++prefetches_dropped;
+            continue;
+        }
+        const int way = install_prefetched<G, P>(set, l, at, kSendWriteBack);
+        if (limited) request_mshr(at);
+        // Its timeline, for a demand access that waits on it (charge_wait).
+        AccessBreakdown bd;
+        const Cycle ready = next_->access(l << line_shift_, params_.line_bytes, at, &bd);
+        remember_fill(l, at, AccessBreakdown{}, bd, ready);
+        if (limited) replace_earliest_mshr(ready);  // the MSHR the check above found free
+        fill_ready<G>(set)[way] = ready;
+    }
 }
 
 template <int G, typename P>
@@ -82,6 +135,7 @@ void Cache::write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode) {
         c.write_misses += counted;
         c.tags<G>(set)[way] = c.tag_of(line);
         c.fill_ready<G>(set)[way] = at;  // its bytes are the write's: there once looked up
+        c.clear_prefetched(set, way);
         P::template filled<G>(c.stamps<G>(set), way, c.repl_);
     }
     c.dirty_[set * uint64_t(c.params_.ways) + uint64_t(way)] = 1;
@@ -134,7 +188,9 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     if (limited) replace_earliest_mshr(ready);
     tags<G>(set)[victim] = tag_of(line_addr);
     fill_ready<G>(set)[victim] = ready;
+    clear_prefetched(set, victim);
     P::template filled<G>(stamps<G>(set), victim, repl_);
+    if (prefetcher_) prefetch<G, P>(line_addr, lookup_done);
     return ready;
 }
 

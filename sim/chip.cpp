@@ -125,7 +125,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
             CacheParams tp = l1p;
             tp.size_bytes = treelet_cache_bytes;
             tp.hit_latency_cycles = P.traversal.treelet_cache_latency_cycles;
-            tp.mshrs = 0;  // its misses are bounded by the L1's MSHRs
+            tp.mshrs = 0;            // its misses are bounded by the L1's MSHRs
+            tp.prefetcher = "none";  // batches load it whole; the L1 behind it prefetches
             tp.banks = 1;
             treelet_caches.push_back(
                 std::make_unique<Cache>(indexed("treelet_cache", i).c_str(), tp, l1.back().get()));

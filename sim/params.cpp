@@ -91,6 +91,10 @@ void add_cache_rows(std::vector<FieldBinding>& t, const std::string& s, CachePar
         ".rrpv_bits", [c](Params & p) -> auto& { return (p.*c).rrpv_bits; });
     row(
         ".banks", [c](Params & p) -> auto& { return (p.*c).banks; });
+    row(
+        ".prefetcher", [c](Params & p) -> auto& { return (p.*c).prefetcher; });
+    row(
+        ".prefetch_degree", [c](Params & p) -> auto& { return (p.*c).prefetch_degree; });
 }
 
 std::vector<FieldBinding> make_bindings() {

@@ -285,6 +285,7 @@ class ReferenceScheduler final : public ChipDriver {
     void arrive(uint32_t a, Cycle t);
     void tag(uint32_t a, uint32_t k, Cycle t);
     void issue_fill(uint32_t f, Cycle t);
+    void prefetch(Cache* cache, uint32_t cs, uint64_t line, Cycle t);
     void dram_stage(uint32_t f, Cycle t);
     void fill_done(uint32_t f, Cycle t);
     void line_done(uint32_t a, uint64_t k, Cycle t, const Timeline& timeline);
@@ -345,6 +346,7 @@ class ReferenceScheduler final : public ChipDriver {
     std::vector<uint32_t> free_dram_writes_;
     std::unordered_map<const Cache*, uint32_t> cache_index_;
     std::vector<Cycle> lookup_scratch_;
+    std::vector<uint64_t> prefetch_lines_;
     double host_busy_seconds_ = 0;
 };
 
@@ -614,6 +616,37 @@ void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
         issue_fill(f, t);
     } else {
         st.waiting.push_back(f);
+    }
+    if (cache->prefetching()) prefetch(cache, cs, line, t);
+}
+
+// After a demand miss of `line` at t, the cache's prefetcher's lines (models/prefetcher.h): each
+// one not held takes an MSHR free now or is dropped, and is fetched as a fill nobody waits for
+// yet.
+void ReferenceScheduler::prefetch(Cache* cache, uint32_t cs, uint64_t line, Cycle t) {
+    cache->prefetch_candidates(line, prefetch_lines_);
+    for (const uint64_t l : prefetch_lines_) {
+        CacheState& st = caches_[cs];
+        if (cache->contains(cache->line_address(l))) continue;  // held or filling
+        if (st.mshrs && st.busy >= st.mshrs) {
+            ++cache->prefetches_dropped;
+            continue;
+        }
+        cache->install_prefetch(l, t);
+        if (!cache->queued_writebacks().empty()) send_writebacks(cache, t);
+        if (st.mshrs) {
+            cache->request_mshr(t);
+            ++st.busy;
+        }
+        const uint32_t f = take(fills_, free_fills_);
+        Fill& F = fills_[f];
+        F.cache = cache;
+        F.cache_state = cs;
+        F.line = l;
+        F.requested = t;
+        F.timeline = Timeline(t);
+        caches_[cs].in_flight[l] = f;
+        issue_fill(f, t);
     }
 }
 

@@ -311,6 +311,50 @@ TEST(Timeline, AFillCompletesBeforeALookupInTheSameCycleByHand) {
     }
 }
 
+// One ray as in OneRayMissingEveryLevelByHand, whose triangle is the line after its node, with a
+// next-line prefetcher (models/prefetcher.h) at the L2, then at the L1 (one L2 bank), then at
+// an L1 with one MSHR:
+//   L2: the node's L2 miss at 36 fetches the node line (DRAM until 218) and, an MSHR being
+//       free, the triangle's line at 36 too (the same open row behind it: back long before 261).
+//       226: triangle step, fetch 227, L1 miss at 231, L2 lookup 261 finds the prefetched line:
+//       data at 261; triangle 18 -> 279. DRAM stalls: the node's 218 - 36 only.
+//   L1: the node's L1 miss at 6 also prefetches the triangle's line: its L2 lookup waits for
+//       the bank until 7, misses at 37, DRAM behind the node's: back before 231. 226: triangle
+//       step, fetch 227, L1 lookup 231 hits; triangle 18 -> 249.
+//   L1 with one MSHR: the node's miss holds it, the prefetch is dropped: the 447 cycles of the
+//       ray without a prefetcher.
+TEST(Timeline, ANextLinePrefetchServesTheTriangleByHand) {
+    const std::string trace = write_trace(test::scratch_dir() / "prefetch.rtt", 1);
+    struct Case {
+        const char* name;
+        const char* extra;
+        uint64_t cycles;
+        const char* cache;  // the caches section with the prefetcher
+        uint64_t issued, dropped, useful, dram_bytes, dram_stall;
+    };
+    const Case cases[] = {
+        {"l2", " --set l2.prefetcher=next_line", 279, "l2", 1, 0, 1, 128, 218 - 36},
+        {"l1", " --set l1.prefetcher=next_line --set l2.banks=1", 249, "l1_total", 1, 0, 1, 128,
+         218 - 36},
+        {"l1_one_mshr", " --set l1.prefetcher=next_line --set l1.mshrs=1", 447, "l1_total", 0, 1, 0,
+         128, (218 - 36) + (429 - 261)},
+    };
+    for (const Case& c : cases)
+        for (const char* fidelity : kFidelities) {
+            SCOPED_TRACE(std::string(c.name) + " " + fidelity);
+            const json s = run_trace(trace, std::string(" --set core.ray_slots=1") + c.extra,
+                                     std::string("prefetch_") + c.name, fidelity);
+            EXPECT_EQ(s["total_cycles"].get<uint64_t>(), c.cycles);
+            const json& pf = s["caches"][c.cache]["prefetch"];
+            EXPECT_EQ(pf["issued"].get<uint64_t>(), c.issued) << pf.dump();
+            EXPECT_EQ(pf["dropped"].get<uint64_t>(), c.dropped) << pf.dump();
+            EXPECT_EQ(pf["useful"].get<uint64_t>(), c.useful) << pf.dump();
+            EXPECT_EQ(s["bandwidth"]["dram"]["bytes"].get<uint64_t>(), c.dram_bytes);
+            EXPECT_EQ(s["stalls"]["total"]["dram"].get<uint64_t>(), c.dram_stall);
+            EXPECT_EQ(s["stalls"]["total"]["unaccounted_cycles"].get<int64_t>(), 0);
+        }
+}
+
 // Three rays, each with its own node line, and one L1 MSHR: misses waiting for it are served
 // first come, first served.
 //   0    setups: A -> 1, B -> 2, C -> 3 (one issue a cycle, the longest waiting first)
