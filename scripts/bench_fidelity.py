@@ -19,7 +19,8 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
 
 --random N draws N cells at random, each a config drawn from the schema's ranges (MSHRs 1-32,
 banks, channels, cores x slots up to 64 x 32, cache sizes and replacement policies, crossbar
-widths, unit sharing, treelets with and without loads, packets, write traffic, command DRAM) on
+widths, unit sharing, treelets with and without loads, packets, write traffic, command DRAM,
+L1 and L2 prefetchers) on
 a mesh (TUNED_SCENES, which the fixed matrix uses, and HELD_OUT_SCENES, which it never used)
 with a ray kind, from a seed it prints (drawn at run time unless --seed). It reports the cells
 within 1%, the worst, the distribution, and how the fast run judged itself (stats.json
@@ -109,6 +110,11 @@ def draw_config(rng):
         c["core.short_stack_entries"] = rng.choice([4, 8])
         c["core.hit_record_bytes"] = 16
         c["l2.write_policy"] = rng.choice(["write_back", "write_through"])
+    if rng.random() < 0.3:  # hardware prefetchers
+        c["l1.prefetcher"] = rng.choice(["next_line", "next_line", "stride", "none"])
+        c["l2.prefetcher"] = rng.choice(["next_line", "stride", "none"])
+        c["l1.prefetch_degree"] = rng.choice([1, 2, 4])
+        c["l2.prefetch_degree"] = rng.choice([1, 2, 4])
     mode = rng.choices(["independent", "treelet", "packet"], weights=[6, 2, 2])[0]
     if mode == "treelet":
         c["traversal.mode"] = "treelet"
@@ -128,7 +134,8 @@ def draw_config(rng):
     label = (f"{cores}x{slots} l1m{c['l1.mshrs']} l2m{c['l2.mshrs']} "
              f"xb{c['crossbar.bytes_per_cycle']} w{c['bvh.width']} {mode}"
              f"{'+load' if c.get('traversal.treelet_prefetch') else ''}"
-             f"{' cmd' if 'dram.model' in c else ''}{' wr' if 'core.hit_record_bytes' in c else ''}")
+             f"{' cmd' if 'dram.model' in c else ''}{' wr' if 'core.hit_record_bytes' in c else ''}"
+             f"{' pf' if 'l1.prefetcher' in c else ''}")
     return sets, label, c
 
 
@@ -189,7 +196,8 @@ def random_main(a):
         if not config_loads(a.rtsim, sets):
             continue
         # Enough rays to fill the chip's slots many times: about 24 per slot, 48 to 256 a side.
-        side = max(48, min(256, int(math.sqrt(24 * c["core.count"] * c["core.ray_slots"]))))
+        side = max(48, min(a.max_side, int(math.sqrt(a.pixels_per_slot * c["core.count"] *
+                                                       c["core.ray_slots"]))))
         side = (side + 7) // 8 * 8
         base = ["--scene", SCENES[scene], "--res", f"{side}x{side}"] + RANDOM_KINDS[kind] + sets
         cells.append({"scene": scene, "held_out": scene in HELD_OUT_SCENES, "kind": kind,
@@ -340,6 +348,10 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "bench", "results"))
     ap.add_argument("--random", type=int, default=0, help="N cells drawn at random (see above)")
     ap.add_argument("--seed", type=int, default=None, help="--random's seed (default: drawn)")
+    ap.add_argument("--pixels-per-slot", type=int, default=24,
+                    help="--random: pixels per ray slot of each cell's square frame")
+    ap.add_argument("--max-side", type=int, default=256,
+                    help="--random: the largest frame side in pixels")
     a = ap.parse_args()
     if a.random:
         return random_main(a)

@@ -16,7 +16,7 @@ namespace {
 // The 95th percentile of the fast engine's |error| (cycles or DRAM bytes, the larger) against
 // the accurate engine, per regime, on the tuning set named in fidelity_check.h.
 constexpr double kNoRegimeErrorPct = 1.0;
-constexpr double kTreeletLoadsErrorPct = 29.0;
+constexpr double kTreeletLoadsErrorPct = 18.0;
 constexpr double kL1BoundErrorPct = 14.0;
 constexpr double kCrossbarBoundErrorPct = 16.0;
 constexpr double kCommandDramWritesErrorPct = 11.0;

@@ -4,9 +4,10 @@
 // The regimes and their bounds were measured with `scripts/bench_fidelity.py --random 300 --seed
 // 1001` (random configs on 10 meshes against sim.fidelity = accurate; the tuning set) and are
 // checked on configs drawn fresh (bench/results/fidelity_random.md):
-//   treelet_loads   treelet mode with treelet loads (traversal.treelet_prefetch): the loader
-//                   and a slot waiting on an MSHR hold each other back differently (29 runs,
-//                   28 over 1%, 95th percentile 29%).
+//   treelet_loads   treelet mode with treelet loads (traversal.treelet_prefetch): the loaders'
+//                   lines and the slots' misses meet at the MSHRs in another order (seeds
+//                   1001-1003, after both engines' loaders came to wait alike for an MSHR: 83
+//                   runs, 59 over 1%, median 2.3%, 95th percentile 18%).
 //   l1_bound        L1 stalls above 40% of slot cycles: slots waiting on few MSHRs (106 runs,
 //                   95th percentile 14%).
 //   crossbar_bound  the crossbar busy above 30% of cycles: transfers booked when issued, not in

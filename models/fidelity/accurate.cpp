@@ -106,6 +106,7 @@ class ReferenceScheduler final : public ChipDriver {
             CoreState cs;
             cs.write_wait_from.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
+            loaders_ = loaders_ || (core->ray_buffer() && core->params().treelet_prefetch);
             // Ray records in memory: read and written here, each stage at its cycle.
             if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
                 rb->set_memory(rb->memory(), true);
@@ -165,6 +166,7 @@ class ReferenceScheduler final : public ChipDriver {
         Cycle start = 0;
         uint64_t first_line = 0;
         uint32_t lines_left = 0;
+        uint64_t pending_lines = 0;  // lines counted in their cache's pending_misses (bit k)
         // The slowest line so far (the first of equals), and its timeline.
         bool any = false;
         Cycle done = 0;
@@ -189,6 +191,11 @@ class ReferenceScheduler final : public ChipDriver {
         std::unordered_map<uint64_t, uint32_t> in_flight;  // line -> its newest fill
         uint32_t mshrs = 0;                                // 0: unlimited
         uint32_t busy = 0;
+        // Lines of requests that have arrived and not yet been looked up, absent when they
+        // arrived: misses to come, each of which will take an MSHR. A treelet loader counts
+        // them as taken (the fast engine books a miss's MSHR when it is issued), so that it
+        // never queues behind its own lines still in the lookup pipeline.
+        uint32_t pending_misses = 0;
         std::deque<uint32_t> waiting;  // fills waiting for an MSHR, first come first served
         // Treelet loaders (core, load generation) waiting for a free MSHR.
         std::vector<std::pair<uint32_t, uint32_t>> loaders;
@@ -233,7 +240,7 @@ class ReferenceScheduler final : public ChipDriver {
             if (!cache->contains(addr)) {
                 if (Cache* limit = limiting_cache(cache)) {
                     CacheState& st = r.caches_[r.cache_state(limit)];
-                    if (st.busy >= st.mshrs) {
+                    if (st.busy + st.pending_misses >= st.mshrs) {
                         st.loaders.emplace_back(c, r.states_[c].load_generation);
                         return false;
                     }
@@ -285,6 +292,11 @@ class ReferenceScheduler final : public ChipDriver {
     void arrive(uint32_t a, Cycle t);
     void tag(uint32_t a, uint32_t k, Cycle t);
     void issue_fill(uint32_t f, Cycle t);
+    void count_pending_misses(Cache* cache, Access& A);
+    void wake_loaders(CacheState& st, Cycle t) {
+        for (const auto& [core, generation] : st.loaders) schedule(t, kLoad, core, generation);
+        st.loaders.clear();
+    }
     void prefetch(Cache* cache, uint32_t cs, uint64_t line, Cycle t);
     void dram_stage(uint32_t f, Cycle t);
     void fill_done(uint32_t f, Cycle t);
@@ -348,6 +360,7 @@ class ReferenceScheduler final : public ChipDriver {
     std::vector<Cycle> lookup_scratch_;
     std::vector<uint64_t> prefetch_lines_;
     double host_busy_seconds_ = 0;
+    bool loaders_ = false;  // a core may load treelets (pending misses are counted)
 };
 
 uint32_t ReferenceScheduler::cache_state(Cache* cache) {
@@ -572,6 +585,7 @@ void ReferenceScheduler::arrive(uint32_t a, Cycle t) {
     if (auto* cache = dynamic_cast<Cache*>(A.node)) {
         A.first_line = cache->arrive(A.addr, A.size_bytes, t, lookup_scratch_);
         A.lines_left = uint32_t(lookup_scratch_.size());
+        if (loaders_) count_pending_misses(cache, A);
         for (uint32_t k = 0; k < lookup_scratch_.size(); ++k)
             schedule(lookup_scratch_[k], kTag, a, k);
         return;
@@ -581,14 +595,40 @@ void ReferenceScheduler::arrive(uint32_t a, Cycle t) {
     schedule(A.node->access(A.addr, A.size_bytes, t), kIdealDone, a);
 }
 
+// The lines of request A, just arrived at `cache`, that will take an MSHR when looked up
+// (CacheState::pending_misses, of the cache whose MSHRs they take): absent here, and, for a
+// cache without MSHRs of its own (a treelet cache), absent from the cache behind it as well.
+void ReferenceScheduler::count_pending_misses(Cache* cache, Access& A) {
+    Cache* limit = limiting_cache(cache);
+    if (!limit) return;  // unlimited MSHRs
+    CacheState& st = caches_[cache_state(limit)];
+    const uint32_t lines = std::min<uint32_t>(A.lines_left, 64);
+    for (uint32_t k = 0; k < lines; ++k) {
+        const uint64_t addr = cache->line_address(A.first_line + k);
+        if (!cache->contains(addr) && (limit == cache || !limit->contains(addr))) {
+            A.pending_lines |= uint64_t(1) << k;
+            ++st.pending_misses;
+        }
+    }
+}
+
 // Line k of a request is looked up at t.
 void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
     Cache* cache = static_cast<Cache*>(accesses_[a].node);
     const uint64_t line = accesses_[a].first_line + k;
     const uint32_t cs = cache_state(cache);
+    const bool was_pending = k < 64 && (accesses_[a].pending_lines >> k & 1);
+    CacheState* pending_at = nullptr;  // the state it was counted in
+    if (was_pending) {
+        accesses_[a].pending_lines &= ~(uint64_t(1) << k);
+        pending_at = &caches_[cache_state(limiting_cache(cache))];
+        --pending_at->pending_misses;
+    }
     const bool hit = cache->check_tag(line, t);
     if (!cache->queued_writebacks().empty()) send_writebacks(cache, t);
     if (hit) {
+        // A miss that did not come: a loader waiting on it may go on.
+        if (pending_at && !pending_at->loaders.empty()) wake_loaders(*pending_at, t);
         auto it = caches_[cs].in_flight.find(line);
         if (it != caches_[cs].in_flight.end()) {  // still filling: wait for it (merged miss)
             ++cache->merged_misses;
@@ -704,8 +744,7 @@ void ReferenceScheduler::fill_done(uint32_t f, Cycle t) {
             issue_fill(next, t);
         } else {
             --st.busy;
-            for (const auto& [core, generation] : st.loaders) schedule(t, kLoad, core, generation);
-            st.loaders.clear();
+            wake_loaders(st, t);
         }
     }
     const int level = F.cache->level();
