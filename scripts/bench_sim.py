@@ -11,13 +11,16 @@ variant (the default config; the same pinned to one host core with taskset, so t
 shares that core with the simulation instead of using a second one; ideal memory; one simulated
 core): simulated rays per host second without any functional work, best and median, and the
 best one-host-core default replay against the target of 1 M simulated rays per host
-second on one host core. With --profile as well, one more default replay runs under
+second on one host core. With --engines, the fast and the accurate engine run one frame each
+side by side (bunny at --engines-res, primary + shadow + 4 AO rays, the default chip and 64 cores
+of 32 slots): simulated rays per host second and accurate over fast. With --profile as well, one more default replay runs under
 `perf record -e cpu-clock` (a software clock: no hardware counters needed) and the functions
 taking the most of the simulation thread's samples are listed; skipped with a note where perf
 is missing or not permitted.
 
     scripts/bench_sim.py [--rtsim build/rtsim] [--scene FILE] [--res 256x256]
                          [--kinds primary,ao,diffuse] [--set bvh.width=8 ...] [--replay N] [--profile]
+                         [--engines [--engines-res 1920x1080]]
 """
 import argparse
 import collections
@@ -118,6 +121,30 @@ def profile_section(a, tmp, kind, trace, extra, top=16):
         print(f"  {share / main_share * 100:5.1f}%  {name}")
 
 
+# The frame both engines run side by side (--engines): primary, shadow and 4 AO rays per pixel,
+# on the default chip and on 64 cores of 32 slots.
+ENGINE_FRAME = ["--rays", "primary,shadow,ao", "--ao-samples", "4"]
+ENGINE_CHIPS = [("default", []), ("64x32", ["--set", "core.count=64", "--set", "core.ray_slots=32"])]
+
+
+def engines_section(a, tmp, extra):
+    print(f"\nBoth engines on one frame ({a.scene}, {a.engines_res}, primary + shadow + 4 AO), "
+          f"one run each, in this run:")
+    print(f"{'chip':8} {'engine':9} {'rays':>9} {'Mcycles':>9} {'host s':>7} "
+          f"{'sim Mrays/host s':>17} {'vs fast':>8}")
+    for chip, sets in ENGINE_CHIPS:
+        fast_rate = None
+        for engine in ("fast", "accurate"):
+            s = run(a.rtsim, ["--config", a.config, "--scene", a.scene, "--res", a.engines_res] +
+                    ENGINE_FRAME + extra + sets + ["--set", f"sim.fidelity={engine}"],
+                    os.path.join(tmp, f"engines-{chip}-{engine}"))
+            h = s["host"]
+            rate = h["simulated_rays_per_host_second"] / 1e6
+            fast_rate = fast_rate or rate
+            print(f"{chip:8} {engine:9} {s['rays']['total']:9d} {s['total_cycles'] / 1e6:9.3f} "
+                  f"{h['simulation_s']:7.2f} {rate:17.3f} {rate / fast_rate:7.2f}x")
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--rtsim", default="build/rtsim")
@@ -127,6 +154,10 @@ def main():
     p.add_argument("--kinds", default="primary,ao,diffuse")
     p.add_argument("--set", action="append", default=[], help="config override, KEY=VALUE (repeatable)")
     p.add_argument("--replay", type=int, default=0, help="replays per variant of a recorded trace")
+    p.add_argument("--engines", action="store_true",
+                   help="also run the fast and the accurate engine side by side on one frame "
+                        "(--engines-res, primary + shadow + 4 AO) on the default chip and 64 x 32")
+    p.add_argument("--engines-res", default="1920x1080")
     p.add_argument("--profile", action="store_true",
                    help="with --replay: profile one default replay with perf (cpu-clock samples)")
     a = p.parse_args()
@@ -149,6 +180,8 @@ def main():
                   f"{h['models_s'] / sim_s * 100:6.0f}% {h['kernel_s'] / sim_s * 100:6.0f}%")
         if a.replay > 0:
             replay_section(a, tmp, [x for kv in a.set for x in ("--set", kv)])
+        if a.engines:
+            engines_section(a, tmp, [x for kv in a.set for x in ("--set", kv)])
 
 
 if __name__ == "__main__":
