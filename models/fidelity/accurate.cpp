@@ -291,6 +291,7 @@ class ReferenceScheduler final : public ChipDriver {
     uint32_t new_access(MemoryPort* node, uint64_t addr, uint32_t size, Cycle start);
     void arrive(uint32_t a, Cycle t);
     void tag(uint32_t a, uint32_t k, Cycle t);
+    uint32_t new_fill(Cache* cache, uint32_t cs, uint64_t line, Cycle t);
     void issue_fill(uint32_t f, Cycle t);
     void count_pending_misses(Cache* cache, Access& A);
     void wake_loaders(CacheState& st, Cycle t) {
@@ -640,16 +641,9 @@ void ReferenceScheduler::tag(uint32_t a, uint32_t k, Cycle t) {
         line_done(a, k, t, tl);
         return;
     }
-    const uint32_t f = take(fills_, free_fills_);
-    Fill& F = fills_[f];
-    F.cache = cache;
-    F.cache_state = cs;
-    F.line = line;
-    F.requested = t;
-    F.timeline = Timeline(t);
-    F.waiters.push_back({a, k, t});
+    const uint32_t f = new_fill(cache, cs, line, t);
+    fills_[f].waiters.push_back({a, k, t});
     CacheState& st = caches_[cs];
-    st.in_flight[line] = f;  // an older fill of the line (evicted while filling) ends unseen
     if (st.mshrs) cache->request_mshr(t);
     if (st.mshrs == 0 || st.busy < st.mshrs) {
         if (st.mshrs) ++st.busy;
@@ -678,16 +672,22 @@ void ReferenceScheduler::prefetch(Cache* cache, uint32_t cs, uint64_t line, Cycl
             cache->request_mshr(t);
             ++st.busy;
         }
-        const uint32_t f = take(fills_, free_fills_);
-        Fill& F = fills_[f];
-        F.cache = cache;
-        F.cache_state = cs;
-        F.line = l;
-        F.requested = t;
-        F.timeline = Timeline(t);
-        caches_[cs].in_flight[l] = f;
-        issue_fill(f, t);
+        issue_fill(new_fill(cache, cs, l, t), t);
     }
+}
+
+// A fill of `line` into `cache` (its state cs) from its tag check at t, the line's newest in
+// flight (an older fill of the line, evicted while filling, ends unseen).
+uint32_t ReferenceScheduler::new_fill(Cache* cache, uint32_t cs, uint64_t line, Cycle t) {
+    const uint32_t f = take(fills_, free_fills_);
+    Fill& F = fills_[f];
+    F.cache = cache;
+    F.cache_state = cs;
+    F.line = line;
+    F.requested = t;
+    F.timeline = Timeline(t);
+    caches_[cs].in_flight[line] = f;
+    return f;
 }
 
 // A miss holding an MSHR from t asks the next level for its line.
