@@ -74,6 +74,18 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     }
 }
 
+void Cache::warm_prefetches(uint64_t line) {
+    prefetch_candidates(line, prefetch_lines_);
+    DemandFirstTouch* const touches = first_touch_;
+    first_touch_ = nullptr;                     // a prefetch is no ray's demand
+    for (const uint64_t l : prefetch_lines_) {  // the next level warms with its own list
+        if (contains(line_address(l))) continue;
+        warm_fn_(*this, l, 0);
+        if (next_) next_->warm(line_address(l), params_.line_bytes);
+    }
+    first_touch_ = touches;
+}
+
 void Cache::prefetch_candidates(uint64_t line, std::vector<uint64_t>& out) {
     out.clear();
     prefetcher_->on_miss(line, out);

@@ -69,6 +69,28 @@ class IdealMemory : public MemoryPort {
     Cycle latency_;
 };
 
+// The frame's lines first asked for by a ray (a bit per line of a range, in lines of
+// `line_bytes`), and how many were while counting (`count`): a sampled run's first fills when a
+// prefetcher brings lines no ray asks for (Cache::count_first_demands).
+struct DemandFirstTouch {
+    uint64_t first_line = 0, lines = 0, count = 0;
+    uint32_t line_shift = 6;
+    std::vector<uint64_t> bits;
+    DemandFirstTouch(uint64_t base, uint64_t end, uint32_t line_bytes) {
+        line_shift = uint32_t(__builtin_ctz(line_bytes));
+        first_line = base >> line_shift;
+        lines = end > base ? ((end - 1) >> line_shift) - first_line + 1 : 0;
+        bits.assign((lines + 63) / 64, 0);
+    }
+    void touch(uint64_t addr, bool counted) {
+        const uint64_t k = (addr >> line_shift) - first_line;
+        if ((addr >> line_shift) < first_line || k >= lines) return;
+        const uint64_t bit = uint64_t(1) << (k % 64);
+        count += counted && (bits[k / 64] & bit) == 0;
+        bits[k / 64] |= bit;
+    }
+};
+
 class Cache final : public sc_core::sc_module, public MemoryPort {
   public:
     // `level` names the level for stall attribution (kLevelL1, kLevelL2).
@@ -113,6 +135,14 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // installs a line (a dirty victim queued, queued_writebacks) and counted; false, changing
     // nothing, when the line is held or filling.
     bool install_prefetch(uint64_t line, Cycle at) { return prefetch_fn_(*this, line, at); }
+    // Functional warming of the prefetches after a miss of `line`: each named line not held is
+    // installed as warm() installs a line (uncounted), and warmed in the next level.
+    void warm_prefetches(uint64_t line);
+    // Sampled runs with a prefetcher: demand lookups here (a cache the cores ask first) mark
+    // the frame's lines in `touches` (models/cache.h DemandFirstTouch), whose count stands for
+    // the L2's first fills. Lines a prefetch brought are then counted when a ray first asks for
+    // them, as the frame's profile counts its distinct lines, and never if none does.
+    void count_first_demands(DemandFirstTouch* touches) { first_touch_ = touches; }
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
     }
@@ -127,11 +157,14 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     bool check_tag(uint64_t line, Cycle at) { return tag_fn_(*this, line, at); }
     // MemoryPort::warm: each line's tag check as check_tag makes it, uncounted, its fill ready
     // at once; a line missing here is warmed in the next level too.
+    // With a prefetcher, a line missing here also warms the lines it would prefetch.
     void warm(uint64_t addr, uint32_t size_bytes) override {
         const auto [first, last] = line_range(addr, size_bytes);
         for (uint64_t line = first; line <= last; ++line)
-            if (!warm_fn_(*this, line, 0) && next_)
-                next_->warm(line << line_shift_, params_.line_bytes);
+            if (!warm_fn_(*this, line, 0)) {
+                if (next_) next_->warm(line << line_shift_, params_.line_bytes);
+                if (prefetcher_) warm_prefetches(line);
+            }
     }
     // Warms one line (an address in lines of this cache) here only, as warm() does, and says
     // whether it was held: the sampler's replay calls it directly and warms the next level itself
@@ -213,6 +246,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint64_t prefetches = 0, prefetches_dropped = 0, prefetch_hits = 0;
 
   private:
+    DemandFirstTouch* first_touch_ = nullptr;
+    [[gnu::always_inline]] void demand(uint64_t line, bool counted = true) {
+        if (first_touch_) first_touch_->touch(line << line_shift_, counted);
+    }
     // Per set and way with a prefetcher: 1 while the line there came by a prefetch and no
     // demand lookup has found it yet.
     std::vector<uint8_t> prefetched_;

@@ -49,6 +49,7 @@ void Cache::use_policy(Cache& c) {
 template <int G, typename P, bool kCount>
 bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     (void)at;  // only counted fills are put in the time series
+    c.demand(line, kCount);
     const uint64_t set = c.set_of(line);
     const int found = c.find_way<G>(set, line);
     if (found >= 0) {
@@ -144,6 +145,7 @@ void Cache::write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode) {
 template <int G, typename P>
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                          bool breakdown) {
+    demand(line_addr);
     const uint64_t set = set_of(line_addr);
     const int found = find_way<G>(set, line_addr);
     if (found >= 0) {
@@ -220,6 +222,7 @@ inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now
     Cycle slowest = 0, slowest_lookup = 0;
     uint64_t slowest_line = first;
     for (uint64_t k = 0; k < lines; ++k) {
+        demand(first + k);
         const Cycle lookup_done = one_bank ? first_done + k : done[k];
         const Cycle d = std::max(lookup_done, hit<G, P>(set_of(first + k), ways[k], lookup_done));
         const bool slower = k == 0 || d > slowest;
@@ -239,6 +242,7 @@ inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, Acc
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
         const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
+        demand(first);
         const uint64_t set = set_of(first);
         const int found = find_way<G>(set, first);
         if (found < 0) return fill<G, P>(set, first, now, lookup_done, bd);

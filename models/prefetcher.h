@@ -9,8 +9,8 @@
 //     fills waits for it as for any fill in flight (a merged miss);
 //   * its counters: prefetches issued, dropped for want of an MSHR, and useful (lines hit by a
 //     demand access before they left).
-// Functional warming (sampled runs) does not prefetch: a warmed cache holds the lines the
-// demand stream touched.
+// Functional warming (sampled runs) prefetches as a miss does (Cache::warm_prefetches), uncounted;
+// a sampled run's first fills are then the lines rays first ask for (DemandFirstTouch).
 #pragma once
 
 #include <cstdint>

@@ -65,7 +65,17 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     l2 = std::make_unique<Cache>("l2", l2p, dram_regions.get(), kLevelL2);
     // A sampled run regresses the DRAM traffic on the BVH's compulsory misses
     // (sim/sampling/sampler.h).
-    if (P.sim.sampled) l2->count_first_fills(layout.fetch_begin(), layout.fetch_end());
+    // With a prefetcher, lines come that no ray asks for: the first fills are then the lines a
+    // ray first asks for at its core's first cache, as the frame's profile counts them.
+    const bool prefetching = P.l1.prefetcher != "none" || P.l2.prefetcher != "none";
+    if (P.sim.sampled && !prefetching)
+        l2->count_first_fills(layout.fetch_begin(), layout.fetch_end());
+    if (P.sim.sampled && prefetching) {
+        first_demands = std::make_unique<DemandFirstTouch>(layout.fetch_begin(), layout.fetch_end(),
+                                                           uint32_t(l2p.line_bytes));
+        stats.add("l2", "first_fills", &first_demands->count,
+                  "lines of the BVH a ray asked for first in the frame (its first fills)");
+    }
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
@@ -112,10 +122,12 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     for (int i = 0; i < n; ++i) {
         l1.push_back(std::make_unique<Cache>(indexed("l1", i).c_str(), l1p, below_l1));
         l1.back()->register_stats(stats);
+        l1.back()->count_first_demands(first_demands.get());
         l1.back()->set_series(series.l1_fill_bytes.get());
         if (P.l1_split) {
             l1_tri.push_back(std::make_unique<Cache>(indexed("l1_tri", i).c_str(), l1p, below_l1));
             l1_tri.back()->register_stats(stats);
+            l1_tri.back()->count_first_demands(first_demands.get());
             l1_tri.back()->set_series(series.l1_fill_bytes.get());
         }
         MemoryPort* memory =
@@ -131,6 +143,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
             treelet_caches.push_back(
                 std::make_unique<Cache>(indexed("treelet_cache", i).c_str(), tp, l1.back().get()));
             treelet_caches.back()->register_stats(stats);
+            treelet_caches.back()->count_first_demands(first_demands.get());
             memory = treelet_caches.back().get();
         }
         // Triangle fetches go to the split L1's triangle cache when there is one.

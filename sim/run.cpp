@@ -585,6 +585,7 @@ int run_command(const RunOptions& opt) {
         frame.fetch_begin = w.layout().fetch_begin();
         frame.fetch_end = w.layout().fetch_end();
         sampler = make_sampler(cfg.typed.sim.sample_fast_forward, sp, view, frame);
+        sampler->set_first_demands(chip.first_demands.get());
         source.set_sampler(sampler.get());
     }
     const auto t_sim = Clock::now();

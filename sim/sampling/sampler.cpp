@@ -254,8 +254,12 @@ void Sampler::set_caches(const Cache& l1, const Cache& l2, uint64_t dram_bytes_p
     l2_line_bytes_ = p2.line_bytes;
     dram_bytes_per_fill_ = dram_bytes_per_fill;
     l1_lines_ = p1.size_bytes / p1.line_bytes;
-    l1_lru_ = p1.replacement == "lru";
-    l2_lru_ = p2.replacement == "lru";
+    // A prefetcher brings lines no demand touched: the replay's LRU shortcuts (a line's state
+    // depends only on its last touch) and its direct tag checks then do not hold, and the
+    // replay goes through each cache's warm(), which prefetches as a miss does.
+    prefetching_ = l1.prefetching() || l2.prefetching();
+    l1_lru_ = p1.replacement == "lru" && !prefetching_;
+    l2_lru_ = p2.replacement == "lru" && !prefetching_;
     l1_fetch_lines_ = LineTracker(0, 0, p1.line_bytes);
     l2_sets_ = p2.sets();
     l2_ways_ = uint32_t(p2.ways);
@@ -280,8 +284,8 @@ void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
     // calls (the replay is a quarter of a 1-in-50 primary frame's main thread).
     auto* l2_cache = dynamic_cast<Cache*>(l2);
     const uint32_t line_bytes = profile->line_bytes;
-    bool direct = l2_cache && l2_cache->params().line_bytes == line_bytes && line_bytes > 0 &&
-                  profile->line_base % line_bytes == 0 && !ports_.empty();
+    bool direct = !prefetching_ && l2_cache && l2_cache->params().line_bytes == line_bytes &&
+                  line_bytes > 0 && profile->line_base % line_bytes == 0 && !ports_.empty();
     std::vector<std::array<Cache*, kStepKinds>> l1s(ports_.size());
     for (size_t c = 0; direct && c < ports_.size(); ++c)
         for (size_t k = 0; direct && k < kStepKinds; ++k) {
@@ -364,6 +368,10 @@ void Sampler::replay_skipped_tiles(uint64_t tile) {
         // write into the L2 in between: writes go to the level below them.
         const bool defer_l2 = direct_l2_ && l2_lru_;
         l1_misses_.clear();
+        if (first_demands_)
+            for (uint32_t i = p.tile_line_start[replayed_tiles_]; i < end; ++i)
+                first_demands_->touch(p.line_base + uint64_t(p.tile_lines[i]) * p.line_bytes,
+                                      false);
         auto rays_of = [&](uint32_t i) {
             return std::min<size_t>(p.tile_line_info[i] & kTileLineRays, cores);
         };

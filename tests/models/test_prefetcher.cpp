@@ -144,3 +144,27 @@ TEST(Prefetcher, NoPrefetcherFetchesDemandLinesOnly) {
     EXPECT_EQ(mem.addrs, (std::vector<uint64_t>{0}));
     EXPECT_EQ(c.prefetches + c.prefetches_dropped + c.prefetch_hits, 0u);
 }
+
+// Sampled runs with a prefetcher count as first fills the lines a ray first asks for, as the
+// frame's profile does (DemandFirstTouch): a prefetched line counts when a demand first finds
+// it, warming marks lines asked for without counting them, and a line only a prefetch brought
+// never counts.
+TEST(Prefetcher, FirstFillsAreTheLinesDemandFirstAsksFor) {
+    test::FixedLatencyMemory mem(100);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8), &mem);
+    DemandFirstTouch touches(0, 64 * 64, 64);
+    c.count_first_demands(&touches);
+    c.access(0, 64, 0);  // line 0 asked for; line 1 prefetched
+    EXPECT_EQ(touches.count, 1u);
+    c.access(64, 64, 300);  // line 1's first demand
+    EXPECT_EQ(touches.count, 2u);
+    c.access(0, 64, 400);  // asked for before
+    EXPECT_EQ(touches.count, 2u);
+    c.warm(5 * 64, 64);  // warming asks for line 5 (uncounted) and prefetches line 6
+    EXPECT_TRUE(c.contains(6 * 64));
+    c.access(5 * 64, 64, 500);
+    EXPECT_EQ(touches.count, 2u);
+    c.access(6 * 64, 64, 600);  // brought by warming's prefetch, first asked for now
+    EXPECT_EQ(touches.count, 3u);
+    EXPECT_EQ(c.prefetches, 1u);  // line 1 (timed); warming's line 6 is not counted
+}
