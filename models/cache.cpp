@@ -81,6 +81,9 @@ void Cache::warm_prefetches(uint64_t line) {
     for (const uint64_t l : prefetch_lines_) {  // the next level warms with its own list
         if (contains(line_address(l))) continue;
         warm_fn_(*this, l, 0);
+        // Marked, so that the first demand lookup to find it counts it asked for.
+        const uint64_t set = set_of(l);
+        prefetched_[set * uint64_t(params_.ways) + uint64_t(find_way<0>(set, l))] = kWarmPrefetch;
         if (next_) next_->warm(line_address(l), params_.line_bytes);
     }
     first_touch_ = touches;

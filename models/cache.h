@@ -250,16 +250,26 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     [[gnu::always_inline]] void demand(uint64_t line, bool counted = true) {
         if (first_touch_) first_touch_->touch(line << line_shift_, counted);
     }
-    // Per set and way with a prefetcher: 1 while the line there came by a prefetch and no
-    // demand lookup has found it yet.
+    // Per set and way with a prefetcher: nonzero while the line there came by a prefetch and no
+    // demand lookup has found it yet (kTimedPrefetch, kWarmPrefetch).
     std::vector<uint8_t> prefetched_;
     std::unique_ptr<Prefetcher> prefetcher_;
     std::vector<uint64_t> prefetch_lines_;  // scratch: the prefetcher's lines for one miss
-    void note_prefetch_hit(uint64_t set, int way) {
+    // A demand lookup (`counted`: a timed one, not warming) found the line of `way`: a line a
+    // prefetch brought is useful, and, with DemandFirstTouch, asked for now. (A line any
+    // other way brought was asked for when it came: demand() is called on misses only.)
+    [[gnu::noinline]] void note_prefetch_hit(uint64_t set, int way, bool counted = true) {
         uint8_t& p = prefetched_[set * uint64_t(params_.ways) + uint64_t(way)];
-        prefetch_hits += p;
+        if (p == 0) return;
+        if (first_touch_)
+            first_touch_->touch(
+                uint64_t(tags(set)[way]) << set_shift_ << line_shift_ | set << line_shift_,
+                counted);
+        prefetch_hits += counted && p == kTimedPrefetch;
         p = 0;
     }
+    // prefetched_ values: brought by a timed prefetch, or by warming's (never counted useful).
+    static constexpr uint8_t kTimedPrefetch = 1, kWarmPrefetch = 2;
     // A way refilled by anything but a prefetch.
     [[gnu::always_inline]] void clear_prefetched(uint64_t set, int way) {
         if (!prefetched_.empty()) prefetched_[set * uint64_t(params_.ways) + uint64_t(way)] = 0;

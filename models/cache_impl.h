@@ -49,17 +49,15 @@ void Cache::use_policy(Cache& c) {
 template <int G, typename P, bool kCount>
 bool Cache::tag_entry(Cache& c, uint64_t line, Cycle at) {
     (void)at;  // only counted fills are put in the time series
-    c.demand(line, kCount);
     const uint64_t set = c.set_of(line);
     const int found = c.find_way<G>(set, line);
     if (found >= 0) {
-        if constexpr (kCount) {
-            ++c.hits;
-            if (!c.prefetched_.empty()) c.note_prefetch_hit(set, found);
-        }
+        if constexpr (kCount) ++c.hits;
+        if (!c.prefetched_.empty()) c.note_prefetch_hit(set, found, kCount);
         P::template hit<G>(c.stamps<G>(set), found, c.repl_);
         return true;
     }
+    c.demand(line, kCount);
     // The same steps as fill(), in the same order (the random policy draws in victim()).
     const int victim = P::template victim<G>(c.tags<G>(set), c.stamps<G>(set), c.repl_);
     c.evict(set, victim, c.tags<G>(set)[victim], at, kCount ? kQueueWriteBack : kWarmWriteBack);
@@ -86,7 +84,7 @@ int Cache::install_prefetched(uint64_t set, uint64_t line, Cycle at, int mode) {
     if (fill_series_) fill_series_->add(at, params_.line_bytes);
     tags<G>(set)[victim] = tag_of(line);
     fill_ready<G>(set)[victim] = 0;
-    prefetched_[set * uint64_t(params_.ways) + uint64_t(victim)] = 1;
+    prefetched_[set * uint64_t(params_.ways) + uint64_t(victim)] = kTimedPrefetch;
     P::template filled<G>(stamps<G>(set), victim, repl_);
     return victim;
 }
@@ -145,7 +143,6 @@ void Cache::write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode) {
 template <int G, typename P>
 Cycle Cache::access_line(uint64_t line_addr, Cycle now, Cycle lookup_done, Slowest& slowest,
                          bool breakdown) {
-    demand(line_addr);
     const uint64_t set = set_of(line_addr);
     const int found = find_way<G>(set, line_addr);
     if (found >= 0) {
@@ -167,6 +164,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     const int victim = P::template victim<G>(tags<G>(set), stamps<G>(set), repl_);
     evict(set, victim, tags<G>(set)[victim], lookup_done, kSendWriteBack);
     mark_filled(line_addr, true);
+    demand(line_addr);
     ++misses;
     fill_bytes += params_.line_bytes;
     if (fill_series_) fill_series_->add(lookup_done, params_.line_bytes);
@@ -222,7 +220,6 @@ inline bool Cache::access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now
     Cycle slowest = 0, slowest_lookup = 0;
     uint64_t slowest_line = first;
     for (uint64_t k = 0; k < lines; ++k) {
-        demand(first + k);
         const Cycle lookup_done = one_bank ? first_done + k : done[k];
         const Cycle d = std::max(lookup_done, hit<G, P>(set_of(first + k), ways[k], lookup_done));
         const bool slower = k == 0 || d > slowest;
@@ -242,7 +239,6 @@ inline Cycle Cache::access_in(uint64_t addr, uint32_t size_bytes, Cycle now, Acc
     const auto [first, last] = line_range(addr, size_bytes);
     if (first == last) {  // one line (every request from the level above): no slowest to find
         const Cycle lookup_done = look_up_in_one_bank(first, 1, now);
-        demand(first);
         const uint64_t set = set_of(first);
         const int found = find_way<G>(set, first);
         if (found < 0) return fill<G, P>(set, first, now, lookup_done, bd);
