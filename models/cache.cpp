@@ -76,14 +76,14 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
 
 void Cache::warm_prefetches(uint64_t line) {
     prefetch_candidates(line, prefetch_lines_);
-    DemandFirstTouch* const touches = first_touch_;
+    LineFirstTouches* const touches = first_touch_;
     first_touch_ = nullptr;                     // a prefetch is no ray's demand
     for (const uint64_t l : prefetch_lines_) {  // the next level warms with its own list
         if (contains(line_address(l))) continue;
         warm_fn_(*this, l, 0);
         // Marked, so that the first demand lookup to find it counts it asked for.
         const uint64_t set = set_of(l);
-        prefetched_[set * uint64_t(params_.ways) + uint64_t(find_way<0>(set, l))] = kWarmPrefetch;
+        prefetched_[way_index(set, find_way<0>(set, l))] = kWarmPrefetch;
         if (next_) next_->warm(line_address(l), params_.line_bytes);
     }
     first_touch_ = touches;
@@ -242,10 +242,7 @@ void Cache::replace_earliest_mshr(Cycle ready) {
 }
 
 void Cache::count_first_fills(uint64_t base, uint64_t end) {
-    const uint64_t shift = uint64_t(__builtin_ctz(params_.line_bytes));
-    held_first_line_ = base >> shift;
-    held_lines_ = end > base ? ((end - 1) >> shift) - held_first_line_ + 1 : 0;
-    held_.assign((held_lines_ + 63) / 64, 0);
+    first_fills_ = std::make_unique<LineFirstTouches>(base, end, params_.line_bytes);
 }
 
 void Cache::register_stats(StatsRegistry& reg) {
@@ -263,8 +260,8 @@ void Cache::register_stats(StatsRegistry& reg) {
             "lookups that touched tag state after a lookup later in simulated time");
     reg.add(block, "mshr_out_of_order", &mshr_out_of_order,
             "misses that took an MSHR after a miss later in simulated time");
-    if (!held_.empty())
-        reg.add(block, "first_fills", &first_fills,
+    if (first_fills_)
+        reg.add(block, "first_fills", &first_fills_->count,
                 "misses on lines of the BVH never held before (compulsory misses; sampled runs)");
     if (level_ == kLevelL1) return;  // the L1s are read-only
     if (prefetcher_) {

@@ -69,14 +69,15 @@ class IdealMemory : public MemoryPort {
     Cycle latency_;
 };
 
-// The frame's lines first asked for by a ray (a bit per line of a range, in lines of
-// `line_bytes`), and how many were while counting (`count`): a sampled run's first fills when a
-// prefetcher brings lines no ray asks for (Cache::count_first_demands).
-struct DemandFirstTouch {
+// A bit per line of an address range (in lines of `line_bytes`), set at the line's first touch,
+// and how many first touches counted (`count`; warming touches without counting). A sampled
+// run's first fills: the L2's misses on BVH lines never held (Cache::count_first_fills), or, with
+// a prefetcher, the lines a ray first asks for (Cache::count_first_demands).
+struct LineFirstTouches {
     uint64_t first_line = 0, lines = 0, count = 0;
     uint32_t line_shift = 6;
     std::vector<uint64_t> bits;
-    DemandFirstTouch(uint64_t base, uint64_t end, uint32_t line_bytes) {
+    LineFirstTouches(uint64_t base, uint64_t end, uint32_t line_bytes) {
         line_shift = uint32_t(__builtin_ctz(line_bytes));
         first_line = base >> line_shift;
         lines = end > base ? ((end - 1) >> line_shift) - first_line + 1 : 0;
@@ -125,7 +126,6 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // body is in models/cache_impl.h, which a policy's file includes).
     template <typename P>
     static void use_policy(Cache& cache);
-    // The earliest cycle a lookup may still come at (the requesters' floor).
     // Whether a prefetcher is configured (the time-ordered reference then runs its prefetches).
     bool prefetching() const { return prefetcher_ != nullptr; }
     // The lines the prefetcher names after a demand miss of `line` (line addresses), those
@@ -139,10 +139,11 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // installed as warm() installs a line (uncounted), and warmed in the next level.
     void warm_prefetches(uint64_t line);
     // Sampled runs with a prefetcher: demand lookups here (a cache the cores ask first) mark
-    // the frame's lines in `touches` (models/cache.h DemandFirstTouch), whose count stands for
-    // the L2's first fills. Lines a prefetch brought are then counted when a ray first asks for
-    // them, as the frame's profile counts its distinct lines, and never if none does.
-    void count_first_demands(DemandFirstTouch* touches) { first_touch_ = touches; }
+    // the frame's lines in `touches`, whose count stands for the L2's first fills. Lines a
+    // prefetch brought are then counted when a ray first asks for them, as the frame's profile
+    // counts its distinct lines, and never if none does.
+    void count_first_demands(LineFirstTouches* touches) { first_touch_ = touches; }
+    // The earliest cycle a lookup may still come at (the requesters' floor).
     void follow(const TimeFloor* floor) {
         for (auto& bank : banks_) bank.follow(floor);
     }
@@ -240,13 +241,14 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     // line, bytes; dirty lines written back to the next level on eviction.
     uint64_t write_requests = 0, write_hits = 0, write_misses = 0, write_bytes = 0;
     uint64_t writebacks = 0, writeback_bytes = 0;
-    uint64_t first_fills = 0;  // with count_first_fills: misses on lines never held before
+    // With count_first_fills: misses on lines never held before.
+    uint64_t first_fills() const { return first_fills_ ? first_fills_->count : 0; }
     // With a prefetcher: lines prefetched, prefetches dropped for want of a free MSHR, and
     // demand lookups that found a prefetched line before any other demand lookup had (useful).
     uint64_t prefetches = 0, prefetches_dropped = 0, prefetch_hits = 0;
 
   private:
-    DemandFirstTouch* first_touch_ = nullptr;
+    LineFirstTouches* first_touch_ = nullptr;
     [[gnu::always_inline]] void demand(uint64_t line, bool counted = true) {
         if (first_touch_) first_touch_->touch(line << line_shift_, counted);
     }
@@ -256,10 +258,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     std::unique_ptr<Prefetcher> prefetcher_;
     std::vector<uint64_t> prefetch_lines_;  // scratch: the prefetcher's lines for one miss
     // A demand lookup (`counted`: a timed one, not warming) found the line of `way`: a line a
-    // prefetch brought is useful, and, with DemandFirstTouch, asked for now. (A line any
+    // prefetch brought is useful, and, with LineFirstTouches, asked for now. (A line any
     // other way brought was asked for when it came: demand() is called on misses only.)
     [[gnu::noinline]] void note_prefetch_hit(uint64_t set, int way, bool counted = true) {
-        uint8_t& p = prefetched_[set * uint64_t(params_.ways) + uint64_t(way)];
+        uint8_t& p = prefetched_[way_index(set, way)];
         if (p == 0) return;
         if (first_touch_)
             first_touch_->touch(
@@ -272,7 +274,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     static constexpr uint8_t kTimedPrefetch = 1, kWarmPrefetch = 2;
     // A way refilled by anything but a prefetch.
     [[gnu::always_inline]] void clear_prefetched(uint64_t set, int way) {
-        if (!prefetched_.empty()) prefetched_[set * uint64_t(params_.ways) + uint64_t(way)] = 0;
+        if (!prefetched_.empty()) prefetched_[way_index(set, way)] = 0;
     }
     // Installs a prefetched line in `set` at `at` (victim, write-back per `mode`, counters);
     // returns its way. Its fill cycle is the caller's to set.
@@ -286,22 +288,18 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     static bool prefetch_entry(Cache& c, uint64_t line, Cycle at);
     // A line filled (by a miss or by warming; `counted`: a counted miss): counts a first fill.
     [[gnu::always_inline]] void mark_filled(uint64_t line, bool counted) {
-        if (!held_.empty()) mark_held(line, counted);
+        if (first_fills_) first_fills_->touch(line << line_shift_, counted);
     }
-    void mark_held(uint64_t line, bool counted) {
-        const uint64_t k = line - held_first_line_;
-        if (line < held_first_line_ || k >= held_lines_) return;
-        const uint64_t bit = uint64_t(1) << (k % 64);
-        first_fills += counted && (held_[k / 64] & bit) == 0;
-        held_[k / 64] |= bit;
-    }
-    std::vector<uint64_t> held_;  // count_first_fills: a bit per line of the range, once held
-    uint64_t held_first_line_ = 0, held_lines_ = 0;
+    std::unique_ptr<LineFirstTouches> first_fills_;  // count_first_fills: the lines once held
     // A set is one block: its ways' 32-bit tags, their 32-bit replacement stamps (LRU use or
     // FIFO fill order), then their fill cycles; 64 bytes for 4 ways, so a lookup touches one
     // host cache line.
     static constexpr uint32_t kNoTag = ~uint32_t(0);
     uint64_t set_of(uint64_t line_addr) const { return line_addr & set_mask_; }
+    // A way's place in per-way arrays (dirty bits, prefetch marks): set-major.
+    size_t way_index(uint64_t set, int way) const {
+        return size_t(set * uint64_t(params_.ways) + uint64_t(way));
+    }
     uint32_t tag_of(uint64_t line_addr) const { return uint32_t(line_addr >> set_shift_); }
     // The hot paths see the set layout with a compile-time associativity of 4 * G ways, so sizes
     // and offsets are constants (G = 0: the configured associativity, read at run time).
@@ -528,7 +526,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         if (!dirty_.empty()) evict_dirty(set, way, victim_tag, at, mode);
     }
     void evict_dirty(uint64_t set, int way, uint64_t victim_tag, Cycle at, WritebackMode mode) {
-        uint8_t& d = dirty_[set * uint64_t(params_.ways) + uint64_t(way)];
+        uint8_t& d = dirty_[way_index(set, way)];
         if (!d || victim_tag == kNoTag) return;
         d = 0;
         const uint64_t line = uint64_t(victim_tag) << set_shift_ | set;

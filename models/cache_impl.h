@@ -84,7 +84,7 @@ int Cache::install_prefetched(uint64_t set, uint64_t line, Cycle at, int mode) {
     if (fill_series_) fill_series_->add(at, params_.line_bytes);
     tags<G>(set)[victim] = tag_of(line);
     fill_ready<G>(set)[victim] = 0;
-    prefetched_[set * uint64_t(params_.ways) + uint64_t(victim)] = kTimedPrefetch;
+    prefetched_[way_index(set, victim)] = kTimedPrefetch;
     P::template filled<G>(stamps<G>(set), victim, repl_);
     return victim;
 }
@@ -137,7 +137,7 @@ void Cache::write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode) {
         c.clear_prefetched(set, way);
         P::template filled<G>(c.stamps<G>(set), way, c.repl_);
     }
-    c.dirty_[set * uint64_t(c.params_.ways) + uint64_t(way)] = 1;
+    c.dirty_[c.way_index(set, way)] = 1;
 }
 
 template <int G, typename P>

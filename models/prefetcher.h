@@ -10,7 +10,7 @@
 //   * its counters: prefetches issued, dropped for want of an MSHR, and useful (lines hit by a
 //     demand access before they left).
 // Functional warming (sampled runs) prefetches as a miss does (Cache::warm_prefetches), uncounted;
-// a sampled run's first fills are then the lines rays first ask for (DemandFirstTouch).
+// a sampled run's first fills are then the lines rays first ask for (LineFirstTouches).
 #pragma once
 
 #include <cstdint>

@@ -71,7 +71,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     if (P.sim.sampled && !prefetching)
         l2->count_first_fills(layout.fetch_begin(), layout.fetch_end());
     if (P.sim.sampled && prefetching) {
-        first_demands = std::make_unique<DemandFirstTouch>(layout.fetch_begin(), layout.fetch_end(),
+        first_demands = std::make_unique<LineFirstTouches>(layout.fetch_begin(), layout.fetch_end(),
                                                            uint32_t(l2p.line_bytes));
         stats.add("l2", "first_fills", &first_demands->count,
                   "lines of the BVH a ray asked for first in the frame (its first fills)");

@@ -47,7 +47,7 @@ class Chip {
     std::unique_ptr<DramModel> dram_front;      // in front of dram, when asked for
     std::unique_ptr<DramRegions> dram_regions;  // in front of both: traffic by region
     std::unique_ptr<Cache> l2;
-    std::unique_ptr<DemandFirstTouch> first_demands;  // sampled, with a prefetcher
+    std::unique_ptr<LineFirstTouches> first_demands;  // sampled, with a prefetcher
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)
     std::vector<std::unique_ptr<Cache>> l1;
     std::vector<std::unique_ptr<Cache>> l1_tri;          // l1.split: per-core triangle caches

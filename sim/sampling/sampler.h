@@ -295,9 +295,9 @@ class Sampler {
     // Fast-forwarded rays also warm what the traversal writes (stack spills and refills, hit
     // records) through each core's local memory, as the cores in `cores` would make them.
     void set_write_warming(std::vector<const Core*> cores) { write_cores_ = std::move(cores); }
-    // With a prefetcher, the first fills are the lines rays first ask for (DemandFirstTouch):
+    // With a prefetcher, the first fills are the lines rays first ask for (LineFirstTouches):
     // the skipped tiles' lines are marked asked for as the replay loads them.
-    void set_first_demands(DemandFirstTouch* touches) { first_demands_ = touches; }
+    void set_first_demands(LineFirstTouches* touches) { first_demands_ = touches; }
     // The ray just judged detailed is handed out at `now`.
     void handed_out(Cycle now);
     // Whether the ray just judged detailed starts a window: rays were fast-forwarded, or tiles
@@ -477,7 +477,7 @@ class Sampler {
     bool gap_ = false, window_start_ = false;
     uint64_t tiles_traced_ = 0;  // skip design
     bool prefetching_ = false;   // a cache prefetches (set_caches): the replay warms through warm()
-    DemandFirstTouch* first_demands_ = nullptr;
+    LineFirstTouches* first_demands_ = nullptr;
     // The measured unit in progress: its start cycle and counters.
     bool open_ = false;
     uint64_t open_unit_ = 0;

@@ -111,7 +111,7 @@ TEST(Cache, FirstFillsAreMissesOnLinesOfTheRangeNeverHeld) {
         }
     }
     EXPECT_EQ(c.misses, misses);
-    EXPECT_EQ(c.first_fills, want);
+    EXPECT_EQ(c.first_fills(), want);
     EXPECT_LT(want, misses / 4);  // most misses are capacity misses here
     EXPECT_GT(want, 500u);
     // Registered only when counted.

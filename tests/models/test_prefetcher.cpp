@@ -146,13 +146,13 @@ TEST(Prefetcher, NoPrefetcherFetchesDemandLinesOnly) {
 }
 
 // Sampled runs with a prefetcher count as first fills the lines a ray first asks for, as the
-// frame's profile does (DemandFirstTouch): a prefetched line counts when a demand first finds
+// frame's profile does (LineFirstTouches): a prefetched line counts when a demand first finds
 // it, warming marks lines asked for without counting them, and a line only a prefetch brought
 // never counts.
 TEST(Prefetcher, FirstFillsAreTheLinesDemandFirstAsksFor) {
     test::FixedLatencyMemory mem(100);
     Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8), &mem);
-    DemandFirstTouch touches(0, 64 * 64, 64);
+    LineFirstTouches touches(0, 64 * 64, 64);
     c.count_first_demands(&touches);
     c.access(0, 64, 0);  // line 0 asked for; line 1 prefetched
     EXPECT_EQ(touches.count, 1u);
