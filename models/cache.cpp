@@ -1,15 +1,77 @@
 #include "models/cache.h"
 
 #include <algorithm>
+#include <deque>
 #include <functional>
 #include <stdexcept>
 #include <string>
+#include <unordered_map>
 
 namespace rtsim {
 
+// A request is held here from its arrival to its answer (`held`, the id its stages carry); a
+// miss's fill from its tag check to its line's arrival, with the requests waiting on it.
+struct Cache::Timed {
+    struct Waiter {
+        uint32_t held;
+        uint32_t k;  // its line
+        Cycle from;  // when its tag check found the line still filling
+    };
+    struct Fill {
+        uint64_t line = 0;
+        Cycle requested = 0;  // the miss's tag check: it asks for an MSHR then
+        Timeline timeline;    // from `requested` to the data's arrival
+        std::vector<Waiter> waiters;
+    };
+    struct Wake {
+        StageHandler* block;
+        uint32_t kind, id, k;
+    };
+    std::vector<tlm::tlm_generic_payload*> held;
+    std::vector<uint32_t> free_held;
+    std::vector<Fill> fills;
+    std::vector<uint32_t> free_fills;
+    std::unordered_map<uint64_t, uint32_t> in_flight;  // line -> its newest fill
+    uint32_t mshrs = 0;                                // 0: unlimited
+    uint32_t busy = 0;
+    // Lines of requests that have arrived and not yet been looked up, absent when they
+    // arrived: misses to come, each of which will take an MSHR (may_load counts them taken).
+    uint32_t pending_misses = 0;
+    std::deque<uint32_t> waiting;  // fills waiting for an MSHR, first come first served
+    std::vector<Wake> loaders;     // treelet loaders waiting for a free MSHR
+    PayloadPool payloads;          // requests this cache sends below (fills, writes)
+    std::vector<Cycle> lookup_done;
+    std::vector<uint64_t> prefetch_lines;
+
+    uint32_t hold(tlm::tlm_generic_payload& gp) {
+        if (free_held.empty()) {
+            held.push_back(&gp);
+            return uint32_t(held.size() - 1);
+        }
+        const uint32_t h = free_held.back();
+        free_held.pop_back();
+        held[h] = &gp;
+        return h;
+    }
+    void wake_loaders(StageQueue& stages, Cycle t) {
+        for (const Wake& w : loaders)
+            stages.schedule(t, StageQueue::kMemoryOrder, w.block, w.kind, w.id, w.k);
+        loaders.clear();
+    }
+};
+
 Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
              int level)
-    : sc_core::sc_module(name), params_(params), next_(next_level), level_(level) {
+    : sc_core::sc_module(name),
+      up("up"),
+      down("down"),
+      timed_(std::make_unique<Timed>()),
+      params_(params),
+      next_(next_level),
+      level_(level) {
+    timed_->mshrs = uint32_t(std::max(0, params_.mshrs));
+    up.register_nb_transport_fw(this, &Cache::nb_transport_fw);
+    down.register_nb_transport_bw(this, &Cache::nb_transport_bw);
     block_bytes_ = 16 * uint64_t(params_.ways);
     tag_groups_ = params_.ways % 4 == 0 ? params_.ways / 4 : 0;
 #ifdef __SSE2__
@@ -320,6 +382,356 @@ nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, cons
                            sum_of(caches, &Cache::prefetches_dropped),
                            sum_of(caches, &Cache::prefetch_hits));
     return e;
+}
+
+// ---- The time-ordered side (sim.fidelity = accurate) ----
+
+IdealMemory::IdealMemory(sc_core::sc_module_name name, Cycle hit_latency_cycles)
+    : sc_core::sc_module(name), up("up"), latency_(hit_latency_cycles) {
+    up.register_nb_transport_fw(this, &IdealMemory::nb_transport_fw);
+}
+
+tlm::tlm_sync_enum IdealMemory::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
+                                                tlm::tlm_phase& phase, sc_core::sc_time& delay) {
+    if (gp.is_write()) {  // nothing below to write to
+        gp.set_response_status(tlm::TLM_OK_RESPONSE);
+        return tlm::TLM_COMPLETED;
+    }
+    MemoryRequest& r = memory_request(gp);
+    r.push_route(id);
+    uint32_t h;
+    if (free_held_.empty()) {
+        held_.push_back(&gp);
+        h = uint32_t(held_.size() - 1);
+    } else {
+        h = free_held_.back();
+        free_held_.pop_back();
+        held_[h] = &gp;
+    }
+    const Cycle at = stages_->now() + delay_cycles(delay);
+    if (r.queued)
+        stages_->schedule(at, StageQueue::kMemoryOrder, this, kArriveStage, h);
+    else
+        arrive(h, at);
+    phase = tlm::END_REQ;
+    return tlm::TLM_UPDATED;
+}
+
+// The data is there after the hit latency (at once for a request that reads nothing).
+void IdealMemory::arrive(uint32_t h, Cycle t) {
+    const Cycle ready = held_[h]->get_data_length() == 0 ? t : access(0, 0, t);
+    stages_->schedule(ready, StageQueue::kMemoryOrder, this, kAnswerStage, h);
+}
+
+void IdealMemory::run_stage(uint32_t kind, uint32_t h, uint32_t, Cycle t) {
+    if (kind == kArriveStage) {
+        arrive(h, t);
+        return;
+    }
+    tlm::tlm_generic_payload& gp = *held_[h];
+    free_held_.push_back(h);
+    MemoryRequest& r = memory_request(gp);
+    r.timeline = Timeline(r.start);
+    r.timeline.add(t, kLevelL1);
+    gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    tlm::tlm_phase phase = tlm::BEGIN_RESP;
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    up[r.pop_route()]->nb_transport_bw(gp, phase, delay);
+}
+
+// Requests the payload's owner tags mean at this cache's `down` socket.
+namespace {
+enum BelowRequest : uint32_t { kFillRequest, kWriteRequest };
+}
+
+Cache::~Cache() = default;
+
+void Cache::run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) {
+    switch (kind) {
+        case kArriveStage:
+            timed_arrive(id, t);
+            break;
+        case kTagStage:
+            timed_tag(id, k, t);
+            break;
+        case kEmptyStage: {  // reads nothing: done at once, charged to the first level
+            Timeline tl(memory_request(*timed_->held[id]).start);
+            tl.add(t, kLevelL1);
+            line_done(id, 0, t, tl);
+            break;
+        }
+        case kWriteArriveStage:
+            timed_write_arrive(id, t);
+            break;
+        case kWriteTagStage:
+            timed_write_tag(id, k, t);
+            break;
+    }
+}
+
+// A request reaches the cache: a read is looked up from the cycle it arrives (within the call,
+// or as a stage of its own when it is queued); a posted write always queues.
+tlm::tlm_sync_enum Cache::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
+                                          tlm::tlm_phase& phase, sc_core::sc_time& delay) {
+    if (phase != tlm::BEGIN_REQ) throw std::logic_error(name() + std::string(": unexpected phase"));
+    MemoryRequest& r = memory_request(gp);
+    r.push_route(id);
+    const Cycle at = stages_->now() + delay_cycles(delay);
+    const uint32_t h = timed_->hold(gp);
+    if (gp.is_write())
+        stages_->schedule(at, StageQueue::kMemoryOrder, this, kWriteArriveStage, h);
+    else if (r.queued)
+        stages_->schedule(at, StageQueue::kMemoryOrder, this, kArriveStage, h);
+    else
+        timed_arrive(h, at);
+    phase = tlm::END_REQ;
+    return tlm::TLM_UPDATED;
+}
+
+void Cache::timed_arrive(uint32_t h, Cycle t) {
+    tlm::tlm_generic_payload& gp = *timed_->held[h];
+    MemoryRequest& r = memory_request(gp);
+    if (gp.get_data_length() == 0) {  // reads nothing (an any-hit shader without alpha data)
+        r.lines_left = 1;
+        stages_->schedule(t, StageQueue::kMemoryOrder, this, kEmptyStage, h);
+        return;
+    }
+    std::vector<Cycle>& lookup = timed_->lookup_done;
+    r.first_line = arrive(gp.get_address(), gp.get_data_length(), t, lookup);
+    r.lines_left = uint32_t(lookup.size());
+    if (counts_pending_misses_) count_pending_misses(r);
+    for (uint32_t k = 0; k < lookup.size(); ++k)
+        stages_->schedule(lookup[k], StageQueue::kMemoryOrder, this, kTagStage, h, k);
+}
+
+// The lines of request r, just arrived, that will take an MSHR when looked up (pending_misses of
+// the cache whose MSHRs they take): absent here, and, for a cache without MSHRs of its own (a
+// treelet cache), absent from the cache behind it as well.
+void Cache::count_pending_misses(MemoryRequest& r) {
+    Cache* limit = mshr_owner();
+    if (!limit) return;  // unlimited MSHRs
+    const uint32_t lines = std::min<uint32_t>(r.lines_left, 64);
+    for (uint32_t k = 0; k < lines; ++k) {
+        const uint64_t addr = line_address(r.first_line + k);
+        if (!contains(addr) && (limit == this || !limit->contains(addr))) {
+            r.pending_lines |= uint64_t(1) << k;
+            ++limit->timed_->pending_misses;
+        }
+    }
+}
+
+bool Cache::may_load(uint64_t addr, StageHandler* waker, uint32_t kind, uint32_t id, uint32_t k) {
+    if (contains(addr)) return true;
+    Cache* limit = mshr_owner();
+    if (!limit) return true;
+    Timed& st = *limit->timed_;
+    if (st.busy + st.pending_misses < st.mshrs) return true;
+    st.loaders.push_back({waker, kind, id, k});
+    return false;
+}
+
+// Line k of a request is looked up at t.
+void Cache::timed_tag(uint32_t h, uint32_t k, Cycle t) {
+    MemoryRequest& r = memory_request(*timed_->held[h]);
+    const uint64_t line = r.first_line + k;
+    Timed* pending_at = nullptr;  // where it was counted as a miss to come
+    if (k < 64 && (r.pending_lines >> k & 1)) {
+        r.pending_lines &= ~(uint64_t(1) << k);
+        pending_at = mshr_owner()->timed_.get();
+        --pending_at->pending_misses;
+    }
+    const bool hit = check_tag(line, t);
+    if (!queued_writebacks_.empty()) send_writebacks(t);
+    Timed& st = *timed_;
+    if (hit) {
+        // A miss that did not come: a loader waiting on it may go on.
+        if (pending_at && !pending_at->loaders.empty()) pending_at->wake_loaders(*stages_, t);
+        auto it = st.in_flight.find(line);
+        if (it != st.in_flight.end()) {  // still filling: wait for it (merged miss)
+            ++merged_misses;
+            st.fills[it->second].waiters.push_back({h, k, t});
+            return;
+        }
+        Timeline tl(r.start);
+        tl.add(t, level_);
+        line_done(h, k, t, tl);
+        return;
+    }
+    const uint32_t f = new_fill(line, t);
+    st.fills[f].waiters.push_back({h, k, t});
+    if (st.mshrs) request_mshr(t);
+    if (st.mshrs == 0 || st.busy < st.mshrs) {
+        if (st.mshrs) ++st.busy;
+        issue_fill(f, t);
+    } else {
+        st.waiting.push_back(f);
+    }
+    if (prefetching()) timed_prefetch(line, t);
+}
+
+// After a demand miss of `line` at t, the prefetcher's lines (models/prefetcher.h): each one not
+// held takes an MSHR free now or is dropped, and is fetched as a fill nobody waits for yet.
+void Cache::timed_prefetch(uint64_t line, Cycle t) {
+    Timed& st = *timed_;
+    prefetch_candidates(line, st.prefetch_lines);
+    for (const uint64_t l : st.prefetch_lines) {
+        if (contains(line_address(l))) continue;  // held or filling
+        if (st.mshrs && st.busy >= st.mshrs) {
+            ++prefetches_dropped;
+            continue;
+        }
+        install_prefetch(l, t);
+        if (!queued_writebacks_.empty()) send_writebacks(t);
+        if (st.mshrs) {
+            request_mshr(t);
+            ++st.busy;
+        }
+        issue_fill(new_fill(l, t), t);
+    }
+}
+
+// A fill of `line` from its tag check at t, the line's newest in flight (an older fill of the
+// line, evicted while filling, ends unseen).
+uint32_t Cache::new_fill(uint64_t line, Cycle t) {
+    Timed& st = *timed_;
+    uint32_t f;
+    if (st.free_fills.empty()) {
+        st.fills.emplace_back();
+        f = uint32_t(st.fills.size() - 1);
+    } else {
+        f = st.free_fills.back();
+        st.free_fills.pop_back();
+    }
+    Timed::Fill& F = st.fills[f];
+    F.line = line;
+    F.requested = t;
+    F.timeline = Timeline(t);
+    F.waiters.clear();
+    st.in_flight[line] = f;
+    return f;
+}
+
+// A miss holding an MSHR from t asks the next level for its line.
+void Cache::issue_fill(uint32_t f, Cycle t) {
+    Timed::Fill& F = timed_->fills[f];
+    mshr_wait_cycles += t - F.requested;
+    F.timeline.add(t, level_);
+    tlm::tlm_generic_payload& gp = timed_->payloads.acquire(
+        tlm::TLM_READ_COMMAND, line_address(F.line), params_.line_bytes, t);
+    MemoryRequest& r = memory_request(gp);
+    r.owner_kind = kFillRequest;
+    r.owner_id = f;
+    tlm::tlm_phase phase = tlm::BEGIN_REQ;
+    sc_core::sc_time delay = cycles_delay(t - stages_->now());
+    down->nb_transport_fw(gp, phase, delay);
+}
+
+// An answer from the next level: a fill's line is there now; a write was accepted.
+tlm::tlm_sync_enum Cache::nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                          sc_core::sc_time&) {
+    if (phase != tlm::BEGIN_RESP)
+        throw std::logic_error(name() + std::string(": unexpected phase"));
+    MemoryRequest& r = memory_request(gp);
+    if (r.owner_kind == kFillRequest) {
+        const uint32_t f = r.owner_id;
+        timed_->fills[f].timeline.append(r.timeline);
+        timed_->payloads.release(gp);
+        fill_done(f, stages_->now());
+    } else {
+        timed_->payloads.release(gp);
+    }
+    phase = tlm::END_RESP;
+    return tlm::TLM_COMPLETED;
+}
+
+// A fill's line is there at t: its MSHR goes to the next miss waiting, and every request that
+// waited on the line goes on, charged for the wait where the fill was at each cycle.
+void Cache::fill_done(uint32_t f, Cycle t) {
+    Timed& st = *timed_;
+    Timed::Fill& F = st.fills[f];
+    auto it = st.in_flight.find(F.line);
+    if (it != st.in_flight.end() && it->second == f) st.in_flight.erase(it);
+    if (st.mshrs) {
+        if (!st.waiting.empty()) {
+            const uint32_t next = st.waiting.front();
+            st.waiting.pop_front();
+            issue_fill(next, t);
+        } else {
+            --st.busy;
+            st.wake_loaders(*stages_, t);
+        }
+    }
+    std::vector<Timed::Waiter> waiters;
+    waiters.swap(st.fills[f].waiters);
+    const Timeline fill_timeline = st.fills[f].timeline;
+    st.free_fills.push_back(f);
+    for (const Timed::Waiter& w : waiters) {
+        Timeline tl(memory_request(*st.held[w.held]).start);
+        tl.add(w.from, level_);
+        tl.add_overlap(fill_timeline, w.from, t);
+        line_done(w.held, w.k, t, tl);
+    }
+}
+
+void Cache::line_done(uint32_t h, uint64_t k, Cycle t, const Timeline& timeline) {
+    MemoryRequest& r = memory_request(*timed_->held[h]);
+    if (!r.any || t > r.done || (t == r.done && k < r.slowest_k)) {
+        r.any = true;
+        r.done = t;
+        r.slowest_k = k;
+        r.timeline = timeline;
+    }
+    if (--r.lines_left == 0) respond(h, t);
+}
+
+// Every line of the request is done at t (a write: looked up): the answer goes back the way it
+// came.
+void Cache::respond(uint32_t h, Cycle) {
+    tlm::tlm_generic_payload& gp = *timed_->held[h];
+    timed_->free_held.push_back(h);
+    gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    tlm::tlm_phase phase = tlm::BEGIN_RESP;
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    up[memory_request(gp).pop_route()]->nb_transport_bw(gp, phase, delay);
+}
+
+void Cache::timed_write_arrive(uint32_t h, Cycle t) {
+    tlm::tlm_generic_payload& gp = *timed_->held[h];
+    MemoryRequest& r = memory_request(gp);
+    r.first_line = arrive_write(gp.get_address(), gp.get_data_length(), t, timed_->lookup_done);
+    r.lines_left = uint32_t(timed_->lookup_done.size());
+    for (uint32_t k = 0; k < timed_->lookup_done.size(); ++k)
+        stages_->schedule(timed_->lookup_done[k], StageQueue::kMemoryOrder, this, kWriteTagStage, h,
+                          k);
+}
+
+void Cache::timed_write_tag(uint32_t h, uint32_t k, Cycle t) {
+    tlm::tlm_generic_payload& gp = *timed_->held[h];
+    MemoryRequest& r = memory_request(gp);
+    write_tag(r.first_line + k, t);
+    send_writebacks(t);
+    if (--r.lines_left > 0) return;
+    // Write-through: on to the next level once every line is looked up (as the fast model).
+    if (!params_.write_back && next_) send_write(gp.get_address(), gp.get_data_length(), t);
+    respond(h, t);
+}
+
+// Dirty lines evicted (by a write's allocation, a miss's or a prefetch's fill) go below.
+void Cache::send_writebacks(Cycle t) {
+    for (const uint64_t line : queued_writebacks_)
+        send_write(line_address(line), params_.line_bytes, t);
+    queued_writebacks_.clear();
+}
+
+void Cache::send_write(uint64_t addr, uint32_t size_bytes, Cycle t) {
+    tlm::tlm_generic_payload& gp =
+        timed_->payloads.acquire(tlm::TLM_WRITE_COMMAND, addr, size_bytes, t);
+    MemoryRequest& r = memory_request(gp);
+    r.owner_kind = kWriteRequest;
+    r.queued = true;
+    tlm::tlm_phase phase = tlm::BEGIN_REQ;
+    sc_core::sc_time delay = cycles_delay(t - stages_->now());
+    if (down->nb_transport_fw(gp, phase, delay) == tlm::TLM_COMPLETED) timed_->payloads.release(gp);
 }
 
 }  // namespace rtsim

@@ -20,6 +20,7 @@
 #include "models/replacement.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/transaction.h"
 
 namespace rtsim {
 
@@ -51,10 +52,12 @@ struct CacheParams {
     uint64_t sets() const { return size_bytes / (uint64_t(ways) * line_bytes); }
 };
 
-// Ideal memory: every access is an L1 hit (an upper bound on what caches can give).
-class IdealMemory : public MemoryPort {
+// Ideal memory: every access is an L1 hit (an upper bound on what caches can give). It has no
+// state: the time-ordered engine's requests (through `up`) are answered after the latency, and
+// writes are taken at once.
+class IdealMemory final : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
-    explicit IdealMemory(Cycle hit_latency_cycles) : latency_(hit_latency_cycles) {}
+    IdealMemory(sc_core::sc_module_name name, Cycle hit_latency_cycles);
     Cycle access(uint64_t, uint32_t, Cycle now, AccessBreakdown* bd = nullptr) override {
         if (bd) bd->cycles[kLevelL1] += latency_;
         return now + latency_;
@@ -64,9 +67,19 @@ class IdealMemory : public MemoryPort {
         ready = access(addr, size_bytes, now, bd);
         return true;
     }
+    TargetSocket<IdealMemory> up;
+    void set_stage_queue(StageQueue* queue) { stages_ = queue; }
 
   private:
+    enum Stage : uint32_t { kArriveStage, kAnswerStage };
+    void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
+    tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    void arrive(uint32_t held, Cycle t);
     Cycle latency_;
+    StageQueue* stages_ = nullptr;
+    std::vector<tlm::tlm_generic_payload*> held_;
+    std::vector<uint32_t> free_held_;
 };
 
 // A bit per line of an address range (in lines of `line_bytes`), set at the line's first touch,
@@ -92,11 +105,12 @@ struct LineFirstTouches {
     }
 };
 
-class Cache final : public sc_core::sc_module, public MemoryPort {
+class Cache final : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
     // `level` names the level for stall attribution (kLevelL1, kLevelL2).
     Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
           int level = kLevelL1);
+    ~Cache() override;
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override {
         return access_fn_(*this, addr, size_bytes, now, breakdown);
@@ -148,8 +162,24 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
         for (auto& bank : banks_) bank.follow(floor);
     }
 
-    // Split-phase use by the time-ordered reference (sim.fidelity = accurate), which calls each
-    // stage at its own simulated cycle and keeps fills, MSHRs and waiting requests itself.
+    // The time-ordered engine's side (sim.fidelity = accurate; models/transaction.h): requests
+    // come through `up` and are served stage by stage on the StageQueue: each line's tag check
+    // at its lookup cycle, a miss's MSHR (first come first served, the misses waiting for one
+    // queued), its fill from the next level through `down`, the requests merged on it woken when
+    // it completes. Dirty victims and write-through writes leave through `down` as posted writes.
+    TargetSocket<Cache> up;
+    InitiatorSocket<Cache> down;
+    void set_stage_queue(StageQueue* queue) { stages_ = queue; }
+    // A treelet loader is about to send a line (Core::run_loader): whether its miss would find an
+    // MSHR of the cache whose MSHRs it takes, counting the misses on their way to their lookup as
+    // taking theirs (the fast engine books a miss's MSHR when it is issued). If not, the
+    // loader's stage (`waker`, kind, id, k) is scheduled when one frees or such a miss turns out
+    // a hit. Call set_treelet_loads first.
+    bool may_load(uint64_t addr, StageHandler* waker, uint32_t kind, uint32_t id, uint32_t k);
+    // A core's treelet loader sends lines here: arriving requests count their misses to come.
+    void set_treelet_loads() { counts_pending_misses_ = true; }
+
+    // Split-phase steps of a request (the time-ordered side above calls each at its own cycle).
     // A request arriving at `now`: counts it and reserves its banks; returns its first line and
     // sets `lookup_done[k]` to the cycle line first + k is looked up.
     uint64_t arrive(uint64_t addr, uint32_t size_bytes, Cycle now, std::vector<Cycle>& lookup_done);
@@ -191,7 +221,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
                           std::vector<Cycle>& lookup_done);
     void write_tag(uint64_t line, Cycle at);
     // Line addresses of dirty victims queued since the last call (the reference's).
-    std::vector<uint64_t>& queued_writebacks() { return queued_writebacks_; }
+    const std::vector<uint64_t>& queued_writebacks() const { return queued_writebacks_; }
     uint64_t line_address(uint64_t line) const { return line << line_shift_; }
     MemoryPort* next_level() const { return next_; }
     int level() const { return level_; }
@@ -248,6 +278,43 @@ class Cache final : public sc_core::sc_module, public MemoryPort {
     uint64_t prefetches = 0, prefetches_dropped = 0, prefetch_hits = 0;
 
   private:
+    // The time-ordered side (cache.cpp).
+    struct Timed;
+    std::unique_ptr<Timed> timed_;
+    StageQueue* stages_ = nullptr;
+    bool counts_pending_misses_ = false;
+    enum TimedStage : uint32_t {
+        kArriveStage,
+        kTagStage,
+        kEmptyStage,
+        kWriteArriveStage,
+        kWriteTagStage
+    };
+    void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
+    tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    tlm::tlm_sync_enum nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    void timed_arrive(uint32_t held, Cycle t);
+    void timed_tag(uint32_t held, uint32_t k, Cycle t);
+    void timed_write_arrive(uint32_t held, Cycle t);
+    void timed_write_tag(uint32_t held, uint32_t k, Cycle t);
+    void count_pending_misses(MemoryRequest& r);
+    uint32_t new_fill(uint64_t line, Cycle t);
+    void issue_fill(uint32_t fill, Cycle t);
+    void fill_done(uint32_t fill, Cycle t);
+    void timed_prefetch(uint64_t line, Cycle t);
+    void line_done(uint32_t held, uint64_t k, Cycle t, const Timeline& timeline);
+    void respond(uint32_t held, Cycle t);
+    void send_writebacks(Cycle t);
+    void send_write(uint64_t addr, uint32_t size_bytes, Cycle t);
+    // The cache whose MSHRs this one's misses take: its own, or, with unlimited MSHRs in front
+    // of a cache of its level (a treelet cache before its L1), that one's; nullptr: unlimited.
+    Cache* mshr_owner() {
+        Cache* c = this;
+        while (c && c->params_.mshrs == 0) c = c->same_level_next_;
+        return c;
+    }
     LineFirstTouches* first_touch_ = nullptr;
     [[gnu::always_inline]] void demand(uint64_t line, bool counted = true) {
         if (first_touch_) first_touch_->touch(line << line_shift_, counted);

@@ -40,13 +40,16 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
            const std::array<MemoryPort*, kStepKinds>& memory,
            const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source)
     : sc_core::sc_module(name),
+      local_socket("local_socket"),
       params_(params),
       source_(source),
       source_wake_(source ? source->wake_pending() : nullptr),
       slots_(static_cast<size_t>(params.ray_slots)),
       ready_(padded_to_8(slots_.size())),
       keys_(ready_.size()) {
+    local_socket.register_nb_transport_bw(this, &Core::nb_transport_bw);
     for (int k = 0; k < kStepKinds; ++k) {
+        memory_socket[k].register_nb_transport_bw(this, &Core::nb_transport_bw);
         mem_by_kind_[k] = memory[size_t(k)];
         cache_by_kind_[k] = dynamic_cast<Cache*>(memory[size_t(k)]);
         unit_by_kind_[k] = units[size_t(k)];
@@ -176,7 +179,7 @@ struct Core::LooselyTimed {
     // The loader is one more entry of the ready keys.
     void start_loader(Cycle t) { core.set_ready(core.loader_, t); }
     void loader_ready(Cycle c) { core.set_ready(core.loader_, c); }
-    bool load_line(Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
+    bool load_line(size_t, Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
         // The breakdown is not charged (no ray waits for the load itself), but asking for one
         // lets the L1 remember its fills' timelines for the rays that then wait on them.
         AccessBreakdown unused;

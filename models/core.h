@@ -24,6 +24,7 @@
 #include "models/short_stack.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/transaction.h"
 #include "models/unit.h"
 #include "workloads/step.h"
 
@@ -150,6 +151,19 @@ class Core : public sc_core::sc_module {
         first_slot_ = first_slot;
     }
     MemoryPort* local_memory() const { return local_; }
+    // The time-ordered engine's requests (models/transaction.h): per StepKind to the memory its
+    // fetches go to, and below the L1s (stack refills and spills, ray records, hit records).
+    InitiatorSocket<Core> memory_socket[kStepKinds];
+    InitiatorSocket<Core> local_socket;
+    // What the answers to those requests go to (the time-ordered engine).
+    class Requester {
+      public:
+        virtual void answered(tlm::tlm_generic_payload& gp) = 0;
+
+      protected:
+        ~Requester() = default;
+    };
+    void set_requester(Requester* requester) { requester_ = requester; }
     // Without a ray buffer, a ray finishes where its last step's unit operation ends; with hit
     // records it ends at its own turn instead, as writing them is shared work.
     bool finish_at_step_end() const { return !ray_buffer_ && params_.hit_record_bytes == 0; }
@@ -330,6 +344,13 @@ class Core : public sc_core::sc_module {
         s.busy = false;
     }
 
+    tlm::tlm_sync_enum nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time&) {
+        requester_->answered(gp);
+        phase = tlm::END_RESP;
+        return tlm::TLM_COMPLETED;
+    }
+    Requester* requester_ = nullptr;
     CoreParams params_;
     RayWorkSource* source_;
     // The source's pending-wake flag when it may hold a ray (RayWorkSource::wake_pending):

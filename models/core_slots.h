@@ -20,7 +20,7 @@
 //   void records_written(Cycle t)       the ray buffer wrote records the engine posts itself
 //   void start_loader(Cycle t)          a new treelet load (replacing one running) starts at t
 //   void loader_ready(Cycle c)          the loader's next line is at c (kNeverCycle: loaded)
-//   bool load_line(Cache* cache, uint64_t addr, uint32_t bytes, Cycle t)
+//   bool load_line(size_t kind, Cache* cache, uint64_t addr, uint32_t bytes, Cycle t)
 //                                       false: every MSHR busy, the engine resumes the loader
 //   bool read_record(size_t slot, Cycle from)   true: the record comes from memory later
 //   bool write_entry_busy(size_t slot, Cycle t) true: the write waits (the engine resumes it)
@@ -57,7 +57,7 @@ void Core::run_loader(Cycle t, Engine& engine) {
     }
     const uint32_t line_bytes = cache->params().line_bytes;
     const uint64_t addr = load_.next[kind] & ~uint64_t(line_bytes - 1);
-    if (!engine.load_line(cache, addr, line_bytes, t)) return;
+    if (!engine.load_line(kind, cache, addr, line_bytes, t)) return;
     load_.next[kind] = addr + line_bytes;
     engine.loader_ready(t + 1);
 }

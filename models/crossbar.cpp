@@ -5,10 +5,65 @@
 namespace rtsim {
 
 Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
-    : sc_core::sc_module(name), link_(bytes_per_cycle), up_(bytes_per_cycle), next_(next_level) {}
+    : sc_core::sc_module(name),
+      up("up"),
+      down("down"),
+      link_(bytes_per_cycle),
+      write_link_(bytes_per_cycle),
+      next_(next_level) {
+    up.register_nb_transport_fw(this, &Crossbar::nb_transport_fw);
+    down.register_nb_transport_bw(this, &Crossbar::nb_transport_bw);
+}
+
+tlm::tlm_sync_enum Crossbar::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
+                                             tlm::tlm_phase& phase, sc_core::sc_time& delay) {
+    memory_request(gp).push_route(id);
+    if (gp.is_write()) {
+        const Cycle now = stages_->now();
+        delay = cycles_delay(carry_up(now + delay_cycles(delay), gp.get_data_length()) - now);
+    }
+    const tlm::tlm_sync_enum status = down->nb_transport_fw(gp, phase, delay);
+    if (status == tlm::TLM_COMPLETED) memory_request(gp).pop_route();
+    return status;
+}
+
+// The L2's answer: a read's line takes the link, a write's acceptance goes up at once.
+tlm::tlm_sync_enum Crossbar::nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                             sc_core::sc_time&) {
+    if (gp.is_write()) {
+        pass_up(gp);
+    } else {
+        const Cycle end = carry(stages_->now(), gp.get_data_length());
+        memory_request(gp).timeline.add(end, kLevelCrossbar);
+        uint32_t c;
+        if (free_crossing_.empty()) {
+            crossing_.push_back(&gp);
+            c = uint32_t(crossing_.size() - 1);
+        } else {
+            c = free_crossing_.back();
+            free_crossing_.pop_back();
+            crossing_[c] = &gp;
+        }
+        // Crossed at `end`: a fill completes then, first in its cycle.
+        stages_->schedule(end, StageQueue::kFillOrder, this, 0, c);
+    }
+    phase = tlm::END_RESP;
+    return tlm::TLM_COMPLETED;
+}
+
+void Crossbar::run_stage(uint32_t, uint32_t c, uint32_t, Cycle) {
+    free_crossing_.push_back(c);
+    pass_up(*crossing_[c]);
+}
+
+void Crossbar::pass_up(tlm::tlm_generic_payload& gp) {
+    tlm::tlm_phase phase = tlm::BEGIN_RESP;
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    up[memory_request(gp).pop_route()]->nb_transport_bw(gp, phase, delay);
+}
 
 Cycle Crossbar::carry_up(Cycle ready, uint32_t size_bytes) {
-    const auto [first, end] = up_.transfer(ready, size_bytes);
+    const auto [first, end] = write_link_.transfer(ready, size_bytes);
     ++write_transfers;
     write_bytes += size_bytes;
     queue_cycles += first - ready;

@@ -11,10 +11,11 @@
 #include "models/calendar.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/transaction.h"
 
 namespace rtsim {
 
-class Crossbar : public sc_core::sc_module, public MemoryPort {
+class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
     Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
@@ -24,7 +25,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     nlohmann::json report(const ReportContext& ctx) const;
     void follow(const TimeFloor* floor) {
         link_.follow(floor);
-        up_.follow(floor);
+        write_link_.follow(floor);
     }
     // A line of `size_bytes` the L2 returned at `returned` takes the link; returns the cycle it
     // has crossed. (access() is the L2 access and this; the time-ordered reference calls it
@@ -44,6 +45,13 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     // Write data of `size_bytes` ready at `ready` crosses towards the L2; returns when it has.
     Cycle carry_up(Cycle ready, uint32_t size_bytes);
 
+    // The time-ordered engine's side (models/transaction.h): a read request crosses at once and
+    // goes on through `down`; its answer takes the link (carry) when the L2 gives it and is
+    // passed up at the cycle it has crossed. A write takes the write link (carry_up) first.
+    TargetSocket<Crossbar> up;
+    InitiatorSocket<Crossbar> down;
+    void set_stage_queue(StageQueue* queue) { stages_ = queue; }
+
     uint64_t transfers = 0;
     uint64_t bytes = 0;
     uint64_t busy_cycles = 0;                       // transfer time, rounded up per transfer
@@ -51,8 +59,17 @@ class Crossbar : public sc_core::sc_module, public MemoryPort {
     uint64_t write_transfers = 0, write_bytes = 0;  // towards the L2
 
   private:
+    void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
+    tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    tlm::tlm_sync_enum nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    void pass_up(tlm::tlm_generic_payload& gp);
+    StageQueue* stages_ = nullptr;
+    std::vector<tlm::tlm_generic_payload*> crossing_;  // answers on the link, by stage id
+    std::vector<uint32_t> free_crossing_;
     BandwidthCalendar link_;
-    BandwidthCalendar up_;  // write data, from the cores to the L2
+    BandwidthCalendar write_link_;  // write data, from the cores to the L2
     MemoryPort* next_;
 };
 

@@ -116,6 +116,89 @@ std::unique_ptr<DramModel> make_simple(const char* module_name, const DramParams
 }
 }  // namespace
 
+DramPort::DramPort(sc_core::sc_module_name name, DramModel& model)
+    : sc_core::sc_module(name), up("up"), model_(model) {
+    up.register_nb_transport_fw(this, &DramPort::nb_transport_fw);
+}
+
+namespace {
+template <typename T>
+uint32_t take(std::vector<T>& pool, std::vector<uint32_t>& free) {
+    if (free.empty()) {
+        pool.emplace_back();
+        return uint32_t(pool.size() - 1);
+    }
+    const uint32_t i = free.back();
+    free.pop_back();
+    pool[i] = T{};
+    return i;
+}
+}  // namespace
+
+// A request reaches the DRAM at the annotated cycle: its first stage runs then, within the call.
+tlm::tlm_sync_enum DramPort::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
+                                             tlm::tlm_phase& phase, sc_core::sc_time& delay) {
+    const Cycle at = stages_->now() + delay_cycles(delay);
+    if (gp.is_write()) {
+        const uint32_t w = take(writes_, free_writes_);
+        writes_[w].addr = gp.get_address();
+        writes_[w].size_bytes = gp.get_data_length();
+        writes_[w].write = true;
+        write_stage(w, at);
+        gp.set_response_status(tlm::TLM_OK_RESPONSE);
+        return tlm::TLM_COMPLETED;
+    }
+    memory_request(gp).push_route(id);
+    const uint32_t r = take(reads_, free_reads_);
+    reads_[r].request.addr = gp.get_address();
+    reads_[r].request.size_bytes = gp.get_data_length();
+    reads_[r].gp = &gp;
+    read_stage(r, at);
+    phase = tlm::END_REQ;
+    return tlm::TLM_UPDATED;
+}
+
+void DramPort::run_stage(uint32_t kind, uint32_t id, uint32_t, Cycle t) {
+    switch (kind) {
+        case kReadStage:
+            read_stage(id, t);
+            break;
+        case kWriteStage:
+            write_stage(id, t);
+            break;
+        case kAnswerStage: {
+            tlm::tlm_generic_payload& gp = *reads_[id].gp;
+            free_reads_.push_back(id);
+            gp.set_response_status(tlm::TLM_OK_RESPONSE);
+            tlm::tlm_phase phase = tlm::BEGIN_RESP;
+            sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+            up[memory_request(gp).pop_route()]->nb_transport_bw(gp, phase, delay);
+            break;
+        }
+    }
+}
+
+void DramPort::read_stage(uint32_t r, Cycle t) {
+    bool done = false;
+    const Cycle next = model_.advance(reads_[r].request, t, done);
+    if (!done) {
+        stages_->schedule(next, StageQueue::kMemoryOrder, this, kReadStage, r);
+        return;
+    }
+    memory_request(*reads_[r].gp).timeline.add(next, kLevelDram);
+    // The data is there at `next`: the fill it answers completes then, first in its cycle.
+    stages_->schedule(next, StageQueue::kFillOrder, this, kAnswerStage, r);
+}
+
+void DramPort::write_stage(uint32_t w, Cycle t) {
+    bool done = false;
+    const Cycle next = model_.advance(writes_[w], t, done);
+    if (done)
+        free_writes_.push_back(w);
+    else
+        stages_->schedule(next, StageQueue::kMemoryOrder, this, kWriteStage, w);
+}
+
 RTSIM_REGISTER(DramModelEntry,
                {"simple",
                 "open-page banks (tRCD, tCAS, tRP, tCCD), a bus per channel as the bandwidth cap, "

@@ -19,6 +19,7 @@
 #include "models/registry.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/transaction.h"
 
 namespace rtsim {
 
@@ -73,6 +74,35 @@ class DramModel : public MemoryPort {
     virtual uint64_t bytes_moved(uint32_t size_bytes) const = 0;
     virtual void set_series(TimeSeries* bytes) = 0;  // bytes moved per window
     virtual void follow(const TimeFloor* floor) = 0;
+};
+
+// The time-ordered engine's way into a DRAM model (models/transaction.h): runs each request's
+// stages (DramModel::advance) at their cycles on the StageQueue and answers a read when its
+// data is usable. A posted write is accepted on arrival (the call returns TLM_COMPLETED); its
+// stages still run, each at its cycle.
+class DramPort final : public sc_core::sc_module, private StageHandler {
+  public:
+    DramPort(sc_core::sc_module_name name, DramModel& model);
+    TargetSocket<DramPort> up;
+    void set_stage_queue(StageQueue* queue) { stages_ = queue; }
+
+  private:
+    enum Stage : uint32_t { kReadStage, kAnswerStage, kWriteStage };
+    void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
+    tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
+                                       sc_core::sc_time& delay);
+    void read_stage(uint32_t r, Cycle t);
+    void write_stage(uint32_t w, Cycle t);
+    struct Read {
+        DramRequest request;
+        tlm::tlm_generic_payload* gp = nullptr;
+    };
+    DramModel& model_;
+    StageQueue* stages_ = nullptr;
+    std::vector<Read> reads_;
+    std::vector<uint32_t> free_reads_;
+    std::vector<DramRequest> writes_;
+    std::vector<uint32_t> free_writes_;
 };
 
 struct DramModelEntry {

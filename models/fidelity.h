@@ -22,6 +22,7 @@
 namespace rtsim {
 
 class Core;
+class StageQueue;
 class WakeSource;
 
 // The one SystemC process that runs a chip's cores.
@@ -40,6 +41,8 @@ struct DriverSetup {
     std::vector<Core*> cores;
     WakeSource* wake = nullptr;  // where work for parked cores comes from (the ray buffer, or a
                                  // source that holds rays)
+    // The queue the blocks run their stages on under the time-ordered engine (the chip's).
+    StageQueue* stages = nullptr;
 };
 
 struct FidelityEntry {

@@ -49,6 +49,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         for (auto* p :
              {&series.dram_bytes, &series.l1_fill_bytes, &series.l2_fill_bytes, &series.rays})
             *p = std::make_unique<TimeSeries>(P.sim.window_cycles);
+    // Annotated delays count cycles in SystemC time units (models/transaction.h).
+    if (sc_core::sc_time(1.0, sc_core::SC_NS).value() != kTimeUnitsPerCycle)
+        throw std::logic_error("SystemC's time resolution is not the default 1 ps");
     DramParams dram_params = P.dram;
     dram_params.chip_clock_ghz = P.clock_ghz;
     dram = DramModelRegistry::at(P.dram_model).make("dram", dram_params);
@@ -57,12 +60,16 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     if (make_front) dram_front = make_front(*dram);
     dram_regions = std::make_unique<DramRegions>(dram_front ? *dram_front : *dram, layout);
     dram_regions->register_stats(stats);
+    dram_port = std::make_unique<DramPort>("dram_port", *dram_regions);
+    dram_port->set_stage_queue(&stages);
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
     // The traversal's own data (spilled stacks, ray records, hit records) lives above the BVH.
     if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
         l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
     l2 = std::make_unique<Cache>("l2", l2p, dram_regions.get(), kLevelL2);
+    l2->set_stage_queue(&stages);
+    l2->down.bind(dram_port->up);
     // A sampled run regresses the DRAM traffic on the BVH's compulsory misses
     // (sim/sampling/sampler.h).
     // With a prefetcher, lines come that no ray asks for: the first fills are then the lines a
@@ -79,10 +86,14 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
     MemoryPort* below_l1 = l2.get();
+    TargetSocketBase* below_l1_socket = &l2->up;
     if (P.crossbar_bytes_per_cycle > 0) {
         crossbar = std::make_unique<Crossbar>("crossbar", P.crossbar_bytes_per_cycle, l2.get());
         crossbar->register_stats(stats);
+        crossbar->set_stage_queue(&stages);
+        crossbar->down.bind(l2->up);
         below_l1 = crossbar.get();
+        below_l1_socket = &crossbar->up;
     }
 
     CoreParams cp = P.core;
@@ -100,7 +111,24 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     // A core's L1 lookups follow its one in-order issue port, except a treelet load (at the
     // cycle a batch starts, which may precede a step's lookup issued just before).
     l1p.in_order_requests = mode.l1_in_order;
-    if (P.sim.ideal_memory) ideal_memory = std::make_unique<IdealMemory>(l1p.hit_latency_cycles);
+    if (P.sim.ideal_memory) {
+        ideal_memory = std::make_unique<IdealMemory>("ideal_memory", l1p.hit_latency_cycles);
+        ideal_memory->set_stage_queue(&stages);
+    }
+    // A treelet loader's lines count the misses on their way to the caches it loads into.
+    const bool treelet_loads = mode.ray_buffer && cp.treelet_prefetch;
+    const auto add_cache = [&](std::vector<std::unique_ptr<Cache>>& caches, const char* kind, int i,
+                               const CacheParams& params, MemoryPort* next,
+                               TargetSocketBase& next_socket) -> Cache& {
+        Cache& c =
+            *caches.emplace_back(std::make_unique<Cache>(indexed(kind, i).c_str(), params, next));
+        c.register_stats(stats);
+        c.count_first_demands(first_demands.get());
+        c.set_stage_queue(&stages);
+        c.down.bind(next_socket);
+        if (treelet_loads) c.set_treelet_loads();
+        return c;
+    };
     const int n = P.core_count;
     // Per step kind, its unit kind's units; they may serve several cores (shared_by): core i
     // uses unit i / shared_by.
@@ -120,18 +148,15 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         }
     }
     for (int i = 0; i < n; ++i) {
-        l1.push_back(std::make_unique<Cache>(indexed("l1", i).c_str(), l1p, below_l1));
-        l1.back()->register_stats(stats);
-        l1.back()->count_first_demands(first_demands.get());
-        l1.back()->set_series(series.l1_fill_bytes.get());
-        if (P.l1_split) {
-            l1_tri.push_back(std::make_unique<Cache>(indexed("l1_tri", i).c_str(), l1p, below_l1));
-            l1_tri.back()->register_stats(stats);
-            l1_tri.back()->count_first_demands(first_demands.get());
-            l1_tri.back()->set_series(series.l1_fill_bytes.get());
-        }
+        add_cache(l1, "l1", i, l1p, below_l1, *below_l1_socket)
+            .set_series(series.l1_fill_bytes.get());
+        if (P.l1_split)
+            add_cache(l1_tri, "l1_tri", i, l1p, below_l1, *below_l1_socket)
+                .set_series(series.l1_fill_bytes.get());
         MemoryPort* memory =
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
+        TargetSocketBase* memory_socket = &l1.back()->up;
+        if (ideal_memory) memory_socket = &ideal_memory->up;
         if (treelet_cache_bytes > 0 && !ideal_memory) {
             // A dedicated treelet cache in front of the L1: batches load their treelet into it.
             CacheParams tp = l1p;
@@ -140,16 +165,19 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
             tp.mshrs = 0;            // its misses are bounded by the L1's MSHRs
             tp.prefetcher = "none";  // batches load it whole; the L1 behind it prefetches
             tp.banks = 1;
-            treelet_caches.push_back(
-                std::make_unique<Cache>(indexed("treelet_cache", i).c_str(), tp, l1.back().get()));
-            treelet_caches.back()->register_stats(stats);
-            treelet_caches.back()->count_first_demands(first_demands.get());
-            memory = treelet_caches.back().get();
+            memory =
+                &add_cache(treelet_caches, "treelet_cache", i, tp, l1.back().get(), l1.back()->up);
+            memory_socket = &treelet_caches.back()->up;
         }
         // Triangle fetches go to the split L1's triangle cache when there is one.
         std::array<MemoryPort*, kStepKinds> memories;
         memories.fill(memory);
-        if (!l1_tri.empty()) memories[size_t(StepKind::Triangle)] = l1_tri.back().get();
+        std::array<TargetSocketBase*, kStepKinds> memory_sockets;
+        memory_sockets.fill(memory_socket);
+        if (!l1_tri.empty()) {
+            memories[size_t(StepKind::Triangle)] = l1_tri.back().get();
+            memory_sockets[size_t(StepKind::Triangle)] = &l1_tri.back()->up;
+        }
         std::array<PipelinedUnit*, kStepKinds> core_units;
         for (int k = 0; k < kStepKinds; ++k)
             core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
@@ -160,6 +188,12 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         cores.back()->set_local_memory(
             ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1,
             uint64_t(i) * uint64_t(cp.ray_slots));
+        for (int k = 0; k < kStepKinds; ++k)
+            cores.back()->memory_socket[k].bind(*memory_sockets[size_t(k)]);
+        if (ideal_memory)
+            cores.back()->local_socket.bind(ideal_memory->up);
+        else
+            cores.back()->local_socket.bind(*below_l1_socket);
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
     }
@@ -167,6 +201,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     for (auto& c : cores) core_ptrs.push_back(c.get());
     DriverSetup setup;
     setup.cores = std::move(core_ptrs);
+    setup.stages = &stages;
     // Parked slots wake when the ray buffer has work for them, or (a sampled run's drained
     // windows) when the source lets its held ray go.
     setup.wake = ray_buffer ? static_cast<WakeSource*>(ray_buffer.get())

@@ -43,9 +43,12 @@ class Chip {
     std::vector<const Cache*> all_l1() const;
 
     StatsRegistry stats;
+    // The stages the blocks run under the time-ordered engine (sim.fidelity = accurate).
+    StageQueue stages;
     std::unique_ptr<DramModel> dram;
     std::unique_ptr<DramModel> dram_front;      // in front of dram, when asked for
     std::unique_ptr<DramRegions> dram_regions;  // in front of both: traffic by region
+    std::unique_ptr<DramPort> dram_port;        // the L2's socket's way to dram_regions
     std::unique_ptr<Cache> l2;
     std::unique_ptr<LineFirstTouches> first_demands;  // sampled, with a prefetcher
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)

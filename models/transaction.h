@@ -1,0 +1,302 @@
+// The contract between the cores and the memory blocks (caches, crossbar, DRAM, ideal memory):
+// TLM-2.0 generic payloads carrying a MemoryRequest extension, through tlm_utils sockets.
+//
+// The time-ordered engine (sim.fidelity = accurate) drives the blocks with the base protocol's
+// non-blocking calls. A requester sends BEGIN_REQ through nb_transport_fw, the delay annotating
+// the cycle the request reaches the block (from the StageQueue's current cycle); the block
+// answers BEGIN_RESP through nb_transport_bw at the cycle its data is there, with a zero delay:
+// the call happens at that cycle. A posted write is answered at the cycle the block accepted it,
+// or, when nothing waits for its acceptance below the block, the call returns TLM_COMPLETED.
+// Each block runs its own later stages (a tag check at its lookup cycle, a DRAM bank, a line
+// crossing the crossbar) as events on the chip's StageQueue, which calls them in cycle order, so
+// every bank, MSHR pool, bus and link serves its requests in simulated-time order.
+#pragma once
+
+#include <tlm_utils/multi_passthrough_target_socket.h>
+#include <tlm_utils/simple_initiator_socket.h>
+#include <algorithm>
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <queue>
+#include <stdexcept>
+#include <tlm>
+#include <vector>
+
+#include "models/calendar.h"
+#include "models/timing.h"
+
+namespace rtsim {
+
+// A request's life from `start`, as consecutive parts each charged to one memory level (stall
+// attribution: a wait on another request's fill is charged where that fill was at each cycle).
+struct Timeline {
+    static constexpr int kMaxParts = 12;
+    struct Part {
+        Cycle end;
+        int level;
+    };
+    Cycle start = 0;
+    int parts = 0;
+    Part part[kMaxParts];
+
+    Timeline() = default;
+    explicit Timeline(Cycle from) : start(from) {}
+    Cycle end() const { return parts ? part[parts - 1].end : start; }
+    // Extends the timeline to `until`, the new cycles charged to `level`.
+    void add(Cycle until, int level) {
+        if (until <= end()) return;
+        if (parts > 0 && part[parts - 1].level == level) {
+            part[parts - 1].end = until;
+            return;
+        }
+        // A request passes each level at most a few times (a wait on a fill adds that fill's
+        // levels): running out means the model went around in a circle.
+        if (parts == kMaxParts)
+            throw std::logic_error("accurate fidelity: a request's timeline overflowed");
+        part[parts++] = {until, level};
+    }
+    // Appends every part of `other` (what a request below took for this one).
+    void append(const Timeline& other) {
+        for (int p = 0; p < other.parts; ++p) add(other.part[p].end, other.part[p].level);
+    }
+    // Appends `other`'s parts from `from` to `until` (the cycles this request waited on it).
+    void add_overlap(const Timeline& other, Cycle from, Cycle until) {
+        Cycle lo = other.start;
+        for (int p = 0; p < other.parts; ++p) {
+            const Cycle hi = other.part[p].end;
+            if (hi > from && lo < until) add(std::min(hi, until), other.part[p].level);
+            lo = hi;
+        }
+        // Past the fill's recorded end (never, as fills end when their waiters do).
+        add(until, other.parts ? other.part[other.parts - 1].level : kLevelL1);
+    }
+    void charge(uint64_t* cycles_by_level) const {
+        Cycle lo = start;
+        for (int p = 0; p < parts; ++p) {
+            cycles_by_level[part[p].level] += part[p].end - lo;
+            lo = part[p].end;
+        }
+    }
+};
+
+// What a memory request carries besides the generic payload's address, length and command.
+struct MemoryRequest : tlm::tlm_extension<MemoryRequest> {
+    Cycle start = 0;  // issued: its timeline starts here
+    // Arrives as a stage of its target at its cycle (a core's fetch at its issue cycle, a posted
+    // write), after what the target already has at that cycle, rather than within the call.
+    bool queued = false;
+    uint32_t owner_kind = 0, owner_id = 0, owner_k = 0;  // the requester's: what it is for
+    // Which level held it over which cycles; in the answer, its slowest line's.
+    Timeline timeline;
+    // Kept by the cache serving it: its first line, lines not yet done, lines counted as misses
+    // to come (bit k), and its slowest line so far (the first of equals).
+    uint64_t first_line = 0;
+    uint32_t lines_left = 0;
+    uint64_t pending_lines = 0;
+    bool any = false;
+    Cycle done = 0;
+    uint64_t slowest_k = 0;
+    // The upstream socket each block with several requesters took it from, innermost last.
+    static constexpr int kMaxHops = 4;
+    int hops = 0;
+    int route[kMaxHops] = {};
+
+    void push_route(int id) {
+        if (hops == kMaxHops) throw std::logic_error("memory request: too many routing hops");
+        route[hops++] = id;
+    }
+    int pop_route() { return route[--hops]; }
+
+    tlm::tlm_extension_base* clone() const override { return new MemoryRequest(*this); }
+    void copy_from(const tlm::tlm_extension_base& other) override {
+        *this = static_cast<const MemoryRequest&>(other);
+    }
+};
+
+// Every payload in the chip's memory path comes from a PayloadPool: a generic payload that also
+// keeps its MemoryRequest at hand (get_extension is a call into the SystemC library, and the
+// accurate engine asks for it several times per stage).
+struct MemoryPayload : tlm::tlm_generic_payload {
+    MemoryRequest request;  // its MemoryRequest extension, set on it for as long as it lives
+    MemoryPayload() { set_extension(&request); }
+    ~MemoryPayload() override { clear_extension(&request); }
+    MemoryPayload(const MemoryPayload&) = delete;
+    MemoryPayload& operator=(const MemoryPayload&) = delete;
+};
+inline MemoryRequest& memory_request(tlm::tlm_generic_payload& gp) {
+    return static_cast<MemoryPayload&>(gp).request;
+}
+
+// Annotated delays in cycles: the chip clock's cycle is 1 ns of SystemC time, and SystemC's
+// default resolution is 1 ps (Chip checks it).
+constexpr uint64_t kTimeUnitsPerCycle = 1000;
+inline sc_core::sc_time cycles_delay(Cycle cycles) {
+    return sc_core::sc_time::from_value(cycles * kTimeUnitsPerCycle);
+}
+inline Cycle delay_cycles(const sc_core::sc_time& delay) {
+    return delay.value() / kTimeUnitsPerCycle;
+}
+
+// Payloads a requester owns, each with its MemoryRequest, reused once answered.
+class PayloadPool {
+  public:
+    tlm::tlm_generic_payload& acquire(tlm::tlm_command command, uint64_t addr, uint32_t size_bytes,
+                                      Cycle start) {
+        MemoryPayload* gp;
+        if (free_.empty()) {
+            gp = &all_.emplace_back();
+        } else {
+            gp = free_.back();
+            free_.pop_back();
+        }
+        gp->set_command(command);
+        gp->set_address(addr);
+        gp->set_data_length(size_bytes);
+        gp->set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+        MemoryRequest& r = gp->request;
+        r.start = start;
+        r.queued = false;
+        r.owner_kind = r.owner_id = r.owner_k = 0;
+        r.timeline.start = start;
+        r.timeline.parts = 0;
+        r.first_line = r.pending_lines = r.slowest_k = 0;
+        r.lines_left = 0;
+        r.any = false;
+        r.done = 0;
+        r.hops = 0;
+        return *gp;
+    }
+    void release(tlm::tlm_generic_payload& gp) {
+        free_.push_back(static_cast<MemoryPayload*>(&gp));
+    }
+
+  private:
+    std::deque<MemoryPayload> all_;  // in blocks, each payload where it was made
+    std::vector<MemoryPayload*> free_;
+};
+
+// A block that runs stages of its own on the StageQueue.
+class StageHandler {
+  public:
+    virtual void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) = 0;
+
+  protected:
+    ~StageHandler() = default;
+};
+
+// The time-ordered engine's event queue: every stage of every request at its cycle. Within a
+// cycle, fills complete first (a line arriving at t is there for a lookup at t, as the fast model
+// has it), then other memory stages, then ray slots by rank (the fast model's arbitration: the
+// lower core, then the lower slot, takes the next ray), each class in the order it was scheduled.
+//
+// Stages fall within a few hundred cycles of the current one: they wait in a ring of per-cycle
+// buckets, and only the current cycle's stages are ordered (a small heap); a stage further ahead
+// than the ring waits in a heap of its own until the ring reaches it. (One heap of every stage
+// took a quarter of the engine's time.)
+class StageQueue {
+  public:
+    static constexpr uint64_t kFillOrder = 0, kMemoryOrder = 1, kSlotOrder = 2;
+    StageQueue() : ring_(kRingCycles) {}
+    void schedule(Cycle t, uint64_t order, StageHandler* block, uint32_t kind, uint32_t id,
+                  uint32_t k = 0) {
+        const Event e{t, order << kSeqBits | seq_++, block, id, k, kind};
+        ++pending_;
+        if (t == now_.cycle && current_loaded_) {
+            current_.push_back(e);
+            std::push_heap(current_.begin(), current_.end(), Later{});
+        } else if (t < now_.cycle) {
+            throw std::logic_error("accurate fidelity: a stage scheduled before the current cycle");
+        } else if (t < now_.cycle + kRingCycles) {
+            ring_[t & (kRingCycles - 1)].push_back(e);
+            ++in_ring_;
+        } else {
+            far_.push(e);
+        }
+    }
+    bool empty() const { return pending_ == 0; }
+    // The cycle of the earliest stage (the queue must not be empty).
+    Cycle next_cycle() {
+        if (current_.empty()) load_next();
+        return now_.cycle;
+    }
+    // Runs the earliest stage.
+    void run_next() {
+        if (current_.empty()) load_next();
+        std::pop_heap(current_.begin(), current_.end(), Later{});
+        const Event e = current_.back();
+        current_.pop_back();
+        --pending_;
+        e.block->run_stage(e.kind, e.id, e.k, e.t);
+    }
+    Cycle now() const { return now_.cycle; }
+    // Every block's floor: nothing is ever requested before the current stage.
+    const TimeFloor* floor() const { return &now_; }
+
+  private:
+    static constexpr int kSeqBits = 40;
+    static constexpr Cycle kRingCycles = 1024;  // a power of two
+    struct Event {
+        Cycle t;
+        uint64_t key;  // order, then the order scheduled
+        StageHandler* block;
+        uint32_t id, k, kind;
+    };
+    struct Later {
+        bool operator()(const Event& a, const Event& b) const {
+            return a.t != b.t ? a.t > b.t : a.key > b.key;
+        }
+    };
+    // Makes the next cycle with stages the current one, its stages the current heap.
+    void load_next() {
+        Cycle c = now_.cycle + (current_loaded_ ? 1 : 0);
+        if (in_ring_ == 0) c = std::max(c, far_.top().t);  // nothing near: jump to the far ones
+        for (;;) {
+            // The ring covers [c, c + kRingCycles): far stages it now reaches move into it.
+            while (!far_.empty() && far_.top().t < c + kRingCycles) {
+                ring_[far_.top().t & (kRingCycles - 1)].push_back(far_.top());
+                ++in_ring_;
+                far_.pop();
+            }
+            std::vector<Event>& bucket = ring_[c & (kRingCycles - 1)];
+            if (!bucket.empty()) {
+                current_.swap(bucket);
+                in_ring_ -= current_.size();
+                std::make_heap(current_.begin(), current_.end(), Later{});
+                break;
+            }
+            ++c;
+        }
+        now_.cycle = c;
+        current_loaded_ = true;
+    }
+    std::vector<std::vector<Event>> ring_;  // per cycle modulo kRingCycles
+    std::priority_queue<Event, std::vector<Event>, Later> far_;
+    std::vector<Event> current_;  // the current cycle's stages, a heap
+    bool current_loaded_ = false;
+    uint64_t in_ring_ = 0, pending_ = 0;
+    uint64_t seq_ = 0;
+    TimeFloor now_;
+};
+
+// Socket types every memory block uses: a target socket any number of requesters bind to (the
+// block answers each on its own), and the initiator socket towards the next level.
+using TargetSocketBase =
+    tlm::tlm_target_socket<32, tlm::tlm_base_protocol_types, 0, sc_core::SC_ZERO_OR_MORE_BOUND>;
+template <class Module>
+using TargetSocket = tlm_utils::multi_passthrough_target_socket_optional<Module>;
+template <class Module>
+using InitiatorSocket = tlm_utils::simple_initiator_socket_optional<Module>;
+
+// A block the cores reach through its target socket.
+class TimedTarget {
+  public:
+    virtual TargetSocketBase& target_socket() = 0;
+    // The time-ordered engine's queue, on which the block runs its stages.
+    virtual void set_stage_queue(StageQueue* queue) = 0;
+
+  protected:
+    ~TimedTarget() = default;
+};
+
+}  // namespace rtsim
