@@ -4,8 +4,9 @@
 //             request's whole path through the memory levels is computed when it is issued
 //             (models/core.h: CoreScheduler).
 //   accurate  the time-ordered reference: every stage of every request runs at its own cycle
-//             from one event queue, so every shared resource serves in simulated-time order by
-//             construction (models/fidelity/accurate.cpp).
+//             (the kernel's time) from one event queue, the cores reaching the memory blocks
+//             through TLM-2.0 sockets, so every shared resource serves in simulated-time order
+//             by construction (models/fidelity/accurate.cpp, models/transaction.h).
 // Both drive the same blocks (same configs, counters and stats.json); only the order and the
 // time at which the blocks are called differ.
 #pragma once

@@ -3,10 +3,11 @@
 // One event queue (models/transaction.h: StageQueue) holds every stage of every request, ordered
 // by cycle: a ray slot's next action, and each stage the memory blocks run themselves (a request
 // arriving at a cache, each line's tag check at its lookup cycle, a miss taking an MSHR or
-// queueing for one, each DRAM stage, a line crossing the crossbar, a fill completing). The cores
-// reach the blocks through TLM-2.0 sockets with the base protocol's non-blocking calls, so every
-// bank, MSHR pool, bus, link, unit and port sees its requests in simulated-time order by
-// construction: the out-of-order counts of stats.json are 0 here (tests check it).
+// queueing for one, each DRAM stage, a line crossing the crossbar, a fill completing). The
+// SystemC kernel advances from one cycle with stages to the next (run_cycle). The cores reach the
+// blocks through TLM-2.0 sockets with the base protocol's non-blocking calls, so every bank, MSHR
+// pool, bus, link, unit and port sees its requests in simulated-time order by construction: the
+// out-of-order counts of stats.json are 0 here (tests check it).
 //
 // The blocks' behaviour is theirs (models/cache.cpp, crossbar.cpp, dram.cpp): this engine runs the
 // cores' ray-slot state machine (Core::run_slot, models/core_slots.h: its TimeOrdered engine makes
@@ -45,7 +46,7 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
             if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
                 rb->set_memory(rb->memory(), true);
         }
-        SC_THREAD(run);
+        SC_METHOD(run_cycle);
     }
     double host_busy_seconds() const override { return host_busy_seconds_; }
     const TimeFloor* shared_floor() const override { return stages_.floor(); }
@@ -126,7 +127,7 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
         }
     };
 
-    void run();
+    void run_cycle();
     void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override {
         if (kind == kSlot) {
             TimeOrdered engine{*this, id};
@@ -189,25 +190,27 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
     std::vector<uint64_t> slot_rank_;  // per core: the rank of its first slot among all slots
     std::vector<std::pair<uint32_t, uint32_t>> parked_;  // core, slot
     double host_busy_seconds_ = 0;
+    bool started_ = false;
 };
 
-void ReferenceScheduler::run() {
-    for (uint32_t c = 0; c < cores_.size(); ++c)
-        for (uint32_t i = 0; i < uint32_t(cores_[c]->params().ray_slots); ++i)
-            schedule_slot(0, c, i);
-    auto resumed = std::chrono::steady_clock::now();
-    Cycle kernel_cycle = 0;
-    while (!stages_.empty()) {
-        const Cycle t = stages_.next_cycle();
-        if (t >= kernel_cycle + CoreScheduler::kKernelSyncCycles) {
-            host_busy_seconds_ +=
-                std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
-            wait(cycles_to_time(t - kernel_cycle));
-            resumed = std::chrono::steady_clock::now();
-            kernel_cycle = t;
-        }
-        stages_.run_next();
+// The SystemC kernel runs the engine cycle by cycle: at each cycle with stages, the kernel's time
+// is that cycle's, its stages run in their order, and the method is triggered again at the next
+// cycle with stages. Other SystemC processes (an outside target's, progress reports) therefore
+// see the chip at its own time.
+void ReferenceScheduler::run_cycle() {
+    const auto resumed = std::chrono::steady_clock::now();
+    if (!started_) {
+        started_ = true;
+        for (uint32_t c = 0; c < cores_.size(); ++c)
+            for (uint32_t i = 0; i < uint32_t(cores_[c]->params().ray_slots); ++i)
+                schedule_slot(0, c, i);
     }
+    if (stages_.empty()) return;
+    const Cycle cycle = stages_.next_cycle();
+    if (sc_core::sc_time_stamp().value() != cycle * kTimeUnitsPerCycle)
+        throw std::logic_error("accurate fidelity: stages ran apart from the kernel's time");
+    while (!stages_.empty() && stages_.next_cycle() == cycle) stages_.run_next();
+    if (!stages_.empty()) next_trigger(cycles_delay(stages_.next_cycle() - cycle));
     host_busy_seconds_ +=
         std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
 }
