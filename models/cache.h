@@ -216,12 +216,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
     }
     // The time-ordered reference's write: bank reservations at `now` (lookup_done as arrive()),
     // then write_tag at each line's lookup cycle. Dirty victims evicted by write_tag and by
-    // check_tag are queued (take_writebacks), not sent: the reference runs them as requests.
+    // check_tag are queued, not sent: the time-ordered side sends them as writes (send_writebacks).
     uint64_t arrive_write(uint64_t addr, uint32_t size_bytes, Cycle now,
                           std::vector<Cycle>& lookup_done);
     void write_tag(uint64_t line, Cycle at);
-    // Line addresses of dirty victims queued since the last call (the reference's).
-    const std::vector<uint64_t>& queued_writebacks() const { return queued_writebacks_; }
     uint64_t line_address(uint64_t line) const { return line << line_shift_; }
     MemoryPort* next_level() const { return next_; }
     int level() const { return level_; }
