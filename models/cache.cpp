@@ -27,10 +27,8 @@ struct Cache::Timed {
         StageHandler* block;
         uint32_t kind, id, k;
     };
-    std::vector<tlm::tlm_generic_payload*> held;
-    std::vector<uint32_t> free_held;
-    std::vector<Fill> fills;
-    std::vector<uint32_t> free_fills;
+    IdPool<tlm::tlm_generic_payload*> held;
+    IdPool<Fill> fills;
     std::unordered_map<uint64_t, uint32_t> in_flight;  // line -> its newest fill
     uint32_t mshrs = 0;                                // 0: unlimited
     uint32_t busy = 0;
@@ -43,16 +41,7 @@ struct Cache::Timed {
     std::vector<Cycle> lookup_done;
     std::vector<uint64_t> prefetch_lines;
 
-    uint32_t hold(tlm::tlm_generic_payload& gp) {
-        if (free_held.empty()) {
-            held.push_back(&gp);
-            return uint32_t(held.size() - 1);
-        }
-        const uint32_t h = free_held.back();
-        free_held.pop_back();
-        held[h] = &gp;
-        return h;
-    }
+    uint32_t hold(tlm::tlm_generic_payload& gp) { return held.add(&gp); }
     void wake_loaders(StageQueue& stages, Cycle t) {
         for (const Wake& w : loaders)
             stages.schedule(t, StageQueue::kMemoryOrder, w.block, w.kind, w.id, w.k);
@@ -399,15 +388,7 @@ tlm::tlm_sync_enum IdealMemory::nb_transport_fw(int id, tlm::tlm_generic_payload
     }
     MemoryRequest& r = memory_request(gp);
     r.push_route(id);
-    uint32_t h;
-    if (free_held_.empty()) {
-        held_.push_back(&gp);
-        h = uint32_t(held_.size() - 1);
-    } else {
-        h = free_held_.back();
-        free_held_.pop_back();
-        held_[h] = &gp;
-    }
+    const uint32_t h = held_.add(&gp);
     const Cycle at = stages_->now() + delay_cycles(delay);
     if (r.queued)
         stages_->schedule(at, StageQueue::kMemoryOrder, this, kArriveStage, h);
@@ -429,7 +410,7 @@ void IdealMemory::run_stage(uint32_t kind, uint32_t h, uint32_t, Cycle t) {
         return;
     }
     tlm::tlm_generic_payload& gp = *held_[h];
-    free_held_.push_back(h);
+    held_.remove(h);
     MemoryRequest& r = memory_request(gp);
     r.timeline = Timeline(r.start);
     r.timeline.add(t, kLevelL1);
@@ -594,14 +575,7 @@ void Cache::timed_prefetch(uint64_t line, Cycle t) {
 // line, evicted while filling, ends unseen).
 uint32_t Cache::new_fill(uint64_t line, Cycle t) {
     Timed& st = *timed_;
-    uint32_t f;
-    if (st.free_fills.empty()) {
-        st.fills.emplace_back();
-        f = uint32_t(st.fills.size() - 1);
-    } else {
-        f = st.free_fills.back();
-        st.free_fills.pop_back();
-    }
+    const uint32_t f = st.fills.take();
     Timed::Fill& F = st.fills[f];
     F.line = line;
     F.requested = t;
@@ -664,7 +638,7 @@ void Cache::fill_done(uint32_t f, Cycle t) {
     std::vector<Timed::Waiter> waiters;
     waiters.swap(st.fills[f].waiters);
     const Timeline fill_timeline = st.fills[f].timeline;
-    st.free_fills.push_back(f);
+    st.fills.remove(f);
     for (const Timed::Waiter& w : waiters) {
         Timeline tl(memory_request(*st.held[w.held]).start);
         tl.add(w.from, level_);
@@ -688,7 +662,7 @@ void Cache::line_done(uint32_t h, uint64_t k, Cycle t, const Timeline& timeline)
 // came.
 void Cache::respond(uint32_t h, Cycle) {
     tlm::tlm_generic_payload& gp = *timed_->held[h];
-    timed_->free_held.push_back(h);
+    timed_->held.remove(h);
     gp.set_response_status(tlm::TLM_OK_RESPONSE);
     tlm::tlm_phase phase = tlm::BEGIN_RESP;
     sc_core::sc_time delay = sc_core::SC_ZERO_TIME;

@@ -78,8 +78,7 @@ class IdealMemory final : public sc_core::sc_module, public MemoryPort, private 
     void arrive(uint32_t held, Cycle t);
     Cycle latency_;
     StageQueue* stages_ = nullptr;
-    std::vector<tlm::tlm_generic_payload*> held_;
-    std::vector<uint32_t> free_held_;
+    IdPool<tlm::tlm_generic_payload*> held_;
 };
 
 // A bit per line of an address range (in lines of `line_bytes`), set at the line's first touch,

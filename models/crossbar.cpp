@@ -35,15 +35,7 @@ tlm::tlm_sync_enum Crossbar::nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::
     } else {
         const Cycle end = carry(stages_->now(), gp.get_data_length());
         memory_request(gp).timeline.add(end, kLevelCrossbar);
-        uint32_t c;
-        if (free_crossing_.empty()) {
-            crossing_.push_back(&gp);
-            c = uint32_t(crossing_.size() - 1);
-        } else {
-            c = free_crossing_.back();
-            free_crossing_.pop_back();
-            crossing_[c] = &gp;
-        }
+        const uint32_t c = crossing_.add(&gp);
         // Crossed at `end`: a fill completes then, first in its cycle.
         stages_->schedule(end, StageQueue::kFillOrder, this, 0, c);
     }
@@ -52,8 +44,9 @@ tlm::tlm_sync_enum Crossbar::nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::
 }
 
 void Crossbar::run_stage(uint32_t, uint32_t c, uint32_t, Cycle) {
-    free_crossing_.push_back(c);
-    pass_up(*crossing_[c]);
+    tlm::tlm_generic_payload& gp = *crossing_[c];
+    crossing_.remove(c);
+    pass_up(gp);
 }
 
 void Crossbar::pass_up(tlm::tlm_generic_payload& gp) {

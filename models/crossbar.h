@@ -66,8 +66,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHand
                                        sc_core::sc_time& delay);
     void pass_up(tlm::tlm_generic_payload& gp);
     StageQueue* stages_ = nullptr;
-    std::vector<tlm::tlm_generic_payload*> crossing_;  // answers on the link, by stage id
-    std::vector<uint32_t> free_crossing_;
+    IdPool<tlm::tlm_generic_payload*> crossing_;  // answers on the link, by stage id
     BandwidthCalendar link_;
     BandwidthCalendar write_link_;  // write data, from the cores to the L2
     MemoryPort* next_;

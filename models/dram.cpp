@@ -121,38 +121,26 @@ DramPort::DramPort(sc_core::sc_module_name name, DramModel& model)
     up.register_nb_transport_fw(this, &DramPort::nb_transport_fw);
 }
 
-namespace {
-template <typename T>
-uint32_t take(std::vector<T>& pool, std::vector<uint32_t>& free) {
-    if (free.empty()) {
-        pool.emplace_back();
-        return uint32_t(pool.size() - 1);
-    }
-    const uint32_t i = free.back();
-    free.pop_back();
-    pool[i] = T{};
-    return i;
-}
-}  // namespace
-
 // A request reaches the DRAM at the annotated cycle: its first stage runs then, within the call.
 tlm::tlm_sync_enum DramPort::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
                                              tlm::tlm_phase& phase, sc_core::sc_time& delay) {
     const Cycle at = stages_->now() + delay_cycles(delay);
     if (gp.is_write()) {
-        const uint32_t w = take(writes_, free_writes_);
-        writes_[w].addr = gp.get_address();
-        writes_[w].size_bytes = gp.get_data_length();
-        writes_[w].write = true;
+        DramRequest request;
+        request.addr = gp.get_address();
+        request.size_bytes = gp.get_data_length();
+        request.write = true;
+        const uint32_t w = writes_.add(request);
         write_stage(w, at);
         gp.set_response_status(tlm::TLM_OK_RESPONSE);
         return tlm::TLM_COMPLETED;
     }
     memory_request(gp).push_route(id);
-    const uint32_t r = take(reads_, free_reads_);
-    reads_[r].request.addr = gp.get_address();
-    reads_[r].request.size_bytes = gp.get_data_length();
-    reads_[r].gp = &gp;
+    Read read;
+    read.request.addr = gp.get_address();
+    read.request.size_bytes = gp.get_data_length();
+    read.gp = &gp;
+    const uint32_t r = reads_.add(read);
     read_stage(r, at);
     phase = tlm::END_REQ;
     return tlm::TLM_UPDATED;
@@ -168,7 +156,7 @@ void DramPort::run_stage(uint32_t kind, uint32_t id, uint32_t, Cycle t) {
             break;
         case kAnswerStage: {
             tlm::tlm_generic_payload& gp = *reads_[id].gp;
-            free_reads_.push_back(id);
+            reads_.remove(id);
             gp.set_response_status(tlm::TLM_OK_RESPONSE);
             tlm::tlm_phase phase = tlm::BEGIN_RESP;
             sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
@@ -194,7 +182,7 @@ void DramPort::write_stage(uint32_t w, Cycle t) {
     bool done = false;
     const Cycle next = model_.advance(writes_[w], t, done);
     if (done)
-        free_writes_.push_back(w);
+        writes_.remove(w);
     else
         stages_->schedule(next, StageQueue::kMemoryOrder, this, kWriteStage, w);
 }

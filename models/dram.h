@@ -99,10 +99,8 @@ class DramPort final : public sc_core::sc_module, private StageHandler {
     };
     DramModel& model_;
     StageQueue* stages_ = nullptr;
-    std::vector<Read> reads_;
-    std::vector<uint32_t> free_reads_;
-    std::vector<DramRequest> writes_;
-    std::vector<uint32_t> free_writes_;
+    IdPool<Read> reads_;
+    IdPool<DramRequest> writes_;
 };
 
 struct DramModelEntry {

@@ -176,6 +176,34 @@ class PayloadPool {
     std::vector<MemoryPayload*> free_;
 };
 
+// Records a block keeps while their stages are pending, each known by the id its stages carry,
+// reused once removed.
+template <typename T>
+class IdPool {
+  public:
+    // A record's id: a removed one's (its value as it was left) or a new default one's.
+    uint32_t take() {
+        if (free_.empty()) {
+            items_.emplace_back();
+            return uint32_t(items_.size() - 1);
+        }
+        const uint32_t id = free_.back();
+        free_.pop_back();
+        return id;
+    }
+    uint32_t add(const T& value) {
+        const uint32_t id = take();
+        items_[id] = value;
+        return id;
+    }
+    T& operator[](uint32_t id) { return items_[id]; }
+    void remove(uint32_t id) { free_.push_back(id); }
+
+  private:
+    std::vector<T> items_;
+    std::vector<uint32_t> free_;
+};
+
 // A block that runs stages of its own on the StageQueue.
 class StageHandler {
   public:
