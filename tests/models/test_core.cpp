@@ -1,11 +1,14 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <deque>
 #include <memory>
+#include <vector>
 
 #include "fixed_memory.h"
 #include "models/core.h"
 #include "models/core_slots.h"
+#include "models/fidelity.h"
 #include "models/unit.h"
 
 using namespace rtsim;
@@ -419,4 +422,58 @@ TEST(CycleKeys, OrderByCycleThenIndexAndRoundTrip) {
                     }
             }
     }
+}
+
+namespace {
+
+// Looks at a core every 13 ns of kernel time until its rays are done.
+struct Watcher : sc_core::sc_module {
+    SC_HAS_PROCESS(Watcher);
+    const Core& core;
+    uint64_t rays;
+    std::vector<uint64_t> finished_seen;  // the core's finished rays at each look
+    Cycle latest_ahead = 0;               // how far past the kernel's time a finished ray ended
+    Watcher(sc_core::sc_module_name name, const Core& c, uint64_t total)
+        : sc_module(name), core(c), rays(total) {
+        SC_THREAD(watch);
+    }
+    void watch() {
+        for (int look = 0; look < 100000 && core.rays < rays; ++look) {
+            wait(sc_core::sc_time(13, sc_core::SC_NS));
+            const Cycle now = now_cycles();
+            if (core.last_cycle > now) latest_ahead = std::max(latest_ahead, core.last_cycle - now);
+            finished_seen.push_back(core.rays);
+        }
+    }
+};
+
+}  // namespace
+
+// The accurate engine runs each cycle's stages at the kernel's time, so another SystemC process
+// sees the chip at its own time: a ray counted finished ended no later than a step's unit latency
+// past the kernel's time (its end is known when its last step issues), and the rays finish over
+// many looks. (An engine that ran ahead of the kernel in windows of 4,096 cycles finished every
+// ray of this frame, about 1,000 cycles, before the first look.)
+TEST(Core, TheAccurateEngineRunsOnTheKernelsTime) {
+    StageQueue stages;
+    IdealMemory memory("memory", 20);
+    memory.set_stage_queue(&stages);
+    PipelinedUnit box("box", UnitParams{1, 8, 1, 8}), tri("tri", UnitParams{1, 18, 1});
+    SyntheticSource src(64, 3, StepKind::Node);
+    CoreParams cp;
+    cp.ray_slots = 4;
+    Core core("core", cp, {&memory, &memory, &memory, &memory}, {&box, &tri}, &src);
+    for (auto& socket : core.memory_socket) socket.bind(memory.up);
+    core.local_socket.bind(memory.up);
+    DriverSetup setup;
+    setup.cores = {&core};
+    setup.stages = &stages;
+    const auto driver = FidelityRegistry::at("accurate").make("driver", setup);
+    Watcher watcher("watcher", core, 64);
+    sc_core::sc_start();
+    EXPECT_EQ(core.rays, 64u);
+    EXPECT_LE(watcher.latest_ahead, 8u);  // the box unit's latency
+    std::vector<uint64_t> distinct = watcher.finished_seen;
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    EXPECT_GE(distinct.size(), 20u);
 }
