@@ -1,11 +1,12 @@
 #include "models/cache.h"
 
+#include "models/line_map.h"
+
 #include <algorithm>
 #include <deque>
 #include <functional>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 
 namespace rtsim {
 
@@ -29,8 +30,8 @@ struct Cache::Timed {
     };
     IdPool<tlm::tlm_generic_payload*> held;
     IdPool<Fill> fills;
-    std::unordered_map<uint64_t, uint32_t> in_flight;  // line -> its newest fill
-    uint32_t mshrs = 0;                                // 0: unlimited
+    LineMap in_flight;   // line -> its newest fill
+    uint32_t mshrs = 0;  // 0: unlimited
     uint32_t busy = 0;
     // Lines of requests that have arrived and not yet been looked up, absent when they
     // arrived: misses to come, each of which will take an MSHR (may_load counts them taken).
@@ -527,10 +528,9 @@ void Cache::timed_tag(uint32_t h, uint32_t k, Cycle t) {
     if (hit) {
         // A miss that did not come: a loader waiting on it may go on.
         if (pending_at && !pending_at->loaders.empty()) pending_at->wake_loaders(*stages_, t);
-        auto it = st.in_flight.find(line);
-        if (it != st.in_flight.end()) {  // still filling: wait for it (merged miss)
-            ++merged_misses;
-            st.fills[it->second].waiters.push_back({h, k, t});
+        if (const uint32_t* fill = st.in_flight.find(line)) {  // still filling: wait for it
+            ++merged_misses;                                   // (a merged miss)
+            st.fills[*fill].waiters.push_back({h, k, t});
             return;
         }
         Timeline tl(r.start);
@@ -581,7 +581,7 @@ uint32_t Cache::new_fill(uint64_t line, Cycle t) {
     F.requested = t;
     F.timeline = Timeline(t);
     F.waiters.clear();
-    st.in_flight[line] = f;
+    st.in_flight.set(line, f);
     return f;
 }
 
@@ -623,8 +623,8 @@ tlm::tlm_sync_enum Cache::nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm
 void Cache::fill_done(uint32_t f, Cycle t) {
     Timed& st = *timed_;
     Timed::Fill& F = st.fills[f];
-    auto it = st.in_flight.find(F.line);
-    if (it != st.in_flight.end() && it->second == f) st.in_flight.erase(it);
+    if (uint32_t* newest = st.in_flight.find(F.line); newest && *newest == f)
+        st.in_flight.erase(newest);
     if (st.mshrs) {
         if (!st.waiting.empty()) {
             const uint32_t next = st.waiting.front();

@@ -6,9 +6,11 @@
 #include <queue>
 #include <random>
 #include <tuple>
+#include <unordered_map>
 #include <vector>
 
 #include "models/cache.h"
+#include "models/line_map.h"
 #include "models/transaction.h"
 
 using namespace rtsim;
@@ -166,4 +168,52 @@ TEST(MemoryContract, ACacheAnswersEachRequesterThroughItsOwnSocketByHand) {
     EXPECT_EQ(b.answers[1], std::make_pair(uint64_t(0x1000), Cycle(64)));
     EXPECT_EQ(cache.accesses, 3u);
     EXPECT_EQ(cache.misses, 1u);
+}
+
+// The time-ordered cache's map of fills in flight, against std::unordered_map over random sets,
+// finds and erases, with lines that collide in a small table and tables that grow.
+TEST(LineMap, AgreesWithAStandardMap) {
+    std::mt19937_64 rng(11);
+    for (const uint64_t span : {uint64_t(40), uint64_t(5000), uint64_t(1) << 40}) {
+        LineMap map;
+        std::unordered_map<uint64_t, uint32_t> reference;
+        std::vector<uint64_t> lines;
+        for (int op = 0; op < 200000; ++op) {
+            const uint64_t line =
+                lines.empty() || rng() % 3 == 0 ? rng() % span : lines[rng() % lines.size()];
+            const uint32_t* found = map.find(line);
+            const auto it = reference.find(line);
+            ASSERT_EQ(found != nullptr, it != reference.end()) << "line " << line;
+            if (found) {
+                ASSERT_EQ(*found, it->second);
+            }
+            switch (rng() % 3) {
+                case 0:
+                case 1: {
+                    const uint32_t value = uint32_t(rng());
+                    map.set(line, value);
+                    reference[line] = value;
+                    lines.push_back(line);
+                    break;
+                }
+                case 2:
+                    if (uint32_t* v = map.find(line)) {
+                        map.erase(v);
+                        reference.erase(line);
+                    }
+                    break;
+            }
+            // Keep the live set bounded, as fills in flight are.
+            if (reference.size() > 3000) {
+                const uint64_t drop = reference.begin()->first;
+                map.erase(map.find(drop));
+                reference.erase(drop);
+            }
+        }
+        for (const auto& [line, value] : reference) {
+            const uint32_t* found = map.find(line);
+            ASSERT_NE(found, nullptr);
+            EXPECT_EQ(*found, value);
+        }
+    }
 }
