@@ -451,8 +451,8 @@ void Cache::run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) {
     }
 }
 
-// A request reaches the cache: a read is looked up from the cycle it arrives (within the call,
-// or as a stage of its own when it is queued); a posted write always queues.
+// A request reaches the cache: it is looked up from the cycle it arrives, within the call or, when
+// it is queued, as a stage of its own.
 tlm::tlm_sync_enum Cache::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
                                           tlm::tlm_phase& phase, sc_core::sc_time& delay) {
     if (phase != tlm::BEGIN_REQ) throw std::logic_error(name() + std::string(": unexpected phase"));
@@ -460,10 +460,11 @@ tlm::tlm_sync_enum Cache::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
     r.push_route(id);
     const Cycle at = stages_->now() + delay_cycles(delay);
     const uint32_t h = timed_->hold(gp);
-    if (gp.is_write())
-        stages_->schedule(at, StageQueue::kMemoryOrder, this, kWriteArriveStage, h);
-    else if (r.queued)
-        stages_->schedule(at, StageQueue::kMemoryOrder, this, kArriveStage, h);
+    if (r.queued)
+        stages_->schedule(at, StageQueue::kMemoryOrder, this,
+                          gp.is_write() ? kWriteArriveStage : kArriveStage, h);
+    else if (gp.is_write())
+        timed_write_arrive(h, at);
     else
         timed_arrive(h, at);
     phase = tlm::END_REQ;
@@ -655,12 +656,12 @@ void Cache::line_done(uint32_t h, uint64_t k, Cycle t, const Timeline& timeline)
         r.slowest_k = k;
         r.timeline = timeline;
     }
-    if (--r.lines_left == 0) respond(h, t);
+    if (--r.lines_left == 0) respond(h);
 }
 
 // Every line of the request is done at t (a write: looked up): the answer goes back the way it
 // came.
-void Cache::respond(uint32_t h, Cycle) {
+void Cache::respond(uint32_t h) {
     tlm::tlm_generic_payload& gp = *timed_->held[h];
     timed_->held.remove(h);
     gp.set_response_status(tlm::TLM_OK_RESPONSE);
@@ -687,7 +688,7 @@ void Cache::timed_write_tag(uint32_t h, uint32_t k, Cycle t) {
     if (--r.lines_left > 0) return;
     // Write-through: on to the next level once every line is looked up (as the fast model).
     if (!params_.write_back && next_) send_write(gp.get_address(), gp.get_data_length(), t);
-    respond(h, t);
+    respond(h);
 }
 
 // Dirty lines evicted (by a write's allocation, a miss's or a prefetch's fill) go below.
@@ -702,7 +703,6 @@ void Cache::send_write(uint64_t addr, uint32_t size_bytes, Cycle t) {
         timed_->payloads.acquire(tlm::TLM_WRITE_COMMAND, addr, size_bytes, t);
     MemoryRequest& r = memory_request(gp);
     r.owner_kind = kWriteRequest;
-    r.queued = true;
     tlm::tlm_phase phase = tlm::BEGIN_REQ;
     sc_core::sc_time delay = cycles_delay(t - stages_->now());
     if (down->nb_transport_fw(gp, phase, delay) == tlm::TLM_COMPLETED) timed_->payloads.release(gp);

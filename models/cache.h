@@ -302,7 +302,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
     void fill_done(uint32_t fill, Cycle t);
     void timed_prefetch(uint64_t line, Cycle t);
     void line_done(uint32_t held, uint64_t k, Cycle t, const Timeline& timeline);
-    void respond(uint32_t held, Cycle t);
+    void respond(uint32_t held);
     void send_writebacks(Cycle t);
     void send_write(uint64_t addr, uint32_t size_bytes, Cycle t);
     // The cache whose MSHRs this one's misses take: its own, or, with unlimited MSHRs in front

@@ -121,7 +121,8 @@ DramPort::DramPort(sc_core::sc_module_name name, DramModel& model)
     up.register_nb_transport_fw(this, &DramPort::nb_transport_fw);
 }
 
-// A request reaches the DRAM at the annotated cycle: its first stage runs then, within the call.
+// A request reaches the DRAM at the annotated cycle: its first stage runs then, within the call
+// or, when it is queued, as a stage of its own.
 tlm::tlm_sync_enum DramPort::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
                                              tlm::tlm_phase& phase, sc_core::sc_time& delay) {
     const Cycle at = stages_->now() + delay_cycles(delay);
@@ -131,7 +132,10 @@ tlm::tlm_sync_enum DramPort::nb_transport_fw(int id, tlm::tlm_generic_payload& g
         request.size_bytes = gp.get_data_length();
         request.write = true;
         const uint32_t w = writes_.add(request);
-        write_stage(w, at);
+        if (memory_request(gp).queued)
+            stages_->schedule(at, StageQueue::kMemoryOrder, this, kWriteStage, w);
+        else
+            write_stage(w, at);
         gp.set_response_status(tlm::TLM_OK_RESPONSE);
         return tlm::TLM_COMPLETED;
     }
@@ -141,7 +145,10 @@ tlm::tlm_sync_enum DramPort::nb_transport_fw(int id, tlm::tlm_generic_payload& g
     read.request.size_bytes = gp.get_data_length();
     read.gp = &gp;
     const uint32_t r = reads_.add(read);
-    read_stage(r, at);
+    if (memory_request(gp).queued)
+        stages_->schedule(at, StageQueue::kMemoryOrder, this, kReadStage, r);
+    else
+        read_stage(r, at);
     phase = tlm::END_REQ;
     return tlm::TLM_UPDATED;
 }

@@ -83,8 +83,9 @@ struct Timeline {
 // What a memory request carries besides the generic payload's address, length and command.
 struct MemoryRequest : tlm::tlm_extension<MemoryRequest> {
     Cycle start = 0;  // issued: its timeline starts here
-    // Arrives as a stage of its target at its cycle (a core's fetch at its issue cycle, a posted
-    // write), after what the target already has at that cycle, rather than within the call.
+    // Arrives as a stage of its target at its cycle (a core's fetch at its issue cycle, a core's
+    // posted write), after what the target already has at that cycle, rather than within the
+    // call (a miss's fill, a dirty line written back). Every target honours it.
     bool queued = false;
     uint32_t owner_kind = 0, owner_id = 0, owner_k = 0;  // the requester's: what it is for
     // Which level held it over which cycles; in the answer, its slowest line's.
@@ -102,6 +103,19 @@ struct MemoryRequest : tlm::tlm_extension<MemoryRequest> {
     int hops = 0;
     int route[kMaxHops] = {};
 
+    // A fresh request issued at `start` (route and timeline parts left as they were: unused).
+    void reset(Cycle issued) {
+        start = issued;
+        queued = false;
+        owner_kind = owner_id = owner_k = 0;
+        timeline.start = issued;
+        timeline.parts = 0;
+        first_line = pending_lines = slowest_k = 0;
+        lines_left = 0;
+        any = false;
+        done = 0;
+        hops = 0;
+    }
     void push_route(int id) {
         if (hops == kMaxHops) throw std::logic_error("memory request: too many routing hops");
         route[hops++] = id;
@@ -154,17 +168,7 @@ class PayloadPool {
         gp->set_address(addr);
         gp->set_data_length(size_bytes);
         gp->set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
-        MemoryRequest& r = gp->request;
-        r.start = start;
-        r.queued = false;
-        r.owner_kind = r.owner_id = r.owner_k = 0;
-        r.timeline.start = start;
-        r.timeline.parts = 0;
-        r.first_line = r.pending_lines = r.slowest_k = 0;
-        r.lines_left = 0;
-        r.any = false;
-        r.done = 0;
-        r.hops = 0;
+        gp->request.reset(start);
         return *gp;
     }
     void release(tlm::tlm_generic_payload& gp) {
