@@ -50,17 +50,17 @@ struct Cache::Timed {
     }
 };
 
-Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
+Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, TargetSocketBase* below,
              int level)
     : sc_core::sc_module(name),
       up("up"),
       down("down"),
       timed_(std::make_unique<Timed>()),
       params_(params),
-      next_(next_level),
       level_(level) {
     timed_->mshrs = uint32_t(std::max(0, params_.mshrs));
     up.register_nb_transport_fw(this, &Cache::nb_transport_fw);
+    up.register_b_transport(this, &Cache::b_transport);
     down.register_nb_transport_bw(this, &Cache::nb_transport_bw);
     block_bytes_ = 16 * uint64_t(params_.ways);
     tag_groups_ = params_.ways % 4 == 0 ? params_.ways / 4 : 0;
@@ -102,8 +102,6 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
     while (slots < fills) slots *= 2;
     in_flight_.resize(slots);
     in_flight_mask_ = slots - 1;
-    if (auto* next = dynamic_cast<Cache*>(next_level); next && next->level_ == level_)
-        same_level_next_ = next;
     repl_.ways = params_.ways;
     repl_.rrpv_bits = params_.rrpv_bits;
     repl_.words_base = params_.sets() ? stamps(0) : nullptr;
@@ -124,6 +122,7 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort
         prefetcher_ = prefetcher.make(pp);
         prefetched_.assign(params_.sets() * uint64_t(params_.ways), 0);
     }
+    if (below) down.bind(*below);  // once nothing above can refuse the parameters
 }
 
 void Cache::warm_prefetches(uint64_t line) {
@@ -136,7 +135,7 @@ void Cache::warm_prefetches(uint64_t line) {
         // Marked, so that the first demand lookup to find it counts it asked for.
         const uint64_t set = set_of(l);
         prefetched_[way_index(set, find_way<0>(set, l))] = kWarmPrefetch;
-        if (next_) next_->warm(line_address(l), params_.line_bytes);
+        warm_below(line_address(l));
     }
     first_touch_ = touches;
 }
@@ -189,7 +188,7 @@ Cycle Cache::write(uint64_t addr, uint32_t size_bytes, Cycle now) {
         if (params_.write_back) write_fn_(*this, first + k, lookup_done_[k], kSendWriteBack);
     }
     // Write-through: on to the next level once looked up, nothing allocated.
-    if (!params_.write_back && next_) next_->write(addr, size_bytes, done);
+    if (!params_.write_back && below_.bound()) below_.write(addr, size_bytes, done);
     return done;
 }
 
@@ -379,6 +378,7 @@ nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, cons
 IdealMemory::IdealMemory(sc_core::sc_module_name name, Cycle hit_latency_cycles)
     : sc_core::sc_module(name), up("up"), latency_(hit_latency_cycles) {
     up.register_nb_transport_fw(this, &IdealMemory::nb_transport_fw);
+    up.register_b_transport(this, &IdealMemory::b_transport);
 }
 
 tlm::tlm_sync_enum IdealMemory::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,
@@ -687,7 +687,8 @@ void Cache::timed_write_tag(uint32_t h, uint32_t k, Cycle t) {
     send_writebacks(t);
     if (--r.lines_left > 0) return;
     // Write-through: on to the next level once every line is looked up (as the fast model).
-    if (!params_.write_back && next_) send_write(gp.get_address(), gp.get_data_length(), t);
+    if (!params_.write_back && below_.bound())
+        send_write(gp.get_address(), gp.get_data_length(), t);
     respond(h);
 }
 

@@ -53,8 +53,7 @@ struct CacheParams {
 };
 
 // Ideal memory: every access is an L1 hit (an upper bound on what caches can give). It has no
-// state: the time-ordered engine's requests (through `up`) are answered after the latency, and
-// writes are taken at once.
+// state: requests through `up` are answered after the latency, and writes are taken at once.
 class IdealMemory final : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
     IdealMemory(sc_core::sc_module_name name, Cycle hit_latency_cycles);
@@ -71,6 +70,9 @@ class IdealMemory final : public sc_core::sc_module, public MemoryPort, private 
     void set_stage_queue(StageQueue* queue) { stages_ = queue; }
 
   private:
+    void b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+        serve_loosely_timed(*this, gp, delay);
+    }
     enum Stage : uint32_t { kArriveStage, kAnswerStage };
     void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
     tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
@@ -107,7 +109,8 @@ struct LineFirstTouches {
 class Cache final : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
     // `level` names the level for stall attribution (kLevelL1, kLevelL2).
-    Cache(sc_core::sc_module_name name, const CacheParams& params, MemoryPort* next_level,
+    // `below`, when given, is bound to `down` here (the next level's target socket).
+    Cache(sc_core::sc_module_name name, const CacheParams& params, TargetSocketBase* below,
           int level = kLevelL1);
     ~Cache() override;
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
@@ -166,6 +169,9 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
     // at its lookup cycle, a miss's MSHR (first come first served, the misses waiting for one
     // queued), its fill from the next level through `down`, the requests merged on it woken when
     // it completes. Dirty victims and write-through writes leave through `down` as posted writes.
+    // The fast engine's side (sim.fidelity = fast): b_transport on `up` is access(), write(),
+    // access_local() or warm() (models/transaction.h), whose misses and writes go on through
+    // `down` the same way.
     TargetSocket<Cache> up;
     InitiatorSocket<Cache> down;
     void set_stage_queue(StageQueue* queue) { stages_ = queue; }
@@ -192,7 +198,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
         const auto [first, last] = line_range(addr, size_bytes);
         for (uint64_t line = first; line <= last; ++line)
             if (!warm_fn_(*this, line, 0)) {
-                if (next_) next_->warm(line << line_shift_, params_.line_bytes);
+                below_.warm(line << line_shift_, params_.line_bytes);
                 if (prefetcher_) warm_prefetches(line);
             }
     }
@@ -209,8 +215,8 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
         for (uint64_t line = first; line <= last; ++line) {
             if (params_.write_back)
                 write_fn_(*this, line, 0, kWarmWriteBack);
-            else if (next_)
-                next_->warm_write(line << line_shift_, params_.line_bytes);
+            else
+                below_.warm(line << line_shift_, params_.line_bytes, true);
         }
     }
     // The time-ordered reference's write: bank reservations at `now` (lookup_done as arrive()),
@@ -220,7 +226,12 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
                           std::vector<Cycle>& lookup_done);
     void write_tag(uint64_t line, Cycle at);
     uint64_t line_address(uint64_t line) const { return line << line_shift_; }
-    MemoryPort* next_level() const { return next_; }
+    // Warms the line holding `addr` in the levels below this one (a warming caller that has
+    // found it missing here).
+    void warm_below(uint64_t addr) { below_.warm(addr, params_.line_bytes); }
+    // This cache's misses take the MSHRs of `next`, the cache of the same level behind it (a
+    // treelet cache in front of its L1, which has no MSHRs of its own).
+    void take_mshrs_of(Cache* next) { same_level_next_ = next; }
     int level() const { return level_; }
     // Whether the line holding `addr` is present (or being filled); changes nothing.
     bool contains(uint64_t addr) const {
@@ -524,8 +535,10 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
     [[gnu::always_inline]] bool access_local_in(uint64_t addr, uint32_t size_bytes, Cycle now,
                                                 Cycle& ready, AccessBreakdown* bd);
 
+    void b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+        serve_loosely_timed(*this, gp, delay);
+    }
     CacheParams params_;
-    MemoryPort* next_;
     int level_;
     Cache* same_level_next_ = nullptr;  // the next level when it is a cache of this level
     // MSHRs as the cycles they free. Up to kFewMshrs (an L1's): keys (cycle << kMshrBits | MSHR) in
@@ -595,7 +608,7 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
         d = 0;
         const uint64_t line = uint64_t(victim_tag) << set_shift_ | set;
         if (mode == kWarmWriteBack) {
-            if (next_) next_->warm_write(line << line_shift_, params_.line_bytes);
+            below_.warm(line << line_shift_, params_.line_bytes, true);
             return;
         }
         ++writebacks;
@@ -603,12 +616,15 @@ class Cache final : public sc_core::sc_module, public MemoryPort, private StageH
         if (mode == kQueueWriteBack)
             queued_writebacks_.push_back(line);
         else
-            next_->write(line << line_shift_, params_.line_bytes, at);
+            below_.write(line << line_shift_, params_.line_bytes, at);
     }
     // A write-back write of `line` looked up at `at` (hit: dirty; miss: allocated dirty).
     void (*write_fn_)(Cache&, uint64_t, Cycle, WritebackMode) = nullptr;
     template <int G, typename P>
     static void write_entry(Cache& c, uint64_t line, Cycle at, WritebackMode mode);
+    // Loosely timed calls to the next level. Last: its payload would spread the fields above
+    // over more of the host's cache lines.
+    LtPort below_{down};
 };
 
 }  // namespace rtsim

@@ -112,7 +112,7 @@ void Cache::prefetch(uint64_t line, Cycle at) {
         if (limited) request_mshr(at);
         // Its timeline, for a demand access that waits on it (charge_wait).
         AccessBreakdown bd;
-        const Cycle ready = next_->access(l << line_shift_, params_.line_bytes, at, &bd);
+        const Cycle ready = below_.read(l << line_shift_, params_.line_bytes, at, &bd);
         remember_fill(l, at, AccessBreakdown{}, bd, ready);
         if (limited) replace_earliest_mshr(ready);  // the MSHR the check above found free
         fill_ready<G>(set)[way] = ready;
@@ -183,7 +183,7 @@ Cycle Cache::fill(uint64_t set, uint64_t line_addr, Cycle now, Cycle lookup_done
     const bool keep = bd != nullptr;
     AccessBreakdown before;
     if (keep) before = *bd;
-    const Cycle ready = next_->access(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
+    const Cycle ready = below_.read(line_addr << line_shift_, params_.line_bytes, issue_at, bd);
     if (keep) remember_fill(line_addr, issue_at, before, *bd, ready);
     if (limited) replace_earliest_mshr(ready);
     tags<G>(set)[victim] = tag_of(line_addr);

@@ -92,7 +92,9 @@ class ReservationCalendar {
     void assume_in_order() { in_order_ = capacity_ == 1; }
     // Reserves one user for [start, start + span) with the earliest start >= ready at which
     // every cycle of the span has a free user; returns start. span >= 1.
-    Cycle reserve(Cycle ready, Cycle span) {
+    // (Inlined: a unit reserves on every step, and the core's step loop had it inline until that
+    // loop grew past the compiler's own limit.)
+    [[gnu::always_inline]] Cycle reserve(Cycle ready, Cycle span) {
         if (in_order_) {
             g_calendar_late_requests += ready < latest_ready_;
             latest_ready_ = ready;

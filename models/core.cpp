@@ -37,7 +37,7 @@ struct LeastTwo {
 }  // namespace
 
 Core::Core(sc_core::sc_module_name name, const CoreParams& params,
-           const std::array<MemoryPort*, kStepKinds>& memory,
+           const std::array<TargetSocketBase*, kStepKinds>& memory,
            const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source)
     : sc_core::sc_module(name),
       local_socket("local_socket"),
@@ -48,10 +48,11 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
       ready_(padded_to_8(slots_.size())),
       keys_(ready_.size()) {
     local_socket.register_nb_transport_bw(this, &Core::nb_transport_bw);
+    lt_local_.attach(local_socket);
     for (int k = 0; k < kStepKinds; ++k) {
         memory_socket[k].register_nb_transport_bw(this, &Core::nb_transport_bw);
-        mem_by_kind_[k] = memory[size_t(k)];
-        cache_by_kind_[k] = dynamic_cast<Cache*>(memory[size_t(k)]);
+        if (memory[size_t(k)]) memory_socket[k].bind(*memory[size_t(k)]);
+        lt_memory_[k].attach(memory_socket[k]);
         unit_by_kind_[k] = units[size_t(k)];
         instructions_by_kind_[k] = params.step_instructions[k];
     }
@@ -179,7 +180,7 @@ struct Core::LooselyTimed {
     // The loader is one more entry of the ready keys.
     void start_loader(Cycle t) { core.set_ready(core.loader_, t); }
     void loader_ready(Cycle c) { core.set_ready(core.loader_, c); }
-    bool load_line(size_t, Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
+    bool load_line(size_t kind, Cache* cache, uint64_t addr, uint32_t bytes, Cycle t) {
         // The breakdown is not charged (no ray waits for the load itself), but asking for one
         // lets the L1 remember its fills' timelines for the rays that then wait on them.
         AccessBreakdown unused;
@@ -190,7 +191,7 @@ struct Core::LooselyTimed {
             loader_ready(leaves);
             return false;
         }
-        cache->access(addr, bytes, t, &unused);
+        core.lt_memory_[kind].read(addr, bytes, t, &unused);
         return true;
     }
     // RayBuffer::read has read the record from memory already.
@@ -198,7 +199,7 @@ struct Core::LooselyTimed {
     bool write_entry_busy(size_t slot, Cycle t) { return core.wait_for_write_entry(slot, t); }
     void post_write(uint64_t addr, uint32_t bytes, Cycle t) { core.post_write(addr, bytes, t); }
     void read_stack(size_t slot, uint64_t addr, uint32_t bytes, Cycle t) {
-        const Cycle back = core.local_->access(addr, bytes, t);
+        const Cycle back = core.lt_local_.read(addr, bytes, t);
         core.stall_cycles[kStack] += back - t;
         ready(slot, back);
     }
@@ -216,8 +217,8 @@ struct Core::LooselyTimed {
         Cache* cache = core.cache_by_kind_[kind];
         if (!s.fetch_is_shared &&
             (cache ? cache->access_local(st.addr, st.size_bytes, issued, f.cycle, &f.bd)
-                   : core.mem_by_kind_[kind]->access_local(st.addr, st.size_bytes, issued, f.cycle,
-                                                           &f.bd)))
+                   : core.lt_memory_[kind].read_local(st.addr, st.size_bytes, issued, f.cycle,
+                                                      &f.bd)))
             return;
         fetch_shared(s, st, issued, f);
     }
@@ -228,7 +229,7 @@ struct Core::LooselyTimed {
 [[gnu::always_inline]] inline void Core::LooselyTimed::fetch_shared(Slot& s, const Step& st,
                                                                     Cycle issued, Fetch& f) {
     const auto kind = size_t(st.kind);
-    MemoryPort* mem = core.mem_by_kind_[kind];
+    LtPort& mem = core.lt_memory_[kind];
     Cache* cache = core.cache_by_kind_[kind];
     // The request leaves the core at `issued`: that is its place in the global order. (Resumed,
     // the slot is still this core's earliest and the port the same, so it issues at the same
@@ -260,7 +261,7 @@ struct Core::LooselyTimed {
                 return;
             }
             AccessBreakdown line_bd;
-            const Cycle ready = mem->access(from, uint32_t(to - from), issued, &line_bd);
+            const Cycle ready = mem.read(from, uint32_t(to - from), issued, &line_bd);
             if (k == 0 || ready > s.fetch_ready) {
                 s.fetch_ready = ready;
                 s.fetch_bd = line_bd;
@@ -277,7 +278,7 @@ struct Core::LooselyTimed {
         hold_until(leaves);
         return;
     }
-    f.cycle = mem->access(st.addr, st.size_bytes, issued, &f.bd);
+    f.cycle = mem.read(st.addr, st.size_bytes, issued, &f.bd);
     s.fetch_is_shared = false;
 }
 
@@ -394,12 +395,16 @@ void CoreScheduler::run() {
         // floor is the earliest among the running cores', which the advancing core updates.
         floors_[c] = kNeverCycle;
         const Cycle others_floor = least_of(floors_.data(), padded);
-        if (first >= kernel_cycle + kKernelSyncCycles) {
+        // The kernel's time follows the earliest cycle any core may still send a request at (a
+        // miss held back for an MSHR is sent at its slot's cycle, before its core's key): the
+        // blocks count a loosely timed request's delay from it (models/transaction.h).
+        const Cycle sync_to = std::min({first, others_floor, cores_[c]->floor()->cycle});
+        if (sync_to >= kernel_cycle + kKernelSyncCycles) {
             host_busy_seconds_ +=
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - resumed).count();
-            wait(cycles_to_time(first - kernel_cycle));
+            wait(cycles_to_time(sync_to - kernel_cycle));
             resumed = std::chrono::steady_clock::now();
-            kernel_cycle = first;
+            kernel_cycle = sync_to;
         }
         const Cycle horizon = second >= kParkedCycle ? kNeverCycle : second;
         // At equal cycles the lower core goes first (the time-ordered reference's arbitration

@@ -123,9 +123,17 @@ class Core : public sc_core::sc_module {
   public:
     // Per StepKind, the memory its fetches go to (the same L1 for all, or a split L1's node and
     // triangle caches) and the unit that tests it.
+    // `memory` (where given) is bound to memory_socket here.
     Core(sc_core::sc_module_name name, const CoreParams& params,
-         const std::array<MemoryPort*, kStepKinds>& memory,
+         const std::array<TargetSocketBase*, kStepKinds>& memory,
          const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source);
+    // Per StepKind, the cache at the other end of memory_socket (null: not a cache, such as
+    // ideal memory). The fast engine reads its tags to serve a private hit ahead of the other
+    // cores, and to hold back a miss until one of its MSHRs frees (models/core.cpp); everything
+    // that reaches memory goes through the socket.
+    void set_first_caches(const std::array<Cache*, kStepKinds>& caches) {
+        for (int k = 0; k < kStepKinds; ++k) cache_by_kind_[k] = caches[size_t(k)];
+    }
     void register_stats(StatsRegistry& reg);  // under this module's name (core[0].rays)
     const CoreParams& params() const { return params_; }
     uint64_t issue_port_out_of_order() const { return issue_port_.out_of_order; }
@@ -144,13 +152,18 @@ class Core : public sc_core::sc_module {
     // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
     // from the source) instead of one by one from the source.
     void set_ray_buffer(RayBuffer* buffer);
-    // Where stack spills, refills and hit records go (the L1s' next level), and the chip-wide
-    // index of this core's first slot (each slot spills to its own stack region).
-    void set_local_memory(MemoryPort* local, uint64_t first_slot) {
-        local_ = local;
+    // Where stack spills, refills and hit records go (the L1s' next level; bound to
+    // local_socket here), and the chip-wide index of this core's first slot (each slot spills to
+    // its own stack region).
+    void set_local_memory(TargetSocketBase* local, uint64_t first_slot) {
+        if (local) local_socket.bind(*local);
         first_slot_ = first_slot;
     }
-    MemoryPort* local_memory() const { return local_; }
+    bool has_local_memory() const { return lt_local_.bound(); }
+    // Functional warming (sampled runs) of a stack or hit-record access, through local_socket.
+    void warm_local(uint64_t addr, uint32_t size_bytes, bool write) const {
+        lt_local_.warm(addr, size_bytes, write);
+    }
     // The time-ordered engine's requests (models/transaction.h): per StepKind to the memory its
     // fetches go to, and below the L1s (stack refills and spills, ray records, hit records).
     InitiatorSocket<Core> memory_socket[kStepKinds];
@@ -251,7 +264,6 @@ class Core : public sc_core::sc_module {
         slots_[slot].idle_since = since;
         set_ready(slot, retired ? kNeverCycle : kParkedCycle);
     }
-    MemoryPort* memory(int kind) const { return mem_by_kind_[kind]; }
     PipelinedUnit* unit(int kind) const { return unit_by_kind_[kind]; }
     RayWorkSource* source() const { return source_; }
     RayBuffer* ray_buffer() const { return ray_buffer_; }
@@ -363,16 +375,12 @@ class Core : public sc_core::sc_module {
     std::vector<uint64_t> ready_;
     CycleKeys keys_;
     void set_ready(size_t slot, Cycle c) { ready_[slot] = keys_.key(c, slot); }
-    // Per StepKind: the L1 its fetches go to (nodes: the L1; triangles: the triangle L1 of a
-    // split L1, else the same L1).
-    MemoryPort* mem_by_kind_[kStepKinds];
-    // ...and the same L1 when it is a Cache (not ideal memory): its hit path is called
-    // directly, without a virtual call, on every step.
-    Cache* cache_by_kind_[kStepKinds];
+    // Per StepKind, the L1 its fetches go to when it is a Cache (set_first_caches): its hit path
+    // is called directly, on every step.
+    Cache* cache_by_kind_[kStepKinds] = {};
     PipelinedUnit* unit_by_kind_[kStepKinds];  // per StepKind: the unit its test runs on
     int instructions_by_kind_[kStepKinds];     // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
-    MemoryPort* local_ = nullptr;  // below the L1s: stack and hit-record traffic
     // Per write-buffer entry, the cycle it frees (empty: unbounded).
     std::vector<Cycle> write_buffer_;
     // The cycle a write ready at t finds an entry free.
@@ -391,7 +399,7 @@ class Core : public sc_core::sc_module {
     }
     // Posts a write at t, which has found an entry free (write_buffer_free_at(t) == t).
     void post_write(uint64_t addr, uint32_t bytes, Cycle t) {
-        const Cycle accepted = local_->write(addr, bytes, t);
+        const Cycle accepted = lt_local_.write(addr, bytes, t);
         if (!write_buffer_.empty())
             *std::min_element(write_buffer_.begin(), write_buffer_.end()) = accepted;
     }
@@ -404,6 +412,12 @@ class Core : public sc_core::sc_module {
     TimeFloor floor_;
     TimeFloor* shared_floor_ = nullptr;
     uint32_t parked_slots_ = 0;  // slots waiting for work that may still come
+    // The fast engine's calls through memory_socket, per StepKind (nodes: the L1; triangles: the
+    // triangle L1 of a split L1, else the same L1), and through local_socket (below the L1s:
+    // stack and hit-record traffic). Last: their payloads would spread the fields above over
+    // more of the host's cache lines.
+    LtPort lt_memory_[kStepKinds];
+    mutable LtPort lt_local_;
 };
 
 // Runs a set of cores in global time order: the cores' one SystemC process. It picks the core

@@ -4,14 +4,15 @@
 
 namespace rtsim {
 
-Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level)
+Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, TargetSocketBase* below)
     : sc_core::sc_module(name),
       up("up"),
       down("down"),
       link_(bytes_per_cycle),
-      write_link_(bytes_per_cycle),
-      next_(next_level) {
+      write_link_(bytes_per_cycle) {
+    if (below) down.bind(*below);
     up.register_nb_transport_fw(this, &Crossbar::nb_transport_fw);
+    up.register_b_transport(this, &Crossbar::b_transport);
     down.register_nb_transport_bw(this, &Crossbar::nb_transport_bw);
 }
 
@@ -66,10 +67,27 @@ Cycle Crossbar::carry_up(Cycle ready, uint32_t size_bytes) {
 Cycle Crossbar::access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) {
     // Requests are small and cross at once; the line crosses when the L2 returns it (a line the
     // L2 fetches from DRAM holds no bandwidth while it waits).
-    const Cycle returned = next_->access(addr, size_bytes, now, bd);
+    return carry_back(below_.read(addr, size_bytes, now, bd), size_bytes, bd);
+}
+
+Cycle Crossbar::carry_back(Cycle returned, uint32_t size_bytes, AccessBreakdown* bd) {
     const Cycle end = carry(returned, size_bytes);
     if (bd) bd->cycles[kLevelCrossbar] += end - returned;  // waiting for the link, crossing
     return end;
+}
+
+// A timed read passes through as it came (a request crosses at once) and its answer takes the
+// link: access() without a payload of its own.
+void Crossbar::b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+    const MemoryRequest& r = memory_request(gp);
+    if (r.lt != MemoryRequest::Lt::kTimed || gp.is_write()) {
+        serve_loosely_timed(*this, gp, delay);
+        return;
+    }
+    down->b_transport(gp, delay);
+    const Cycle kernel = kernel_cycle();
+    delay = cycles_delay(
+        carry_back(kernel + delay_cycles(delay), gp.get_data_length(), r.breakdown) - kernel);
 }
 
 Cycle Crossbar::carry(Cycle returned, uint32_t size_bytes) {

@@ -15,9 +15,10 @@
 
 namespace rtsim {
 
-class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHandler {
+class Crossbar final : public sc_core::sc_module, public MemoryPort, private StageHandler {
   public:
-    Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, MemoryPort* next_level);
+    // `below`, when given, is bound to `down` here (the L2's target socket).
+    Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, TargetSocketBase* below);
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now,
                  AccessBreakdown* breakdown = nullptr) override;
     void register_stats(StatsRegistry& reg);  // under this module's name
@@ -31,16 +32,16 @@ class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHand
     // has crossed. (access() is the L2 access and this; the time-ordered reference calls it
     // alone, at the cycle the L2 returns the line.)
     Cycle carry(Cycle returned, uint32_t size_bytes);
-    MemoryPort* next_level() const { return next_; }
-    void warm(uint64_t addr, uint32_t size_bytes) override { next_->warm(addr, size_bytes); }
-    MemoryPort* warms_only_through() const override { return next_; }
+    // carry() for a read's answer, its crossing charged to the crossbar in `bd`.
+    Cycle carry_back(Cycle returned, uint32_t size_bytes, AccessBreakdown* bd);
+    void warm(uint64_t addr, uint32_t size_bytes) override { below_.warm(addr, size_bytes); }
     // Writes cross the other way, on a link of their own (a crossbar's request and response
     // networks are separate), then reach the L2; returns the cycle the L2 accepted the write.
     Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) override {
-        return next_->write(addr, size_bytes, carry_up(now, size_bytes));
+        return below_.write(addr, size_bytes, carry_up(now, size_bytes));
     }
     void warm_write(uint64_t addr, uint32_t size_bytes) override {
-        next_->warm_write(addr, size_bytes);
+        below_.warm(addr, size_bytes, true);
     }
     // Write data of `size_bytes` ready at `ready` crosses towards the L2; returns when it has.
     Cycle carry_up(Cycle ready, uint32_t size_bytes);
@@ -48,6 +49,7 @@ class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHand
     // The time-ordered engine's side (models/transaction.h): a read request crosses at once and
     // goes on through `down`; its answer takes the link (carry) when the L2 gives it and is
     // passed up at the cycle it has crossed. A write takes the write link (carry_up) first.
+    // The fast engine's b_transport is access(), write() or warm(), on through `down` alike.
     TargetSocket<Crossbar> up;
     InitiatorSocket<Crossbar> down;
     void set_stage_queue(StageQueue* queue) { stages_ = queue; }
@@ -65,11 +67,12 @@ class Crossbar : public sc_core::sc_module, public MemoryPort, private StageHand
     tlm::tlm_sync_enum nb_transport_bw(tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,
                                        sc_core::sc_time& delay);
     void pass_up(tlm::tlm_generic_payload& gp);
+    void b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay);
     StageQueue* stages_ = nullptr;
     IdPool<tlm::tlm_generic_payload*> crossing_;  // answers on the link, by stage id
     BandwidthCalendar link_;
     BandwidthCalendar write_link_;  // write data, from the cores to the L2
-    MemoryPort* next_;
+    LtPort below_{down};
 };
 
 }  // namespace rtsim

@@ -76,10 +76,11 @@ class DramModel : public MemoryPort {
     virtual void follow(const TimeFloor* floor) = 0;
 };
 
-// The time-ordered engine's way into a DRAM model (models/transaction.h): runs each request's
-// stages (DramModel::advance) at their cycles on the StageQueue and answers a read when its
-// data is usable. A posted write is accepted on arrival (the call returns TLM_COMPLETED); its
-// stages still run, each at its cycle.
+// The chip's way into a DRAM model (models/transaction.h). The time-ordered engine's requests
+// (nb_transport_fw) run their stages (DramModel::advance) at their cycles on the StageQueue, and
+// a read is answered when its data is usable; a posted write is accepted on arrival (the call
+// returns TLM_COMPLETED) and its stages still run, each at its cycle. The fast engine's
+// (b_transport) are the model's MemoryPort calls.
 class DramPort final : public sc_core::sc_module, private StageHandler {
   public:
     DramPort(sc_core::sc_module_name name, DramModel& model);
@@ -87,6 +88,9 @@ class DramPort final : public sc_core::sc_module, private StageHandler {
     void set_stage_queue(StageQueue* queue) { stages_ = queue; }
 
   private:
+    void b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+        serve_loosely_timed(model_, gp, delay);
+    }
     enum Stage : uint32_t { kReadStage, kAnswerStage, kWriteStage };
     void run_stage(uint32_t kind, uint32_t id, uint32_t k, Cycle t) override;
     tlm::tlm_sync_enum nb_transport_fw(int id, tlm::tlm_generic_payload& gp, tlm::tlm_phase& phase,

@@ -8,6 +8,7 @@ namespace rtsim {
 RayBuffer::RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params,
                      std::vector<TreeletSpan> treelets, RayWorkSource* source)
     : sc_core::sc_module(name),
+      down("down"),
       params_(params),
       treelets_(std::move(treelets)),
       source_(source),
@@ -38,7 +39,7 @@ Cycle RayBuffer::write_record(uint32_t handle, Cycle now) {
     }
     // Readable from now: the memory serves a later read of the record after this write (the
     // time-ordered reference posts it at now too).
-    memory_->write(record_address(handle), params_.ray_bytes, now);
+    below_.write(record_address(handle), params_.ray_bytes, now);
     return now;
 }
 
@@ -112,7 +113,7 @@ Cycle RayBuffer::read(uint32_t handle, Cycle now, RayWork& work, size_t& pos) {
     const Cycle from = std::max(now, e.written);
     if (!params_.in_memory) return port(from);
     if (defer_) return from;
-    return memory_->access(record_address(handle), params_.ray_bytes, from);
+    return below_.read(record_address(handle), params_.ray_bytes, from);
 }
 
 Cycle RayBuffer::requeue(uint32_t handle, RayWork& work, size_t pos, uint32_t treelet, Cycle now) {

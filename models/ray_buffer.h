@@ -20,6 +20,7 @@
 #include "models/core.h"
 #include "models/stats.h"
 #include "models/timing.h"
+#include "models/transaction.h"
 #include "models/treelet_scheduler.h"
 #include "workloads/step.h"
 
@@ -76,15 +77,13 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     // A finished ray leaves the buffer.
     void release(uint32_t handle);
 
-    // Records in memory (params().in_memory): where their reads and writes go (the level below
-    // the L1s), and each record's address. A driver that runs memory requests itself (the
-    // time-ordered reference) defers them: reads then return when the record may be read (it
-    // reads it itself), and writes queue their addresses (deferred_writes) for it to post.
-    void set_memory(MemoryPort* memory, bool defer) {
-        memory_ = memory;
-        defer_ = defer;
-    }
-    MemoryPort* memory() const { return memory_; }
+    // Records in memory (params().in_memory): their reads and writes go through `down` (bound
+    // to the level below the L1s). A driver that runs memory requests itself (the time-ordered
+    // engine) defers them: reads then return when the record may be read (it reads it itself),
+    // and writes queue their addresses (deferred_writes) for it to post.
+    InitiatorSocket<RayBuffer> down;
+    void set_defer(bool defer) { defer_ = defer; }
+    bool has_memory() const { return below_.bound(); }
     uint64_t record_address(uint32_t handle) const {
         return kRayRecordBase + uint64_t(handle) * params_.ray_bytes;
     }
@@ -138,7 +137,7 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     bool wake_ = false;
     Cycle wake_cycle_ = 0;
     uint32_t parked_slots_ = 0;
-    MemoryPort* memory_ = nullptr;
+    LtPort below_{down};
     bool defer_ = false;
     std::vector<uint64_t> deferred_writes_;
 };

@@ -78,9 +78,11 @@ struct AccessBreakdown {
     Cycle cycles[kMemLevels] = {0, 0, 0, 0};
 };
 
-// A memory level as its requester sees it: a loosely-timed access (TLM-2.0 b_transport style)
-// that returns the cycle the data is available. Requests may come out of time order, but never
-// before the time floor the level follows (models/calendar.h).
+// A memory block's loosely timed behaviour (sim.fidelity = fast): an access that returns the
+// cycle the data is available. Requesters reach it through the block's target socket with
+// b_transport (LtPort and serve_loosely_timed, models/transaction.h), never by a pointer to the
+// block. Requests may come out of time order, but never before the time floor the level follows
+// (models/calendar.h).
 class MemoryPort {
   public:
     virtual ~MemoryPort() = default;
@@ -100,9 +102,6 @@ class MemoryPort {
     // (tags and replacement order of every level it reaches), taking no time, reserving nothing
     // and counting nothing. A level with no such state ignores it.
     virtual void warm(uint64_t /*addr*/, uint32_t /*size_bytes*/) {}
-    // The port this one's warm() hands every request to unchanged (a link that holds no
-    // state), or null: a warming caller may then skip it.
-    virtual MemoryPort* warms_only_through() const { return nullptr; }
     // A posted write (a stack spill, a hit record, a dirty line written back): returns the cycle
     // this level has accepted it; the writer does not wait for anything below. A level with no
     // write path (a read-only L1) must never be given one.

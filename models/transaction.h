@@ -10,6 +10,13 @@
 // Each block runs its own later stages (a tag check at its lookup cycle, a DRAM bank, a line
 // crossing the crossbar) as events on the chip's StageQueue, which calls them in cycle order, so
 // every bank, MSHR pool, bus and link serves its requests in simulated-time order.
+//
+// The loosely timed engine (sim.fidelity = fast) drives the same blocks through the same sockets
+// with b_transport (LtPort below). The annotated delay places the request at its cycle, counted
+// from the kernel's time (the cores' scheduler runs ahead of the kernel, never behind it); the
+// block works out the request's whole path below it within the call and returns with the delay
+// advanced to the cycle its data is there (a read) or it took the write. The block's side of
+// this is its MemoryPort (models/timing.h), which serve_loosely_timed calls.
 #pragma once
 
 #include <tlm_utils/multi_passthrough_target_socket.h>
@@ -21,6 +28,7 @@
 #include <queue>
 #include <stdexcept>
 #include <tlm>
+#include <type_traits>
 #include <vector>
 
 #include "models/calendar.h"
@@ -102,6 +110,14 @@ struct MemoryRequest : tlm::tlm_extension<MemoryRequest> {
     static constexpr int kMaxHops = 4;
     int hops = 0;
     int route[kMaxHops] = {};
+    // Loosely timed calls only: what kind of call, and where each level adds its cycles.
+    enum class Lt : uint8_t {
+        kTimed,      // MemoryPort::access or write
+        kLocalOnly,  // MemoryPort::access_local: TLM_INCOMPLETE_RESPONSE if it cannot
+        kWarm,       // MemoryPort::warm or warm_write: no time, nothing counted
+    };
+    Lt lt = Lt::kTimed;
+    AccessBreakdown* breakdown = nullptr;
 
     // A fresh request issued at `start` (route and timeline parts left as they were: unused).
     void reset(Cycle issued) {
@@ -146,10 +162,149 @@ inline MemoryRequest& memory_request(tlm::tlm_generic_payload& gp) {
 // default resolution is 1 ps (Chip checks it).
 constexpr uint64_t kTimeUnitsPerCycle = 1000;
 inline sc_core::sc_time cycles_delay(Cycle cycles) {
-    return sc_core::sc_time::from_value(cycles * kTimeUnitsPerCycle);
+    // sc_time's constructors are calls into the SystemC library (every loosely timed request
+    // makes two per level); its arithmetic is inline, and exact below 2^53 ps (104 days).
+    static const sc_core::sc_time one_cycle = sc_core::sc_time::from_value(kTimeUnitsPerCycle);
+    return one_cycle * static_cast<double>(cycles);
 }
 inline Cycle delay_cycles(const sc_core::sc_time& delay) {
     return delay.value() / kTimeUnitsPerCycle;
+}
+// The kernel's time in whole cycles: what a loosely timed delay is counted from.
+inline Cycle kernel_cycle() {
+    // (sc_time_stamp() as the kernel keeps it, read inline: it is read twice per request and
+    // level.)
+    const sc_core::sc_simcontext* kernel = sc_core::sc_curr_simcontext;
+    return kernel ? kernel->time_stamp().value() / kTimeUnitsPerCycle : 0;
+}
+
+// A requester's loosely timed calls through its initiator socket. A call's payload is the next
+// free one of a stack that every port shares (a call returns before its requester makes another,
+// and the calls it leads to below are nested in it): the few a chain of calls uses stay in the
+// host's cache, where a payload per port (one per cache of a 64-core chip) did not.
+class LtPort {
+  public:
+    using Port = sc_core::sc_port_b<tlm::tlm_fw_transport_if<>>;
+    LtPort() = default;
+    explicit LtPort(Port& port) : port_(&port) {}
+    void attach(Port& port) { port_ = &port; }
+    // Whether anything is bound (known once the kernel has elaborated the sockets).
+    bool bound() const {
+        if (!fw_ && port_->size() > 0) fw_ = port_->operator->();
+        if (!fw_ && sc_core::sc_get_status() == sc_core::SC_ELABORATION)
+            throw std::logic_error(std::string(port_->name()) +
+                                   ": a block's socket is used before elaboration (sc_start)");
+        return fw_ != nullptr;
+    }
+    // MemoryPort::access through the socket: the cycle the data is there.
+    Cycle read(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd = nullptr) {
+        return timed(tlm::TLM_READ_COMMAND, addr, size_bytes, now, bd);
+    }
+    // MemoryPort::write: the cycle the target took it.
+    Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) {
+        return timed(tlm::TLM_WRITE_COMMAND, addr, size_bytes, now, nullptr);
+    }
+    // MemoryPort::access_local: false (and nothing changed) unless the target serves it alone.
+    [[gnu::noinline]] bool read_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                                      AccessBreakdown* bd = nullptr) {
+        const Cycle kernel = kernel_at(now);
+        Call call(tlm::TLM_READ_COMMAND, addr, size_bytes, MemoryRequest::Lt::kLocalOnly, bd);
+        sc_core::sc_time delay = cycles_delay(now - kernel);
+        target().b_transport(call.gp, delay);
+        if (!call.gp.is_response_ok()) return false;
+        ready = kernel + delay_cycles(delay);
+        return true;
+    }
+    // MemoryPort::warm and warm_write.
+    void warm(uint64_t addr, uint32_t size_bytes, bool write = false) {
+        if (!bound()) return;
+        Call call(write ? tlm::TLM_WRITE_COMMAND : tlm::TLM_READ_COMMAND, addr, size_bytes,
+                  MemoryRequest::Lt::kWarm, nullptr);
+        sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+        target().b_transport(call.gp, delay);
+    }
+
+  private:
+    // The payload of a call in progress, taken from the stack and given back when it returns.
+    struct Call {
+        MemoryPayload& gp;
+        Call(tlm::tlm_command command, uint64_t addr, uint32_t size_bytes, MemoryRequest::Lt lt,
+             AccessBreakdown* bd)
+            : gp(take()) {
+            gp.set_command(command);
+            gp.set_address(addr);
+            gp.set_data_length(size_bytes);
+            gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+            gp.request.lt = lt;
+            gp.request.breakdown = bd;
+        }
+        ~Call() { --depth_; }
+        Call(const Call&) = delete;
+        Call& operator=(const Call&) = delete;
+    };
+    static MemoryPayload& take() {
+        if (depth_ == stack_.size()) grow();
+        return *stack_[depth_++];
+    }
+    [[gnu::noinline]] static void grow() { stack_.push_back(std::make_unique<MemoryPayload>()); }
+    Cycle kernel_at(Cycle now) const {
+        const Cycle kernel = kernel_cycle();
+        if (now < kernel)
+            throw std::logic_error(std::string(port_->name()) + ": a loosely timed request at " +
+                                   std::to_string(now) + " came before the kernel's time " +
+                                   std::to_string(kernel));
+        return kernel;
+    }
+    // (Out of line: a miss's path, kept out of the requesters' hit loops.)
+    [[gnu::noinline]] Cycle timed(tlm::tlm_command command, uint64_t addr, uint32_t size_bytes,
+                                  Cycle now, AccessBreakdown* bd) {
+        const Cycle kernel = kernel_at(now);
+        Call call(command, addr, size_bytes, MemoryRequest::Lt::kTimed, bd);
+        sc_core::sc_time delay = cycles_delay(now - kernel);
+        target().b_transport(call.gp, delay);
+        return kernel + delay_cycles(delay);
+    }
+    tlm::tlm_fw_transport_if<>& target() {
+        if (!fw_ && !bound())
+            throw std::logic_error(std::string(port_->name()) + ": nothing is bound to it");
+        return *fw_;
+    }
+    Port* port_ = nullptr;
+    mutable tlm::tlm_fw_transport_if<>* fw_ = nullptr;  // what is bound, once elaborated
+    static inline std::vector<std::unique_ptr<MemoryPayload>> stack_;
+    static inline size_t depth_ = 0;
+};
+
+// A block's b_transport: the loosely timed call as its MemoryPort serves it (Block: the block's
+// own class, so that a final one's calls are direct).
+template <class Block>
+void serve_loosely_timed(Block& block, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+    static_assert(std::is_base_of_v<MemoryPort, Block>, "a block serves as its MemoryPort");
+    const MemoryRequest& r = memory_request(gp);
+    const uint64_t addr = gp.get_address();
+    const uint32_t size_bytes = gp.get_data_length();
+    gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    if (r.lt == MemoryRequest::Lt::kWarm) {
+        if (gp.is_write())
+            block.warm_write(addr, size_bytes);
+        else
+            block.warm(addr, size_bytes);
+        return;
+    }
+    const Cycle kernel = kernel_cycle();
+    const Cycle now = kernel + delay_cycles(delay);
+    Cycle done;
+    if (r.lt == MemoryRequest::Lt::kLocalOnly) {
+        if (!block.access_local(addr, size_bytes, now, done, r.breakdown)) {
+            gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+            return;
+        }
+    } else if (gp.is_write()) {
+        done = block.write(addr, size_bytes, now);
+    } else {
+        done = block.access(addr, size_bytes, now, r.breakdown);
+    }
+    delay = cycles_delay(done - kernel);
 }
 
 // Payloads a requester owns, each with its MemoryRequest, reused once answered.

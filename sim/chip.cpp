@@ -67,9 +67,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     // The traversal's own data (spilled stacks, ray records, hit records) lives above the BVH.
     if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
         l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
-    l2 = std::make_unique<Cache>("l2", l2p, dram_regions.get(), kLevelL2);
+    l2 = std::make_unique<Cache>("l2", l2p, &dram_port->up, kLevelL2);
     l2->set_stage_queue(&stages);
-    l2->down.bind(dram_port->up);
     // A sampled run regresses the DRAM traffic on the BVH's compulsory misses
     // (sim/sampling/sampler.h).
     // With a prefetcher, lines come that no ray asks for: the first fills are then the lines a
@@ -85,15 +84,12 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     }
     l2->register_stats(stats);
     l2->set_series(series.l2_fill_bytes.get());
-    MemoryPort* below_l1 = l2.get();
-    TargetSocketBase* below_l1_socket = &l2->up;
+    TargetSocketBase* below_l1 = &l2->up;
     if (P.crossbar_bytes_per_cycle > 0) {
-        crossbar = std::make_unique<Crossbar>("crossbar", P.crossbar_bytes_per_cycle, l2.get());
+        crossbar = std::make_unique<Crossbar>("crossbar", P.crossbar_bytes_per_cycle, &l2->up);
         crossbar->register_stats(stats);
         crossbar->set_stage_queue(&stages);
-        crossbar->down.bind(l2->up);
-        below_l1 = crossbar.get();
-        below_l1_socket = &crossbar->up;
+        below_l1 = &crossbar->up;
     }
 
     CoreParams cp = P.core;
@@ -118,14 +114,12 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     // A treelet loader's lines count the misses on their way to the caches it loads into.
     const bool treelet_loads = mode.ray_buffer && cp.treelet_prefetch;
     const auto add_cache = [&](std::vector<std::unique_ptr<Cache>>& caches, const char* kind, int i,
-                               const CacheParams& params, MemoryPort* next,
-                               TargetSocketBase& next_socket) -> Cache& {
+                               const CacheParams& params, TargetSocketBase& next) -> Cache& {
         Cache& c =
-            *caches.emplace_back(std::make_unique<Cache>(indexed(kind, i).c_str(), params, next));
+            *caches.emplace_back(std::make_unique<Cache>(indexed(kind, i).c_str(), params, &next));
         c.register_stats(stats);
         c.count_first_demands(first_demands.get());
         c.set_stage_queue(&stages);
-        c.down.bind(next_socket);
         if (treelet_loads) c.set_treelet_loads();
         return c;
     };
@@ -148,16 +142,17 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         }
     }
     for (int i = 0; i < n; ++i) {
-        add_cache(l1, "l1", i, l1p, below_l1, *below_l1_socket)
-            .set_series(series.l1_fill_bytes.get());
+        add_cache(l1, "l1", i, l1p, *below_l1).set_series(series.l1_fill_bytes.get());
         if (P.l1_split)
-            add_cache(l1_tri, "l1_tri", i, l1p, below_l1, *below_l1_socket)
-                .set_series(series.l1_fill_bytes.get());
-        MemoryPort* memory =
-            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : l1.back().get();
-        TargetSocketBase* memory_socket = &l1.back()->up;
-        if (ideal_memory) memory_socket = &ideal_memory->up;
-        if (treelet_cache_bytes > 0 && !ideal_memory) {
+            add_cache(l1_tri, "l1_tri", i, l1p, *below_l1).set_series(series.l1_fill_bytes.get());
+        // Per step kind, the block a core's fetches enter the hierarchy at, and it as a cache.
+        std::array<MemoryPort*, kStepKinds> memories;
+        std::array<TargetSocketBase*, kStepKinds> memory_sockets;
+        std::array<Cache*, kStepKinds> first_caches{};
+        if (ideal_memory) {
+            memories.fill(ideal_memory.get());
+            memory_sockets.fill(&ideal_memory->up);
+        } else if (treelet_cache_bytes > 0) {
             // A dedicated treelet cache in front of the L1: batches load their treelet into it.
             CacheParams tp = l1p;
             tp.size_bytes = treelet_cache_bytes;
@@ -165,35 +160,31 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
             tp.mshrs = 0;            // its misses are bounded by the L1's MSHRs
             tp.prefetcher = "none";  // batches load it whole; the L1 behind it prefetches
             tp.banks = 1;
-            memory =
-                &add_cache(treelet_caches, "treelet_cache", i, tp, l1.back().get(), l1.back()->up);
-            memory_socket = &treelet_caches.back()->up;
+            Cache& treelet = add_cache(treelet_caches, "treelet_cache", i, tp, l1.back()->up);
+            treelet.take_mshrs_of(l1.back().get());
+            first_caches.fill(&treelet);
+        } else {
+            first_caches.fill(l1.back().get());
         }
         // Triangle fetches go to the split L1's triangle cache when there is one.
-        std::array<MemoryPort*, kStepKinds> memories;
-        memories.fill(memory);
-        std::array<TargetSocketBase*, kStepKinds> memory_sockets;
-        memory_sockets.fill(memory_socket);
-        if (!l1_tri.empty()) {
-            memories[size_t(StepKind::Triangle)] = l1_tri.back().get();
-            memory_sockets[size_t(StepKind::Triangle)] = &l1_tri.back()->up;
-        }
+        if (!l1_tri.empty()) first_caches[size_t(StepKind::Triangle)] = l1_tri.back().get();
+        for (size_t k = 0; k < kStepKinds; ++k)
+            if (first_caches[k]) {
+                memories[k] = first_caches[k];
+                memory_sockets[k] = &first_caches[k]->up;
+            }
+        // Their warm() reaches the L2 through nothing but the crossbar (a sampled run's replay).
+        if (!ideal_memory && treelet_caches.empty()) l1s_over_l2.push_back(first_caches);
         std::array<PipelinedUnit*, kStepKinds> core_units;
         for (int k = 0; k < kStepKinds; ++k)
             core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
         core_memories.push_back(memories);
-        cores.push_back(
-            std::make_unique<Core>(indexed("core", i).c_str(), cp, memories, core_units, source));
+        cores.push_back(std::make_unique<Core>(indexed("core", i).c_str(), cp, memory_sockets,
+                                               core_units, source));
+        cores.back()->set_first_caches(first_caches);
         cores.back()->set_ray_buffer(ray_buffer.get());
-        cores.back()->set_local_memory(
-            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1,
-            uint64_t(i) * uint64_t(cp.ray_slots));
-        for (int k = 0; k < kStepKinds; ++k)
-            cores.back()->memory_socket[k].bind(*memory_sockets[size_t(k)]);
-        if (ideal_memory)
-            cores.back()->local_socket.bind(ideal_memory->up);
-        else
-            cores.back()->local_socket.bind(*below_l1_socket);
+        cores.back()->set_local_memory(ideal_memory ? &ideal_memory->up : below_l1,
+                                       uint64_t(i) * uint64_t(cp.ray_slots));
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
     }
@@ -207,8 +198,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     setup.wake = ray_buffer ? static_cast<WakeSource*>(ray_buffer.get())
                             : (source ? source->wakes() : nullptr);
     if (ray_buffer && P.ray_buffer.in_memory)  // (a driver may then defer its requests)
-        ray_buffer->set_memory(
-            ideal_memory ? static_cast<MemoryPort*>(ideal_memory.get()) : below_l1, false);
+        ray_buffer->down.bind(ideal_memory ? ideal_memory->up : *below_l1);
     driver = FidelityRegistry::at(P.sim.fidelity).make("core_driver", setup);
     for (int i = 0; i < n; ++i) {
         // A core's private blocks forget what lies behind the floor of its own requests.

@@ -62,6 +62,9 @@ class Chip {
     std::vector<std::unique_ptr<Core>> cores;
     // Per core, per StepKind, the memory its fetches enter (L1, split L1, treelet cache).
     std::vector<std::array<MemoryPort*, kStepKinds>> core_memories;
+    // The same as L1 caches, when every one reaches the L2 through nothing but the crossbar
+    // (no treelet caches, no ideal memory); empty otherwise.
+    std::vector<std::array<Cache*, kStepKinds>> l1s_over_l2;
     std::unique_ptr<ChipDriver> driver;  // runs the cores: the fidelity level's process
     // Per-window series (sim.window_cycles > 0), shared by all blocks of a kind.
     struct Series {

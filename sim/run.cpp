@@ -572,6 +572,7 @@ int run_command(const RunOptions& opt) {
     if (sampled) {
         SampledChip view;
         view.ports = chip.core_memories;
+        view.l1s_over_l2 = chip.l1s_over_l2;
         view.counters = &chip.stats;
         for (const auto& core : chip.cores) view.cores.push_back(core.get());
         view.l1 = chip.l1.front().get();

@@ -44,7 +44,7 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
             core->set_requester(this);
             // Ray records in memory: read and written here, each stage at its cycle.
             if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
-                rb->set_memory(rb->memory(), true);
+                rb->set_defer(true);
         }
         SC_METHOD(run_cycle);
     }
@@ -100,7 +100,7 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
         // Records in memory: read through the level below, each stage at its cycle.
         bool read_record(size_t slot, Cycle from) {
             RayBuffer* rb = r.cores_[c]->ray_buffer();
-            if (!rb->params().in_memory || !rb->memory()) return false;
+            if (!rb->params().in_memory || !rb->has_memory()) return false;
             r.read_local(c, uint32_t(slot), rb->record_address(r.cores_[c]->slot_handle(slot)),
                          rb->params().ray_bytes, from, kForRecord);
             return true;

@@ -276,29 +276,21 @@ void Sampler::set_line_range(uint64_t base, uint64_t end, uint32_t line_bytes) {
     lines_ = LineTracker(base, end, line_bytes);
 }
 
-void Sampler::set_profile(const FrameProfile* profile, MemoryPort* l2,
-                          const std::string& cache_dir) {
+void Sampler::set_profile(const FrameProfile* profile, Cache* l2, const std::string& cache_dir) {
     profile_ = profile;
     l2_ = l2;
-    // The direct route: each line is one tag check per level, not a chain of virtual warm()
-    // calls (the replay is a quarter of a 1-in-50 primary frame's main thread).
-    auto* l2_cache = dynamic_cast<Cache*>(l2);
+    // The direct route: each line is one tag check per level, not a chain of warm() calls
+    // through the sockets (the replay is a quarter of a 1-in-50 primary frame's main thread).
     const uint32_t line_bytes = profile->line_bytes;
-    bool direct = !prefetching_ && l2_cache && l2_cache->params().line_bytes == line_bytes &&
-                  line_bytes > 0 && profile->line_base % line_bytes == 0 && !ports_.empty();
-    std::vector<std::array<Cache*, kStepKinds>> l1s(ports_.size());
+    bool direct = !prefetching_ && l2 && l2->params().line_bytes == line_bytes && line_bytes > 0 &&
+                  profile->line_base % line_bytes == 0 && !ports_.empty() &&
+                  l1s_over_l2_.size() == ports_.size();
     for (size_t c = 0; direct && c < ports_.size(); ++c)
-        for (size_t k = 0; direct && k < kStepKinds; ++k) {
-            auto* l1 = dynamic_cast<Cache*>(ports_[c][k]);
-            MemoryPort* below = l1 ? l1->next_level() : nullptr;
-            while (below && below != l2 && below->warms_only_through())
-                below = below->warms_only_through();
-            direct = l1 && below == l2 && l1->params().line_bytes == line_bytes;
-            l1s[c][k] = l1;
-        }
+        for (size_t k = 0; direct && k < kStepKinds; ++k)
+            direct = l1s_over_l2_[c][k] && l1s_over_l2_[c][k]->params().line_bytes == line_bytes;
     if (direct) {
-        direct_l1_ = std::move(l1s);
-        direct_l2_ = l2_cache;
+        direct_l1_ = l1s_over_l2_;
+        direct_l2_ = l2;
         direct_first_line_ = profile->line_base / line_bytes;
     }
     const auto& lines = profile->tile_lines;
@@ -479,7 +471,7 @@ void Sampler::warm_l2_line(uint32_t i) {
     if (!direct_l2_) {
         l2_->warm(addr, p.line_bytes);
     } else if (!direct_l2_->warm_line(direct_first_line_ + p.tile_lines[i])) {
-        if (MemoryPort* below = direct_l2_->next_level()) below->warm(addr, p.line_bytes);
+        direct_l2_->warm_below(addr);
     }
 }
 
@@ -588,22 +580,21 @@ bool Sampler::fast_forward(const RayWork& work, int64_t tile) {
 
 void Sampler::warm_writes(const Core& core, const RayWork& work) const {
     const CoreParams& p = core.params();
-    MemoryPort* local = core.local_memory();
-    if (!local) return;
+    if (!core.has_local_memory()) return;
     if (p.short_stack_entries > 0) {
         ShortStack stack(p.short_stack_entries);
         for (const Step& s : work.steps) {
             const StackTraffic t = stack.before(s);
             if (t.spill_entries)
-                local->warm_write(core.stack_address(0, t.spill_from),
-                                  t.spill_entries * p.stack_entry_bytes);
+                core.warm_local(core.stack_address(0, t.spill_from),
+                                t.spill_entries * p.stack_entry_bytes, true);
             if (t.refill_entries)
-                local->warm(core.stack_address(0, t.refill_from),
-                            t.refill_entries * p.stack_entry_bytes);
+                core.warm_local(core.stack_address(0, t.refill_from),
+                                t.refill_entries * p.stack_entry_bytes, false);
         }
     }
     if (p.hit_record_bytes > 0)
-        local->warm_write(core.hit_record_address(work.ray_id), p.hit_record_bytes * work.rays);
+        core.warm_local(core.hit_record_address(work.ray_id), p.hit_record_bytes * work.rays, true);
 }
 
 void Sampler::handed_out(Cycle now) {

@@ -321,8 +321,14 @@ class Sampler {
     // then not needed. Without a reference design and with an LRU L2, the frame's L2 misses are
     // counted functionally here, unit by unit (sim/sampling/functional_l2.h), through the cache in
     // `cache_dir` (the profile's folder; empty: none).
-    void set_profile(const FrameProfile* profile, MemoryPort* l2,
+    void set_profile(const FrameProfile* profile, Cache* l2,
                      const std::string& cache_dir = std::string());
+    // Per core and step kind, the L1 behind its port, when every port is an L1 whose warm()
+    // reaches the L2 through nothing but links (a crossbar): the replay may then check each
+    // line's tags itself (the direct route). Before set_profile.
+    void set_l1s_over_l2(std::vector<std::array<Cache*, kStepKinds>> l1s) {
+        l1s_over_l2_ = std::move(l1s);
+    }
     // Skip design: matched-pair estimates against a reference design's figures in the same
     // units (sim/sampling/reference.h); each figure is regressed on the reference's first. Before
     // set_profile (a paired run does not count capacity misses).
@@ -488,7 +494,8 @@ class Sampler {
     const FrameProfile* profile_ = nullptr;
     const Reference* reference_ = nullptr;
     JointEstimates joint_;
-    MemoryPort* l2_ = nullptr;
+    Cache* l2_ = nullptr;
+    std::vector<std::array<Cache*, kStepKinds>> l1s_over_l2_;
     // The replay's direct route (set_profile), when every port is an L1 whose misses reach the
     // L2 through nothing but links, with the profile's line size at both levels: per core and
     // step kind its L1 (warm_line), and the L2; otherwise empty, and lines go through warm().
@@ -527,6 +534,9 @@ class Sampler {
 struct SampledChip {
     // Per core, per StepKind, where its fetches enter the memory hierarchy.
     std::vector<std::array<MemoryPort*, kStepKinds>> ports;
+    // The same as caches when every port is an L1 whose warm() reaches the L2 through nothing
+    // but links (Sampler::set_l1s_over_l2); empty otherwise.
+    std::vector<std::array<Cache*, kStepKinds>> l1s_over_l2;
     const StatsRegistry* counters = nullptr;
     std::vector<const Core*> cores;  // their traversal writes (spills, hit records) are warmed
     const Cache* l1 = nullptr;       // one core's L1: every core's has its geometry

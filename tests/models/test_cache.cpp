@@ -52,8 +52,10 @@ TEST(Cache, HitAndMissCountsEqualReferenceLru) {
         p.ways = ways;
         p.line_bytes = 64;
         p.size_bytes = uint64_t(ways) * 64 * (ways % 3 == 0 ? 8 : 8 * 16 / ways);  // 2^n sets
+        test::fresh_kernel();
         test::FixedLatencyMemory mem(50);
-        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up);
+        test::elaborate();
         ReferenceLru ref(p.sets(), ways, 64);
         TimeFloor floor;  // requests come in time order: the bank forgets what is behind
         c.follow(&floor);
@@ -85,7 +87,9 @@ TEST(Cache, FirstFillsAreMissesOnLinesOfTheRangeNeverHeld) {
     p.line_bytes = 64;
     p.size_bytes = 4 * 64 * 16;  // 16 sets: capacity misses aplenty
     test::FixedLatencyMemory mem(50);
-    Cache c("first_fills", p, &mem);
+    Cache c("first_fills", p, &mem.up);
+    Cache plain("plain", p, &mem.up);
+    test::elaborate();
     const uint64_t base = 64 * 100 + 8,
                    end = 64 * 900;  // lines 100 .. 899 (a part line at each end)
     c.count_first_fills(base, end);
@@ -116,7 +120,6 @@ TEST(Cache, FirstFillsAreMissesOnLinesOfTheRangeNeverHeld) {
     EXPECT_GT(want, 500u);
     // Registered only when counted.
     EXPECT_TRUE(reg.has("first_fills.first_fills"));
-    Cache plain("plain", p, &mem);
     plain.register_stats(reg);
     EXPECT_FALSE(reg.has("plain.first_fills"));
     EXPECT_TRUE(reg.has("plain.misses"));
@@ -135,8 +138,10 @@ TEST(Cache, LocalProbesOfManyLinesEqualReference) {
             p.size_bytes = uint64_t(ways) * 64 * 16;  // 16 sets
             p.replacement = policy;
             const bool lru = policy == std::string("lru");
+            test::fresh_kernel();
             test::FixedLatencyMemory mem(50);
-            Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+            Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up);
+            test::elaborate();
             ReferenceLru ref(p.sets(), ways, 64, lru);
             TimeFloor floor;
             c.follow(&floor);
@@ -173,8 +178,10 @@ TEST(Cache, ReplacementStampsSurviveTheirCounterWrapping) {
         p.size_bytes = 4 * 1024;
         p.ways = 4;
         p.replacement = policy;
+        test::fresh_kernel();
         test::FixedLatencyMemory mem(50);
-        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up);
+        test::elaborate();
         c.set_stamp_clock(~uint32_t(0) - 5000);  // wraps after 5,000 stamps, several times over
         const bool lru = policy == std::string("lru");
         ReferenceLru ref(p.sets(), p.ways, 64, lru);
@@ -203,7 +210,8 @@ TEST(Cache, LatenciesAndMissMerging) {
     p.hit_latency_cycles = 4;
     p.banks = 2;  // a request spanning two lines looks both up in the same cycle
     test::FixedLatencyMemory mem(100);
-    Cache c("c", p, &mem);
+    Cache c("c", p, &mem.up);
+    test::elaborate();
     EXPECT_EQ(c.access(0x1000, 48, 10), 10u + 4 + 100);  // miss: lookup, then the next level
     EXPECT_EQ(c.access(0x1010, 16, 20), 114u);           // same line, fill in flight: waits for it
     EXPECT_EQ(c.merged_misses, 1u);
@@ -231,8 +239,9 @@ TEST(Cache, BreakdownChargesEachLevelItsCycles) {
     p2.ways = 4;
     p2.hit_latency_cycles = 30;
     test::FixedLatencyMemory dram(200);  // charges its latency to the DRAM level
-    Cache l2("l2", p2, &dram, kLevelL2);
-    Cache l1("l1", p1, &l2, kLevelL1);
+    Cache l2("l2", p2, &dram.up, kLevelL2);
+    Cache l1("l1", p1, &l2.up, kLevelL1);
+    test::elaborate();
     AccessBreakdown a;
     EXPECT_EQ(l1.access(0x4000, 64, 100, &a), 100u + 4 + 30 + 200);  // misses everywhere
     EXPECT_EQ(a.cycles[kLevelL1], 4u);
@@ -270,7 +279,9 @@ TEST(Cache, MshrsBoundBandwidthByLittlesLaw) {
     p.mshrs = M;
     p.banks = 128;  // lookups never wait for a bank here: only MSHRs limit
     test::FixedLatencyMemory mem(L);
-    Cache c("c", p, &mem);
+    Cache c("c", p, &mem.up);
+    Cache d("d", p, &mem.up);
+    test::elaborate();
     Cycle last = 0;
     for (int i = 0; i < N; ++i) last = std::max(last, c.access(uint64_t(i) * 64, 64, 0));
     EXPECT_EQ(last, hit + Cycle(N / M) * L);
@@ -278,7 +289,6 @@ TEST(Cache, MshrsBoundBandwidthByLittlesLaw) {
     EXPECT_NEAR(lines_per_cycle, double(M) / double(L), 1e-9);
     EXPECT_GT(c.mshr_wait_cycles, 0u);
     // Merged misses take no MSHR: a second access to a filling line does not wait for one.
-    Cache d("d", p, &mem);
     for (int i = 0; i < M; ++i) d.access(uint64_t(i) * 64, 64, 0);
     EXPECT_EQ(d.access(0, 64, 1), hit + L);  // joins the first fill
     EXPECT_EQ(d.mshr_wait_cycles, 0u);
@@ -288,7 +298,7 @@ TEST(Cache, MshrsBoundBandwidthByLittlesLaw) {
 // waits for the earliest to free, as a deliberately simple model of M free times says. Up to
 // 16 MSHRs and more are kept differently (unordered keys, an ordered ring); both must agree.
 TEST(Cache, MshrsFreeOutOfOrderAsASimpleModelSays) {
-    struct VaryingMemory : MemoryPort {
+    struct VaryingMemory : test::TargetMemory {
         Cycle latency(uint64_t addr) const { return 50 + (addr / 64 % 7) * 30; }
         Cycle access(uint64_t addr, uint32_t, Cycle now, AccessBreakdown* bd) override {
             if (bd) bd->cycles[kLevelDram] += latency(addr);
@@ -302,8 +312,10 @@ TEST(Cache, MshrsFreeOutOfOrderAsASimpleModelSays) {
         p.hit_latency_cycles = 4;
         p.mshrs = M;
         p.banks = 256;  // only MSHRs limit
+        test::fresh_kernel();
         VaryingMemory mem;
-        Cache c("c", p, &mem);
+        Cache c("c", p, &mem.up);
+        test::elaborate();
         std::vector<Cycle> free_at(size_t(M), 0);
         for (int i = 0; i < 200; ++i) {
             const uint64_t addr = uint64_t(i) * 64;
@@ -324,7 +336,8 @@ TEST(Cache, BankConflictsSerialiseLookups) {
     p.hit_latency_cycles = 4;
     p.banks = 2;
     test::FixedLatencyMemory mem(50);
-    Cache c("c", p, &mem);
+    Cache c("c", p, &mem.up);
+    test::elaborate();
     for (int i = 0; i < 4; ++i) c.access(uint64_t(i) * 64, 64, 0);  // warm four lines
     // Lines 0 and 2 share bank 0: at the same cycle the second waits one cycle for it.
     EXPECT_EQ(c.access(0, 64, 1000), 1004u);
@@ -345,11 +358,13 @@ TEST(Cache, WarmingLeavesTheStateTimedAccessesLeave) {
         p2.size_bytes = 32768;
         p2.ways = 8;
         p2.replacement = policy;
+        test::fresh_kernel();
         test::FixedLatencyMemory mem_a(100), mem_b(100);
-        Cache l2a(sc_core::sc_gen_unique_name("l2"), p2, &mem_a, kLevelL2);
-        Cache l1a(sc_core::sc_gen_unique_name("l1"), p1, &l2a);
-        Cache l2b(sc_core::sc_gen_unique_name("l2"), p2, &mem_b, kLevelL2);
-        Cache l1b(sc_core::sc_gen_unique_name("l1"), p1, &l2b);
+        Cache l2a(sc_core::sc_gen_unique_name("l2"), p2, &mem_a.up, kLevelL2);
+        Cache l1a(sc_core::sc_gen_unique_name("l1"), p1, &l2a.up);
+        Cache l2b(sc_core::sc_gen_unique_name("l2"), p2, &mem_b.up, kLevelL2);
+        Cache l1b(sc_core::sc_gen_unique_name("l1"), p1, &l2b.up);
+        test::elaborate();
         std::mt19937_64 rng(3);
         Cycle t = 0;
         for (int i = 0; i < 20000; ++i) {
@@ -386,8 +401,9 @@ TEST(Cache, LastTouchesLeaveAnLruCacheAsTheWholeStream) {
     p.ways = 4;
     p.replacement = "lru";
     test::FixedLatencyMemory mem_a(100), mem_b(100);
-    Cache a(sc_core::sc_gen_unique_name("l1"), p, &mem_a);
-    Cache b(sc_core::sc_gen_unique_name("l1"), p, &mem_b);
+    Cache a(sc_core::sc_gen_unique_name("l1"), p, &mem_a.up);
+    Cache b(sc_core::sc_gen_unique_name("l1"), p, &mem_b.up);
+    test::elaborate();
     std::mt19937_64 rng(8);
     auto line_addr = [](uint64_t line) { return line * 64; };
     for (uint64_t line = 1000; line < 1040; ++line) {  // lines held before the window
@@ -432,8 +448,10 @@ TEST(Cache, FifoAndRandomReplacement) {
         p.size_bytes = 128;
         p.ways = 2;
         p.replacement = r;
+        test::fresh_kernel();
         test::FixedLatencyMemory mem(10);
-        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+        Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up);
+        test::elaborate();
         Cycle t = 0;
         for (uint64_t line : {0, 1, 0, 2}) c.access(line * 64, 64, t += 100);
         const uint64_t before = c.hits;
@@ -447,7 +465,8 @@ TEST(Cache, FifoAndRandomReplacement) {
 
 TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {
     test::FixedLatencyMemory l2(30);
-    Crossbar x("xbar", 32.0, &l2);
+    Crossbar x("xbar", 32.0, &l2.up);
+    test::elaborate();
     const Cycle n = 50;
     Cycle last = 0;
     for (Cycle k = 0; k < n; ++k) last = std::max(last, x.access(k * 64, 64, 0));
@@ -463,7 +482,7 @@ TEST(Crossbar, CapsBandwidthAndAddsTheCrossingTime) {
 
 namespace {
 // Lines at or above `slow_from` take `slow` cycles (a DRAM miss in the L2), others `fast`.
-class TwoSpeedMemory : public MemoryPort {
+class TwoSpeedMemory : public test::TargetMemory {
   public:
     TwoSpeedMemory(uint64_t slow_from, Cycle fast, Cycle slow)
         : slow_from_(slow_from), fast_(fast), slow_(slow) {}
@@ -483,7 +502,8 @@ class TwoSpeedMemory : public MemoryPort {
 // returned in another order than requested cross in the order they come back.
 TEST(Crossbar, LinesCrossWhenTheL2ReturnsThem) {
     TwoSpeedMemory l2(0x10000, 30, 300);
-    Crossbar x("xbar_returns", 16.0, &l2);  // a line crosses in 4 cycles
+    Crossbar x("xbar_returns", 16.0, &l2.up);  // a line crosses in 4 cycles
+    test::elaborate();
     AccessBreakdown slow_bd, fast_bd;
     EXPECT_EQ(x.access(0x10000, 64, 0, &slow_bd), 304u);  // requested first, back last
     EXPECT_EQ(x.access(0x0, 64, 1, &fast_bd), 35u);       // not queued behind the DRAM miss
@@ -504,7 +524,8 @@ TEST(Cache, RequestsOutOfTimeOrderAreCounted) {
     CacheParams p;
     p.mshrs = 1;
     test::FixedLatencyMemory mem(100);
-    Cache c("ooo", p, &mem);
+    Cache c("ooo", p, &mem.up);
+    test::elaborate();
     c.access(0 * 64, 64, 1000);
     EXPECT_EQ(c.lookup_out_of_order + c.mshr_out_of_order, 0u);
     c.access(1 * 64, 64, 0);  // earlier than the one before: both its lookup and its MSHR
@@ -534,7 +555,8 @@ CacheParams one_bank_direct_mapped() {
 // the next level nothing until it is evicted, when exactly its line goes down as one write.
 TEST(CacheWrites, WriteBackAllocatesWithoutFetchAndWritesBackOnEviction) {
     test::FixedLatencyMemory mem(50);
-    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem, kLevelL2);
+    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem.up, kLevelL2);
+    test::elaborate();
     // A write looks its line up like a read: bank at 0, tag at 0 + 4.
     EXPECT_EQ(c.write(0x1008, 8, 0), 4u);
     EXPECT_TRUE(c.contains(0x1000));
@@ -569,7 +591,8 @@ TEST(CacheWrites, WriteThroughSendsEveryWriteOnAndAllocatesNothing) {
     test::FixedLatencyMemory mem(50);
     CacheParams p = one_bank_direct_mapped();
     p.write_back = false;
-    Cache c(sc_core::sc_gen_unique_name("c"), p, &mem, kLevelL2);
+    Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up, kLevelL2);
+    test::elaborate();
     EXPECT_EQ(c.write(0x2008, 16, 7), 11u);
     EXPECT_FALSE(c.contains(0x2000));
     ASSERT_EQ(mem.write_addrs.size(), 1u);
@@ -582,7 +605,8 @@ TEST(CacheWrites, WriteThroughSendsEveryWriteOnAndAllocatesNothing) {
 // A write takes its bank's lookup slot: a read to the same bank in the same cycle waits one.
 TEST(CacheWrites, WritesTakeBankSlots) {
     test::FixedLatencyMemory mem(50);
-    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem, kLevelL2);
+    Cache c(sc_core::sc_gen_unique_name("c"), one_bank_direct_mapped(), &mem.up, kLevelL2);
+    test::elaborate();
     c.write(0x3000, 8, 0);
     // The line is there from the write's lookup (4); the read's lookup ends at 1 + 4.
     EXPECT_EQ(c.access(0x3000, 64, 0), 5u);
@@ -593,7 +617,8 @@ TEST(CacheWrites, WritesTakeBankSlots) {
 // wait for write data, and write data waits only for other writes.
 TEST(CacheWrites, CrossbarCarriesWritesOnTheirOwnLink) {
     test::FixedLatencyMemory l2(30);
-    Crossbar x(sc_core::sc_gen_unique_name("x"), 16.0, &l2);
+    Crossbar x(sc_core::sc_gen_unique_name("x"), 16.0, &l2.up);
+    test::elaborate();
     // 64 bytes at 16 per cycle: 4 cycles; a second write right behind the first waits for it.
     x.write(0x100, 64, 0);
     x.write(0x200, 64, 0);

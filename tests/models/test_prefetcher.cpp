@@ -73,7 +73,8 @@ TEST(Prefetcher, StrideNeedsTwoEqualDistancesWithinItsReach) {
 // finds it filling and waits until 104; at 200 (looked up at 204) it hits.
 TEST(Prefetcher, NextLineFetchesAtTheMissAndADemandWaitsForIt) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 4), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 4), &mem.up);
+    test::elaborate();
     EXPECT_EQ(c.access(0, 64, 0), 104u);
     ASSERT_EQ(mem.addrs, (std::vector<uint64_t>{0, 64}));
     EXPECT_EQ(mem.times, (std::vector<Cycle>{4, 4}));
@@ -94,7 +95,8 @@ TEST(Prefetcher, NextLineFetchesAtTheMissAndADemandWaitsForIt) {
 // the MSHR until 104, back at 204), whose prefetch of line 2 is dropped the same way.
 TEST(Prefetcher, APrefetchWithNoFreeMshrIsDroppedAndDelaysNothing) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 1), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 1), &mem.up);
+    test::elaborate();
     EXPECT_EQ(c.access(0, 64, 0), 104u);
     EXPECT_EQ(c.access(64, 64, 10), 204u);
     EXPECT_EQ(mem.addrs, (std::vector<uint64_t>{0, 64}));
@@ -109,7 +111,8 @@ TEST(Prefetcher, APrefetchWithNoFreeMshrIsDroppedAndDelaysNothing) {
 // until 104 and is back at 204.
 TEST(Prefetcher, APrefetchHoldsItsMshrUntilItsLineIsBack) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 2), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 2), &mem.up);
+    test::elaborate();
     EXPECT_EQ(c.access(0, 64, 0), 104u);
     EXPECT_EQ(c.access(8 * 64, 64, 10), 204u);
     EXPECT_EQ(c.mshr_wait_cycles, 104u - 14);
@@ -122,7 +125,8 @@ TEST(Prefetcher, APrefetchHoldsItsMshrUntilItsLineIsBack) {
 // counts as useful. Degree 2; 4 sets, so lines 0 .. 4 sit in sets 0, 1, 2, 3, 0.
 TEST(Prefetcher, HeldLinesAreNotFetchedAgainAndOnlyDemandHitsCount) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8, 2), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8, 2), &mem.up);
+    test::elaborate();
     c.access(2 * 64, 64, 0);    // miss 2; prefetch 3, 4
     c.access(0, 64, 300);       // miss 0; names 1, 2: 2 is held, 1 is fetched
     c.access(3 * 64, 64, 600);  // hit on prefetched 3: useful
@@ -138,7 +142,8 @@ TEST(Prefetcher, HeldLinesAreNotFetchedAgainAndOnlyDemandHitsCount) {
 // A cache without a prefetcher counts none and asks the next level for demand lines only.
 TEST(Prefetcher, NoPrefetcherFetchesDemandLinesOnly) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("none", 4), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("none", 4), &mem.up);
+    test::elaborate();
     c.access(0, 64, 0);
     EXPECT_FALSE(c.prefetching());
     EXPECT_EQ(mem.addrs, (std::vector<uint64_t>{0}));
@@ -151,7 +156,8 @@ TEST(Prefetcher, NoPrefetcherFetchesDemandLinesOnly) {
 // never counts.
 TEST(Prefetcher, FirstFillsAreTheLinesDemandFirstAsksFor) {
     test::FixedLatencyMemory mem(100);
-    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8), &mem);
+    Cache c(sc_core::sc_gen_unique_name("pf"), small_cache("next_line", 8), &mem.up);
+    test::elaborate();
     LineFirstTouches touches(0, 64 * 64, 64);
     c.count_first_demands(&touches);
     c.access(0, 64, 0);  // line 0 asked for; line 1 prefetched

@@ -120,7 +120,8 @@ TEST(RayBuffer, RecordsInMemoryAreWrittenAndReadThere) {
     p.batch_rays = 2;
     RayBuffer rb("rb_mem", p, spans(2), &src);
     test::FixedLatencyMemory mem(100);
-    rb.set_memory(&mem, false);
+    rb.down.bind(mem.up);
+    test::elaborate();
     uint32_t t;
     std::deque<uint32_t> batch;
     ASSERT_TRUE(rb.next_batch(10, t, batch));
@@ -145,7 +146,7 @@ TEST(RayBuffer, RecordsInMemoryAreWrittenAndReadThere) {
     EXPECT_EQ(rb.port_wait_cycles, 0u);
     // A driver that runs memory itself gets the writes' addresses instead, and reads that
     // return when the record may be read.
-    rb.set_memory(&mem, true);
+    rb.set_defer(true);
     batch.clear();
     ASSERT_TRUE(rb.next_batch(300, t, batch));
     EXPECT_EQ(rb.read(batch[0], 310, w, pos), 310u);
@@ -200,10 +201,10 @@ void run_cores_through_buffer(uint32_t capacity, uint64_t& rays_done, uint64_t& 
     CoreParams cp;
     cp.ray_slots = 4;
     for (int i = 0; i < 3; ++i) {
-        cores.push_back(std::make_unique<Core>(("core" + std::to_string(i)).c_str(), cp,
-                                               std::array<MemoryPort*, kStepKinds>{&mem, &mem},
-                                               std::array<PipelinedUnit*, kStepKinds>{&box, &tri},
-                                               &src));
+        cores.push_back(
+            std::make_unique<Core>(("core" + std::to_string(i)).c_str(), cp,
+                                   std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
+                                   std::array<PipelinedUnit*, kStepKinds>{&box, &tri}, &src));
         cores.back()->set_ray_buffer(&rb);
         ptrs.push_back(cores.back().get());
     }

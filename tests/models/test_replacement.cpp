@@ -113,8 +113,10 @@ CacheParams params(const std::string& policy, int ways, uint64_t sets) {
 
 // Hits of `lines` (line numbers) accessed one by one, far apart in time.
 std::vector<bool> hits_of(const CacheParams& p, const std::vector<int64_t>& lines) {
+    test::fresh_kernel();
     test::FixedLatencyMemory mem(50);
-    Cache c(sc_core::sc_gen_unique_name("c"), p, &mem);
+    Cache c(sc_core::sc_gen_unique_name("c"), p, &mem.up);
+    test::elaborate();
     TimeFloor floor;  // requests come in time order: the banks forget what is behind
     c.follow(&floor);
     std::vector<bool> out;
@@ -216,6 +218,6 @@ TEST(Replacement, RegistryListsEveryPolicyAndRefusesUnknownOnes) {
     }
     EXPECT_THROW(ReplacementRegistry::at("belady"), std::invalid_argument);
     test::FixedLatencyMemory mem(50);
-    EXPECT_THROW(Cache("bad_policy", params("mru", 4, 4), &mem), std::invalid_argument);
-    EXPECT_THROW(Cache("plru_12_ways", params("tree_plru", 12, 4), &mem), std::invalid_argument);
+    EXPECT_THROW(Cache("bad_policy", params("mru", 4, 4), &mem.up), std::invalid_argument);
+    EXPECT_THROW(Cache("plru_12_ways", params("tree_plru", 12, 4), &mem.up), std::invalid_argument);
 }

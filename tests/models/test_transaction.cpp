@@ -1,5 +1,6 @@
-// The time-ordered engine's contract (models/transaction.h): the StageQueue's order, and a
-// cache serving requests that reach it through its TLM-2.0 socket.
+// The blocks' contract (models/transaction.h): the StageQueue's order, a cache serving the
+// time-ordered engine's requests through its TLM-2.0 socket, and the fast engine's loosely timed
+// calls through the same sockets.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,7 +10,9 @@
 #include <unordered_map>
 #include <vector>
 
+#include "fixed_memory.h"
 #include "models/cache.h"
+#include "models/crossbar.h"
 #include "models/line_map.h"
 #include "models/transaction.h"
 
@@ -143,11 +146,10 @@ TEST(MemoryContract, ACacheAnswersEachRequesterThroughItsOwnSocketByHand) {
     p.hit_latency_cycles = 4;
     p.mshrs = 2;
     IdealMemory memory("memory", 50);
-    Cache cache("cache", p, &memory);
+    Cache cache("cache", p, &memory.up);
     Requester a("a", &q), b("b", &q);
     a.socket.bind(cache.up);
     b.socket.bind(cache.up);
-    cache.down.bind(memory.up);
     cache.set_stage_queue(&q);
     memory.set_stage_queue(&q);
     sc_core::sc_start(sc_core::SC_ZERO_TIME);  // elaboration binds the sockets
@@ -172,6 +174,56 @@ TEST(MemoryContract, ACacheAnswersEachRequesterThroughItsOwnSocketByHand) {
 
 // The time-ordered cache's map of fills in flight, against std::unordered_map over random sets,
 // finds and erases, with lines that collide in a small table and tables that grow.
+namespace {
+
+// Sends loosely timed reads from a process, the kernel's time at 100 ns.
+struct LtRequester final : sc_core::sc_module {
+    InitiatorSocket<LtRequester> socket;
+    LtPort port{socket};
+    std::vector<Cycle> answers;
+    std::vector<AccessBreakdown> breakdowns;
+    bool early_refused = false;
+    SC_HAS_PROCESS(LtRequester);
+    explicit LtRequester(sc_core::sc_module_name name) : sc_core::sc_module(name), socket("s") {
+        SC_THREAD(run);
+    }
+    void run() {
+        wait(sc_core::sc_time(100, sc_core::SC_NS));
+        for (const Cycle at : {Cycle(130), Cycle(100), Cycle(131)}) {
+            AccessBreakdown bd;
+            answers.push_back(port.read(0x40 * at, 64, at, &bd));
+            breakdowns.push_back(bd);
+        }
+        try {
+            port.read(0, 64, 99, nullptr);  // before the kernel's time: no delay can say it
+        } catch (const std::logic_error&) {
+            early_refused = true;
+        }
+    }
+};
+
+}  // namespace
+
+// The fast engine's calls: a read issued at cycle 130 while the kernel is at 100 ns reaches the
+// block with a 30 ns delay, through a crossbar (64 bytes at 16 per cycle: 4 cycles to cross)
+// to a memory of latency 40: back at 130 + 40 + 4 = 174, the crossing charged to the crossbar and
+// the latency to the memory's level. A read at 100 is back at 144; one at 131 comes back from the
+// memory at 171 while the link is busy until 174 (the first read's line), so it crosses
+// 174..178. A request before the kernel's time is refused.
+TEST(MemoryContract, LooselyTimedCallsCountTheirDelayFromTheKernelsTime) {
+    test::FixedLatencyMemory memory(40);
+    Crossbar crossbar("crossbar", 16.0, &memory.up);
+    LtRequester requester("requester");
+    requester.socket.bind(crossbar.up);
+    sc_core::sc_start();
+    ASSERT_EQ(memory.times, (std::vector<Cycle>{130, 100, 131}));
+    EXPECT_EQ(requester.answers, (std::vector<Cycle>{174, 144, 178}));
+    EXPECT_EQ(requester.breakdowns[0].cycles[kLevelDram], 40u);
+    EXPECT_EQ(requester.breakdowns[0].cycles[kLevelCrossbar], 4u);
+    EXPECT_EQ(requester.breakdowns[2].cycles[kLevelCrossbar], 7u);  // 3 waiting, 4 crossing
+    EXPECT_TRUE(requester.early_refused);
+}
+
 TEST(LineMap, AgreesWithAStandardMap) {
     std::mt19937_64 rng(11);
     for (const uint64_t span : {uint64_t(40), uint64_t(5000), uint64_t(1) << 40}) {

@@ -33,7 +33,7 @@ TEST(StatsReport, BlocksDeriveTheirFiguresFromTheirCounters) {
                      700.0 / 3000.0);
 
     test::FixedLatencyMemory mem(10);
-    Cache l1("l1[0]", CacheParams{}, &mem), l1b("l1[1]", CacheParams{}, &mem);
+    Cache l1("l1[0]", CacheParams{}, &mem.up), l1b("l1[1]", CacheParams{}, &mem.up);
     l1.accesses = 1000, l1.hits = 900, l1.misses = 100, l1.fill_bytes = 6400;
     l1b.accesses = 1000, l1b.hits = 500, l1b.misses = 500, l1b.fill_bytes = 32000;
     EXPECT_DOUBLE_EQ(l1.report(ctx)["hit_rate"].get<double>(), 0.9);
@@ -49,7 +49,7 @@ TEST(StatsReport, BlocksDeriveTheirFiguresFromTheirCounters) {
     EXPECT_DOUBLE_EQ(d["row_hit_rate"].get<double>(), 0.75);
     EXPECT_DOUBLE_EQ(d["utilization"].get<double>(), 80.0 / 2000.0);  // two channels' buses
 
-    Crossbar xbar("crossbar", 64.0, &mem);
+    Crossbar xbar("crossbar", 64.0, &mem.up);
     xbar.bytes = 5000, xbar.busy_cycles = 250;
     EXPECT_DOUBLE_EQ(xbar.report(ctx)["utilization"].get<double>(), 0.25);
 }
@@ -65,7 +65,7 @@ TEST(StatsReport, StallSharesAndUnaccountedCycles) {
     } none;
     CoreParams cp;
     cp.ray_slots = 3;
-    Core core("core[0]", cp, {&mem, &mem}, {&box, &tri}, &none);
+    Core core("core[0]", cp, {&mem.up, &mem.up}, {&box, &tri}, &none);
     // issue, l1, l2, dram, crossbar, box_unit, triangle_unit, ray_buffer: 2100 charged.
     const uint64_t charged[Core::kStallKinds] = {100, 200, 300, 400, 0, 500, 600, 0};
     for (int k = 0; k < Core::kStallKinds; ++k) core.stall_cycles[k] = charged[k];

@@ -12,6 +12,7 @@ std::unique_ptr<Sampler> make_skip(const SamplingParams& params, const SampledCh
     s->set_write_warming(chip.cores);
     if (frame.reference) s->set_reference(frame.reference);
     s->set_caches(*chip.l1, *chip.l2, chip.dram_bytes_per_l2_fill);
+    s->set_l1s_over_l2(chip.l1s_over_l2);
     s->set_profile(frame.profile, chip.l2, frame.cache_dir);
     return s;
 }

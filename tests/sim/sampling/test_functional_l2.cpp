@@ -84,8 +84,10 @@ TEST(FunctionalL2, AgreesWithTheCacheModel) {
         params.line_bytes = 64;
         params.size_bytes = sets * uint64_t(ways) * 64;
         params.replacement = "lru";
+        test::fresh_kernel();
         test::FixedLatencyMemory mem(10);
-        Cache cache(sc_core::sc_gen_unique_name("l2"), params, &mem);
+        Cache cache(sc_core::sc_gen_unique_name("l2"), params, &mem.up);
+        test::elaborate();
         std::mt19937_64 rng{uint64_t(ways)};
         // Lines drawn from a pool about twice what the cache holds: hits, compulsory and
         // capacity misses all occur.

@@ -16,6 +16,7 @@
 #include <set>
 #include <sstream>
 
+#include "../../models/fixed_memory.h"
 #include "models/cache.h"
 #include "models/crossbar.h"
 #include "sim/sampling/estimators.h"
@@ -334,8 +335,8 @@ TEST(Sampling, WindowsStartAfterSkippedRaysAndHeldRaysCloseUnits) {
 
 namespace {
 
-// Hands every request on unchanged, but is not a link the sampler can see through
-// (MemoryPort::warms_only_through): a replay into it takes the chain of warm() calls.
+// Hands every request on unchanged: a port the replay cannot see through (it is not declared
+// with Sampler::set_l1s_over_l2), so that a replay into it takes the chain of warm() calls.
 class OpaquePort : public MemoryPort {
   public:
     explicit OpaquePort(MemoryPort* next) : next_(next) {}
@@ -355,30 +356,36 @@ struct Hierarchy {
     std::vector<std::unique_ptr<Cache>> l1;  // core c's: l1[c], or l1[2c] and l1[2c + 1]
     std::vector<std::unique_ptr<OpaquePort>> opaque;
     std::vector<std::array<MemoryPort*, kStepKinds>> ports;
+    std::vector<std::array<Cache*, kStepKinds>> l1s;  // per core, as ports are without opaque
     Hierarchy(const std::string& name, int cores, bool split, bool opaque_ports) {
         CacheParams l2p;
         l2p.size_bytes = 8 * 1024;
         l2p.ways = 8;
         l2 = std::make_unique<Cache>((name + "_l2").c_str(), l2p, nullptr, kLevelL2);
-        crossbar = std::make_unique<Crossbar>((name + "_xbar").c_str(), 64.0, l2.get());
+        crossbar = std::make_unique<Crossbar>((name + "_xbar").c_str(), 64.0, &l2->up);
         CacheParams l1p;
         l1p.size_bytes = 1024;  // 4 sets of 4 ways
         for (int c = 0; c < cores; ++c) {
             std::array<MemoryPort*, kStepKinds> mine{};
+            std::array<Cache*, kStepKinds> caches{};
             for (int k = 0; k < (split ? 2 : 1); ++k) {
                 l1.push_back(std::make_unique<Cache>(fmt::format("{}_l1_{}_{}", name, c, k).c_str(),
-                                                     l1p, crossbar.get()));
+                                                     l1p, &crossbar->up));
                 MemoryPort* port = l1.back().get();
                 if (opaque_ports) {
                     opaque.push_back(std::make_unique<OpaquePort>(port));
                     port = opaque.back().get();
                 }
-                if (k == 0)
+                if (k == 0) {
                     mine.fill(port);
-                else
+                    caches.fill(l1.back().get());
+                } else {
                     mine[size_t(StepKind::Triangle)] = port;
+                    caches[size_t(StepKind::Triangle)] = l1.back().get();
+                }
             }
             ports.push_back(mine);
+            l1s.push_back(caches);
         }
     }
 };
@@ -436,8 +443,10 @@ TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
     for (const int cores : {4, 3})
         for (const bool split : {false, true}) {
             const std::string name = fmt::format("replay{}", variant++);
+            test::fresh_kernel();
             Hierarchy direct(name + "d", cores, split, false),
                 chain(name + "c", cores, split, true), model(name + "m", cores, split, false);
+            test::elaborate();
             size_t model_core = 0;
             uint64_t model_replayed = 0;
             auto model_replay = [&](uint64_t tile) {
@@ -465,6 +474,7 @@ TEST(Sampling, ReplayDirectRouteLeavesTheCachesAsWarmCallsDo) {
             // 16 lines per L1, asked of the caches themselves.
             a.set_caches(*direct.l1.front(), *direct.l2, 64);
             b.set_caches(*chain.l1.front(), *chain.l2, 64);
+            a.set_l1s_over_l2(direct.l1s);
             a.set_profile(&profile, direct.l2.get());
             b.set_profile(&profile, chain.l2.get());
             ASSERT_TRUE(a.replays_directly());
