@@ -70,9 +70,11 @@ inline void elaborate() {
 }
 
 // A test that builds blocks again after elaborate() (one hierarchy per case of a loop) starts a
-// new kernel first. The elaborated one is left as it is, never freed: its blocks still refer to
+// new kernel first. The elaborated one is kept as it is, never freed: its blocks still refer to
 // it until they are destroyed.
 inline void fresh_kernel() {
+    static std::vector<sc_core::sc_simcontext*> kept;
+    if (sc_core::sc_curr_simcontext) kept.push_back(sc_core::sc_curr_simcontext);
     sc_core::sc_curr_simcontext = nullptr;
     sc_core::sc_default_global_context = nullptr;
 }
