@@ -19,6 +19,7 @@
 // this is its MemoryPort (models/timing.h), which serve_loosely_timed calls.
 #pragma once
 
+#include <tlm_utils/multi_passthrough_target_socket.h>
 #include <tlm_utils/simple_initiator_socket.h>
 #include <algorithm>
 #include <cstdint>
@@ -469,68 +470,8 @@ class StageQueue {
 // block answers each on its own), and the initiator socket towards the next level.
 using TargetSocketBase =
     tlm::tlm_target_socket<32, tlm::tlm_base_protocol_types, 0, sc_core::SC_ZERO_OR_MORE_BOUND>;
-
-// The target socket: any number of requesters bind to it, and each call reaches the block's
-// registered function with the requester's index (the order they bound in); the block answers
-// requester i through (*this)[i]. (tlm_utils' multi-passthrough socket does the same through two
-// more indirect calls per call; at one loosely timed call per step on 64 x 32 cores that was
-// several percent of the fast engine's time.)
 template <class Module>
-class TargetSocket final : public TargetSocketBase {
-  public:
-    using Payload = tlm::tlm_generic_payload;
-    using BTransport = void (Module::*)(int, Payload&, sc_core::sc_time&);
-    using NbTransport = tlm::tlm_sync_enum (Module::*)(int, Payload&, tlm::tlm_phase&,
-                                                       sc_core::sc_time&);
-    explicit TargetSocket(const char* name) : TargetSocketBase(name) {
-        // The export must be bound at elaboration even when nothing binds to the socket: to the
-        // first requester's binder, made now.
-        binders_.push_back(std::make_unique<Binder>(this, 0));
-        TargetSocketBase::export_type::bind(*binders_[0]);
-    }
-    void register_b_transport(Module* module, BTransport f) {
-        module_ = module;
-        b_ = f;
-    }
-    void register_nb_transport_fw(Module* module, NbTransport f) {
-        module_ = module;
-        nb_ = f;
-    }
-    // A requester binding: the next binder, in bind order.
-    tlm::tlm_fw_transport_if<>& get_base_interface() override {
-        while (binders_.size() <= handed_out_)
-            binders_.push_back(std::make_unique<Binder>(this, int(binders_.size())));
-        return *binders_[handed_out_++];
-    }
-    const tlm::tlm_fw_transport_if<>& get_base_interface() const override { return *binders_[0]; }
-
-  private:
-    struct Binder final : tlm::tlm_fw_transport_if<> {
-        TargetSocket* socket;
-        int id;
-        Binder(TargetSocket* s, int i) : socket(s), id(i) {}
-        void b_transport(Payload& gp, sc_core::sc_time& delay) override {
-            if (!socket->b_) return refuse(gp);
-            (socket->module_->*socket->b_)(id, gp, delay);
-        }
-        tlm::tlm_sync_enum nb_transport_fw(Payload& gp, tlm::tlm_phase& phase,
-                                           sc_core::sc_time& delay) override {
-            if (!socket->nb_) {
-                refuse(gp);
-                return tlm::TLM_COMPLETED;
-            }
-            return (socket->module_->*socket->nb_)(id, gp, phase, delay);
-        }
-        bool get_direct_mem_ptr(Payload&, tlm::tlm_dmi&) override { return false; }
-        unsigned int transport_dbg(Payload&) override { return 0; }
-        static void refuse(Payload& gp) { gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE); }
-    };
-    Module* module_ = nullptr;
-    BTransport b_ = nullptr;
-    NbTransport nb_ = nullptr;
-    std::vector<std::unique_ptr<Binder>> binders_;
-    size_t handed_out_ = 0;
-};
+using TargetSocket = tlm_utils::multi_passthrough_target_socket_optional<Module>;
 template <class Module>
 using InitiatorSocket = tlm_utils::simple_initiator_socket_optional<Module>;
 
