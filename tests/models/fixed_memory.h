@@ -73,8 +73,9 @@ inline void elaborate() {
 // new kernel first. The elaborated one is kept as it is, never freed: its blocks still refer to
 // it until they are destroyed.
 inline void fresh_kernel() {
-    static std::vector<sc_core::sc_simcontext*> kept;
-    if (sc_core::sc_curr_simcontext) kept.push_back(sc_core::sc_curr_simcontext);
+    // (Never destroyed, so that they stay reachable to the end: no leak to report.)
+    static auto* const kept = new std::vector<sc_core::sc_simcontext*>;
+    if (sc_core::sc_curr_simcontext) kept->push_back(sc_core::sc_curr_simcontext);
     sc_core::sc_curr_simcontext = nullptr;
     sc_core::sc_default_global_context = nullptr;
 }
