@@ -198,22 +198,23 @@ class LtPort {
     }
     // MemoryPort::access through the socket: the cycle the data is there.
     Cycle read(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd = nullptr) {
-        return timed(tlm::TLM_READ_COMMAND, addr, size_bytes, now, bd);
+        Cycle done;
+        transport(tlm::TLM_READ_COMMAND, addr, size_bytes, now, MemoryRequest::Lt::kTimed, bd,
+                  done);
+        return done;
     }
     // MemoryPort::write: the cycle the target took it.
     Cycle write(uint64_t addr, uint32_t size_bytes, Cycle now) {
-        return timed(tlm::TLM_WRITE_COMMAND, addr, size_bytes, now, nullptr);
+        Cycle done;
+        transport(tlm::TLM_WRITE_COMMAND, addr, size_bytes, now, MemoryRequest::Lt::kTimed, nullptr,
+                  done);
+        return done;
     }
     // MemoryPort::access_local: false (and nothing changed) unless the target serves it alone.
-    [[gnu::noinline]] bool read_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
-                                      AccessBreakdown* bd = nullptr) {
-        const Cycle kernel = kernel_at(now);
-        Call call(tlm::TLM_READ_COMMAND, addr, size_bytes, MemoryRequest::Lt::kLocalOnly, bd);
-        sc_core::sc_time delay = cycles_delay(now - kernel);
-        target().b_transport(call.gp, delay);
-        if (!call.gp.is_response_ok()) return false;
-        ready = kernel + delay_cycles(delay);
-        return true;
+    bool read_local(uint64_t addr, uint32_t size_bytes, Cycle now, Cycle& ready,
+                    AccessBreakdown* bd = nullptr) {
+        return transport(tlm::TLM_READ_COMMAND, addr, size_bytes, now,
+                         MemoryRequest::Lt::kLocalOnly, bd, ready);
     }
     // MemoryPort::warm and warm_write.
     void warm(uint64_t addr, uint32_t size_bytes, bool write = false) {
@@ -255,14 +256,18 @@ class LtPort {
                                    std::to_string(kernel));
         return kernel;
     }
-    // (Out of line: a miss's path, kept out of the requesters' hit loops.)
-    [[gnu::noinline]] Cycle timed(tlm::tlm_command command, uint64_t addr, uint32_t size_bytes,
-                                  Cycle now, AccessBreakdown* bd) {
+    // A timed or local-only call at `now`: whether the target served it, and then the cycle it
+    // was done. (Out of line: a miss's path, kept out of the requesters' hit loops.)
+    [[gnu::noinline]] bool transport(tlm::tlm_command command, uint64_t addr, uint32_t size_bytes,
+                                     Cycle now, MemoryRequest::Lt lt, AccessBreakdown* bd,
+                                     Cycle& done) {
         const Cycle kernel = kernel_at(now);
-        Call call(command, addr, size_bytes, MemoryRequest::Lt::kTimed, bd);
+        Call call(command, addr, size_bytes, lt, bd);
         sc_core::sc_time delay = cycles_delay(now - kernel);
         target().b_transport(call.gp, delay);
-        return kernel + delay_cycles(delay);
+        if (!call.gp.is_response_ok()) return false;
+        done = kernel + delay_cycles(delay);
+        return true;
     }
     tlm::tlm_fw_transport_if<>& target() {
         if (!fw_ && !bound())

@@ -123,6 +123,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         if (treelet_loads) c.set_treelet_loads();
         return c;
     };
+    // Where the cores' own traffic below their L1s goes (stacks, hit records, ray records).
+    TargetSocketBase* const below_l1s = ideal_memory ? &ideal_memory->up : below_l1;
     const int n = P.core_count;
     // Per step kind, its unit kind's units; they may serve several cores (shared_by): core i
     // uses unit i / shared_by.
@@ -183,8 +185,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
                                                core_units, source));
         cores.back()->set_first_caches(first_caches);
         cores.back()->set_ray_buffer(ray_buffer.get());
-        cores.back()->set_local_memory(ideal_memory ? &ideal_memory->up : below_l1,
-                                       uint64_t(i) * uint64_t(cp.ray_slots));
+        cores.back()->set_local_memory(below_l1s, uint64_t(i) * uint64_t(cp.ray_slots));
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());
     }
@@ -198,7 +199,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     setup.wake = ray_buffer ? static_cast<WakeSource*>(ray_buffer.get())
                             : (source ? source->wakes() : nullptr);
     if (ray_buffer && P.ray_buffer.in_memory)  // (a driver may then defer its requests)
-        ray_buffer->down.bind(ideal_memory ? ideal_memory->up : *below_l1);
+        ray_buffer->down.bind(*below_l1s);
     driver = FidelityRegistry::at(P.sim.fidelity).make("core_driver", setup);
     for (int i = 0; i < n; ++i) {
         // A core's private blocks forget what lies behind the floor of its own requests.
