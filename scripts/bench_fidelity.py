@@ -20,7 +20,8 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
 --random N draws N cells at random, each a config drawn from the schema's ranges (MSHRs 1-32,
 banks, channels, cores x slots up to 64 x 32, cache sizes and replacement policies, crossbar
 widths, unit sharing, treelets with and without loads, packets, write traffic, command DRAM,
-L1 and L2 prefetchers) on
+L1 and L2 prefetchers, stream buffers below the L1s or the L2, drawn from a stream of their own
+so that the rest of each config is what the seed drew before they existed) on
 a mesh (TUNED_SCENES, which the fixed matrix uses, and HELD_OUT_SCENES, which it never used)
 with a ray kind, from a seed it prints (drawn at run time unless --seed). It reports the cells
 within 1%, the worst, the distribution, and how the fast run judged itself (stats.json
@@ -83,7 +84,7 @@ RANDOM_KINDS = {"primary": ["--rays", "primary"], "ao": ["--rays", "ao"],
                 "diffuse": ["--rays", "diffuse", "--diffuse-depth", "1"]}
 
 
-def draw_config(rng):
+def draw_config(rng, path_rng=None):
     """One config drawn from the schema's ranges: its fields, --set arguments and a label."""
     c = {}
     cores = rng.choice([1, 2, 4, 8, 16, 32, 64])
@@ -128,6 +129,12 @@ def draw_config(rng):
         c["traversal.packet_size"] = rng.choice([4, 8, 16])
     else:
         c["bvh.width"] = rng.choice([2, 4, 8])
+    if path_rng is not None:  # blocks in the memory path, drawn apart (the rest stays as seeded)
+        for position in ("below_l1", "below_l2"):
+            if path_rng.random() < 0.2:
+                c[f"memory_path.{position}"] = "stream_buffer"
+                c["memory_path.stream_buffer.entries"] = path_rng.choice([4, 8, 16])
+                c["memory_path.stream_buffer.depth"] = path_rng.choice([1, 2, 4])
     sets = []
     for k, v in c.items():
         sets += ["--set", f"{k}={json.dumps(v) if isinstance(v, bool) else v}"]
@@ -135,7 +142,9 @@ def draw_config(rng):
              f"xb{c['crossbar.bytes_per_cycle']} w{c['bvh.width']} {mode}"
              f"{'+load' if c.get('traversal.treelet_prefetch') else ''}"
              f"{' cmd' if 'dram.model' in c else ''}{' wr' if 'core.hit_record_bytes' in c else ''}"
-             f"{' pf' if 'l1.prefetcher' in c else ''}")
+             f"{' pf' if 'l1.prefetcher' in c else ''}"
+             f"{' sb1' if 'memory_path.below_l1' in c else ''}"
+             f"{' sb2' if 'memory_path.below_l2' in c else ''}")
     return sets, label, c
 
 
@@ -182,6 +191,7 @@ def random_main(a):
         print(f"bench_fidelity: seed {seed} is the tuning seed: its figures are not an "
               f"evaluation", file=sys.stderr)
     rng = random.Random(seed)
+    path_rng = random.Random(seed * 1000003 + 7)
     print(f"bench_fidelity: --random {a.random} --seed {seed}", file=sys.stderr)
     scenes = TUNED_SCENES + HELD_OUT_SCENES
     for n in scenes:
@@ -190,7 +200,7 @@ def random_main(a):
     tmp = tempfile.mkdtemp(prefix="bench_fidelity_random_")
     cells = []
     while len(cells) < a.random:
-        sets, label, c = draw_config(rng)
+        sets, label, c = draw_config(rng, path_rng)
         scene = rng.choice(scenes)
         kind = rng.choice(list(RANDOM_KINDS))
         if not config_loads(a.rtsim, sets):

@@ -62,12 +62,34 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     dram_regions->register_stats(stats);
     dram_port = std::make_unique<DramPort>("dram_port", *dram_regions);
     dram_port->set_stage_queue(&stages);
+    // A block the config places in the memory path: built by its registration, charged to the
+    // level it stands in front of, bound to `next`.
+    const auto path_block = [&](MemoryPathPosition position, const std::string& instance,
+                                TargetSocketBase& next) -> std::unique_ptr<MemoryBlock> {
+        const std::string& kind = P.memory_path[size_t(position)];
+        const MemoryBlockEntry& entry = MemoryBlockRegistry::at(kind);
+        if (!entry.make || P.sim.ideal_memory) return nullptr;
+        MemoryBlockSetting setting;
+        setting.position = position;
+        setting.level = position == MemoryPathPosition::kBelowL1 ? kLevelL2 : kLevelDram;
+        setting.address_limit_bytes = address_limit(layout);
+        const nlohmann::json config = P.memory_block_config.contains(kind)
+                                          ? P.memory_block_config.at(kind)
+                                          : nlohmann::json::object();
+        std::unique_ptr<MemoryBlock> block = entry.make(instance.c_str(), config, setting);
+        block->bind_below(next);
+        block->set_stage_queue(&stages);
+        block->register_stats(stats);
+        return block;
+    };
+    below_l2 = path_block(MemoryPathPosition::kBelowL2, "below_l2", dram_port->up);
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
     // The traversal's own data (spilled stacks, ray records, hit records) lives above the BVH.
     if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
         l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
-    l2 = std::make_unique<Cache>("l2", l2p, &dram_port->up, kLevelL2);
+    l2 = std::make_unique<Cache>("l2", l2p, below_l2 ? &below_l2->target_socket() : &dram_port->up,
+                                 kLevelL2);
     l2->set_stage_queue(&stages);
     // A sampled run regresses the DRAM traffic on the BVH's compulsory misses
     // (sim/sampling/sampler.h).
@@ -144,9 +166,16 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         }
     }
     for (int i = 0; i < n; ++i) {
-        add_cache(l1, "l1", i, l1p, *below_l1).set_series(series.l1_fill_bytes.get());
+        // The core's L1s miss into its below_l1 block when there is one.
+        TargetSocketBase* l1_next = below_l1;
+        if (auto block =
+                path_block(MemoryPathPosition::kBelowL1, indexed("below_l1", i), *l1_next)) {
+            l1_next = &block->target_socket();
+            below_l1_blocks.push_back(std::move(block));
+        }
+        add_cache(l1, "l1", i, l1p, *l1_next).set_series(series.l1_fill_bytes.get());
         if (P.l1_split)
-            add_cache(l1_tri, "l1_tri", i, l1p, *below_l1).set_series(series.l1_fill_bytes.get());
+            add_cache(l1_tri, "l1_tri", i, l1p, *l1_next).set_series(series.l1_fill_bytes.get());
         // Per step kind, the block a core's fetches enter the hierarchy at, and it as a cache.
         std::array<MemoryPort*, kStepKinds> memories;
         std::array<TargetSocketBase*, kStepKinds> memory_sockets;
@@ -176,7 +205,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
                 memory_sockets[k] = &first_caches[k]->up;
             }
         // Their warm() reaches the L2 through nothing but the crossbar (a sampled run's replay).
-        if (!ideal_memory && treelet_caches.empty()) l1s_over_l2.push_back(first_caches);
+        if (!ideal_memory && treelet_caches.empty() && below_l1_blocks.empty())
+            l1s_over_l2.push_back(first_caches);
         std::array<PipelinedUnit*, kStepKinds> core_units;
         for (int k = 0; k < kStepKinds; ++k)
             core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
@@ -207,6 +237,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         l1[size_t(i)]->follow(own);
         if (!l1_tri.empty()) l1_tri[size_t(i)]->follow(own);
         if (!treelet_caches.empty()) treelet_caches[size_t(i)]->follow(own);
+        if (!below_l1_blocks.empty()) below_l1_blocks[size_t(i)]->follow(own);
         for (int k = 0; k < kStepKinds; ++k)
             if (P.unit_shared_by[size_t(k)] == 1) units[size_t(k)][size_t(i)]->follow(own);
     }
@@ -215,6 +246,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     l2->follow(shared);
     dram->follow(shared);
     if (crossbar) crossbar->follow(shared);
+    if (below_l2) below_l2->follow(shared);
     for (int k = 0; k < kStepKinds; ++k)
         if (P.unit_shared_by[size_t(k)] > 1)
             for (auto& u : units[size_t(k)]) u->follow(shared);
@@ -288,6 +320,12 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
                         {"l2", {{"bytes", l2_bytes}, {"gbps", ctx.gbps(l2_bytes)}}},
                         {"dram", dram_regions->report(ctx)}};
     if (crossbar) out["bandwidth"]["crossbar"] = crossbar->report(ctx);
+    if (below_l2 || !below_l1_blocks.empty()) {
+        json path = json::object();
+        for (const auto& b : below_l1_blocks) path[b->name()] = b->report(ctx);
+        if (below_l2) path[below_l2->name()] = below_l2->report(ctx);
+        out["memory_path"] = path;
+    }
 
     // Stall attribution: every ray-slot cycle charged to one cause, per core and in total.
     json stalls = json::object();

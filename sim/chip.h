@@ -13,6 +13,7 @@
 #include "models/core.h"
 #include "models/crossbar.h"
 #include "models/dram.h"
+#include "models/memory_block.h"
 #include "models/ray_buffer.h"
 #include "models/stats.h"
 #include "models/unit.h"
@@ -49,6 +50,10 @@ class Chip {
     std::unique_ptr<DramModel> dram_front;      // in front of dram, when asked for
     std::unique_ptr<DramRegions> dram_regions;  // in front of both: traffic by region
     std::unique_ptr<DramPort> dram_port;        // the L2's socket's way to dram_regions
+    // memory_path.below_l2 (between the L2 and DRAM) and below_l1 (one per core, between its L1s
+    // and the crossbar), when the config places blocks there.
+    std::unique_ptr<MemoryBlock> below_l2;
+    std::vector<std::unique_ptr<MemoryBlock>> below_l1_blocks;
     std::unique_ptr<Cache> l2;
     std::unique_ptr<LineFirstTouches> first_demands;  // sampled, with a prefetcher
     std::unique_ptr<Crossbar> crossbar;  // between the L1s and the L2 (none when unlimited)

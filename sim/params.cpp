@@ -2,6 +2,9 @@
 
 #include <type_traits>
 
+#include "models/memory_block.h"
+#include "sim/config.h"
+
 namespace rtsim {
 
 using nlohmann::json;
@@ -224,6 +227,32 @@ std::vector<FieldBinding> make_bindings() {
         field("energy.dram_pj_per_byte", M(energy.dram_pj_per_byte), 1, kNotMirrored),
     };
     t.insert(t.end(), rest.begin(), rest.end());
+    for (int i = 0; i < kMemoryPathPositions; ++i) {
+        const std::string path =
+            std::string("memory_path.") + memory_path_position_name(MemoryPathPosition(i));
+        t.push_back(field(
+            path.c_str(), [i](Params & p) -> auto& { return p.memory_path[size_t(i)]; }, 1,
+            kNotMirrored));
+    }
+    // A memory block's own section, whatever fields its schema entry has: each reaches the
+    // block's JSON, which the block reads when it is built (a new block needs no row here).
+    for (const auto& [block, section] :
+         config_schema()["fields"]["memory_path"]["fields"].items()) {
+        if (!section.contains("fields")) continue;
+        for (const auto& [leaf, unused] : section["fields"].items()) {
+            (void)unused;
+            FieldBinding b;
+            b.path = "memory_path." + block + "." + leaf;
+            b.cpp_default_mirrors_schema = false;
+            b.set = [block = block, leaf = leaf](Params& p, const json& v) {
+                p.memory_block_config[block][leaf] = v;
+            };
+            b.get = [block = block, leaf = leaf](const Params& p) -> json {
+                return p.memory_block_config.at(block).at(leaf);
+            };
+            t.push_back(std::move(b));
+        }
+    }
     return t;
 }
 

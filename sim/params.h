@@ -83,7 +83,11 @@ struct Params {
     CacheParams l1, l2;
     bool l1_split = false;
     double crossbar_bytes_per_cycle = 0;  // 0: no crossbar
-    std::string dram_model;               // a registered DRAM model
+    // memory_path.below_l1, below_l2: a registered memory block at each position, or "none";
+    // each block's own section (memory_path.<block>) as the config gives it, by block name.
+    std::array<std::string, 2> memory_path;
+    nlohmann::json memory_block_config = nlohmann::json::object();
+    std::string dram_model;  // a registered DRAM model
     DramParams dram;
     BvhBuildOptions bvh;
     uint32_t node_size_bytes = 0;  // 0: the stated size for the width and format

@@ -1,0 +1,82 @@
+// Blocks the config places in the memory path (memory_path.*, docs/extending.md) end to end, in
+// both engines: a stream buffer's traffic is accounted for by the levels on either side of it.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+
+#include "support/run_rtsim.h"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace rtsim::test;
+
+namespace {
+
+json run_with(const std::string& name, const std::string& engine, const std::string& sets) {
+    const fs::path out = work_dir() / ("memory_path_" + name + "_" + engine);
+    const Result r = run_rtsim(fmt::format(
+        "run -q --scene builtin:cornell --rays primary,ao --res 48x48 --set sim.fidelity={} {} "
+        "--out '{}'",
+        engine, sets, out.string()));
+    EXPECT_EQ(r.status, 0) << r.err;
+    return r.status == 0 ? json::parse(slurp(out / "stats.json")) : json();
+}
+
+uint64_t u(const json& j) {
+    return j.get<uint64_t>();
+}
+
+}  // namespace
+
+// Between the L2 and DRAM, with write-backs (a small write-back L2 and stack spills): every
+// line DRAM reads is a read the buffer passed on (it held no line for it) or one it read ahead,
+// and every write reaches DRAM. The engines agree within a few percent on cycles.
+TEST(MemoryPath, AStreamBufferBelowTheL2AccountsForEveryDramRequestInBothEngines) {
+    json cycles;
+    for (const char* engine : {"fast", "accurate"}) {
+        SCOPED_TRACE(engine);
+        const json s = run_with(
+            "l2", engine,
+            fmt::format("--config '{}/configs/write_traffic.json' --set l2.size_kib=16 --set "
+                        "memory_path.below_l2=stream_buffer",
+                        RTSIM_SOURCE_DIR));
+        ASSERT_TRUE(s.contains("memory_path")) << s.dump().substr(0, 200);
+        const json& b = s["memory_path"]["below_l2"];
+        const json& d = s["bandwidth"]["dram"];
+        EXPECT_GT(u(b["hits"]), 0u);
+        EXPECT_GT(u(b["writes"]), 0u);
+        const uint64_t line = 64;  // the L2's line and the DRAM's burst
+        EXPECT_EQ(u(d["bytes"]) - u(d["write_bytes"]),
+                  line * (u(b["reads"]) - u(b["hits"]) + u(b["read_aheads"])));
+        EXPECT_EQ(u(b["writes"]), u(s["caches"]["l2"]["writebacks"]));
+        EXPECT_EQ(u(d["write_bytes"]), u(s["caches"]["l2"]["writeback_bytes"]));
+        cycles[engine] = s["total_cycles"];
+    }
+    EXPECT_NEAR(cycles["fast"].get<double>(), cycles["accurate"].get<double>(),
+                0.05 * cycles["accurate"].get<double>());
+}
+
+// One block per core between its L1 and the crossbar: the L2 sees each block's passed-on reads
+// and read-aheads, and nothing else (no stack, hit-record or ray-record traffic here).
+TEST(MemoryPath, StreamBuffersBelowTheL1sAccountForEveryL2AccessInBothEngines) {
+    json cycles;
+    for (const char* engine : {"fast", "accurate"}) {
+        SCOPED_TRACE(engine);
+        const json s =
+            run_with("l1", engine, "--set core.count=4 --set memory_path.below_l1=stream_buffer");
+        ASSERT_TRUE(s.contains("memory_path"));
+        uint64_t passed_on = 0;
+        int blocks = 0;
+        for (const auto& [name, b] : s["memory_path"].items()) {
+            EXPECT_EQ(name, fmt::format("below_l1[{}]", blocks));
+            passed_on += u(b["reads"]) - u(b["hits"]) + u(b["read_aheads"]);
+            ++blocks;
+        }
+        EXPECT_EQ(blocks, 4);
+        EXPECT_EQ(passed_on, u(s["caches"]["l2"]["accesses"]));
+        cycles[engine] = s["total_cycles"];
+    }
+    EXPECT_NEAR(cycles["fast"].get<double>(), cycles["accurate"].get<double>(),
+                0.05 * cycles["accurate"].get<double>());
+}
