@@ -59,8 +59,8 @@ Cache::Cache(sc_core::sc_module_name name, const CacheParams& params, TargetSock
       params_(params),
       level_(level) {
     timed_->mshrs = uint32_t(std::max(0, params_.mshrs));
-    up.register_nb_transport_fw(this, &Cache::nb_transport_fw);
-    up.register_b_transport(this, &Cache::b_transport);
+    up.register_nb_transport_fw<&Cache::nb_transport_fw>(this);
+    up.register_b_transport<&Cache::b_transport>(this);
     down.register_nb_transport_bw(this, &Cache::nb_transport_bw);
     block_bytes_ = 16 * uint64_t(params_.ways);
     tag_groups_ = params_.ways % 4 == 0 ? params_.ways / 4 : 0;
@@ -377,8 +377,8 @@ nlohmann::json Cache::report_total(const std::vector<const Cache*>& caches, cons
 
 IdealMemory::IdealMemory(sc_core::sc_module_name name, Cycle hit_latency_cycles)
     : sc_core::sc_module(name), up("up"), latency_(hit_latency_cycles) {
-    up.register_nb_transport_fw(this, &IdealMemory::nb_transport_fw);
-    up.register_b_transport(this, &IdealMemory::b_transport);
+    up.register_nb_transport_fw<&IdealMemory::nb_transport_fw>(this);
+    up.register_b_transport<&IdealMemory::b_transport>(this);
 }
 
 tlm::tlm_sync_enum IdealMemory::nb_transport_fw(int id, tlm::tlm_generic_payload& gp,

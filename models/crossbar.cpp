@@ -11,8 +11,8 @@ Crossbar::Crossbar(sc_core::sc_module_name name, double bytes_per_cycle, TargetS
       link_(bytes_per_cycle),
       write_link_(bytes_per_cycle) {
     if (below) down.bind(*below);
-    up.register_nb_transport_fw(this, &Crossbar::nb_transport_fw);
-    up.register_b_transport(this, &Crossbar::b_transport);
+    up.register_nb_transport_fw<&Crossbar::nb_transport_fw>(this);
+    up.register_b_transport<&Crossbar::b_transport>(this);
     down.register_nb_transport_bw(this, &Crossbar::nb_transport_bw);
 }
 

@@ -118,8 +118,8 @@ std::unique_ptr<DramModel> make_simple(const char* module_name, const DramParams
 
 DramPort::DramPort(sc_core::sc_module_name name, DramModel& model)
     : sc_core::sc_module(name), up("up"), model_(model) {
-    up.register_nb_transport_fw(this, &DramPort::nb_transport_fw);
-    up.register_b_transport(this, &DramPort::b_transport);
+    up.register_nb_transport_fw<&DramPort::nb_transport_fw>(this);
+    up.register_b_transport<&DramPort::b_transport>(this);
 }
 
 // A request reaches the DRAM at the annotated cycle: its first stage runs then, within the call

@@ -1,5 +1,5 @@
 // The contract between the cores and the memory blocks (caches, crossbar, DRAM, ideal memory):
-// TLM-2.0 generic payloads carrying a MemoryRequest extension, through tlm_utils sockets.
+// TLM-2.0 generic payloads carrying a MemoryRequest extension, through TLM-2.0 sockets.
 //
 // The time-ordered engine (sim.fidelity = accurate) drives the blocks with the base protocol's
 // non-blocking calls. A requester sends BEGIN_REQ through nb_transport_fw, the delay annotating
@@ -19,7 +19,6 @@
 // this is its MemoryPort (models/timing.h), which serve_loosely_timed calls.
 #pragma once
 
-#include <tlm_utils/multi_passthrough_target_socket.h>
 #include <tlm_utils/simple_initiator_socket.h>
 #include <algorithm>
 #include <cstdint>
@@ -475,8 +474,83 @@ class StageQueue {
 // block answers each on its own), and the initiator socket towards the next level.
 using TargetSocketBase =
     tlm::tlm_target_socket<32, tlm::tlm_base_protocol_types, 0, sc_core::SC_ZERO_OR_MORE_BOUND>;
+
+// The target socket: any number of requesters bind to it, and each call reaches the block's
+// registered member function with the requester's index (the order they bound in); the block
+// answers requester i through (*this)[i], as with tlm_utils' multi-passthrough socket. The
+// functions are registered as template arguments,
+//     up.register_b_transport<&Cache::b_transport>(this);
+// so that a call costs one virtual call into the socket's per-requester binder and one direct
+// call into the block. (tlm_utils' socket makes two more indirect calls per call, which was
+// several percent of the fast engine's time at one loosely timed call per step.) A call the
+// block registered nothing for is refused with TLM_COMMAND_ERROR_RESPONSE.
 template <class Module>
-using TargetSocket = tlm_utils::multi_passthrough_target_socket_optional<Module>;
+class TargetSocket final : public TargetSocketBase {
+  public:
+    using Payload = tlm::tlm_generic_payload;
+    using BTransport = void (Module::*)(int, Payload&, sc_core::sc_time&);
+    using NbTransport = tlm::tlm_sync_enum (Module::*)(int, Payload&, tlm::tlm_phase&,
+                                                       sc_core::sc_time&);
+    explicit TargetSocket(const char* name) : TargetSocketBase(name) {
+        // The export must be bound at elaboration even when nothing binds to the socket: to the
+        // first requester's binder, made now.
+        binders_.push_back(std::make_unique<Binder>(this, 0));
+        TargetSocketBase::export_type::bind(*binders_[0]);
+    }
+    template <BTransport F>
+    void register_b_transport(Module* module) {
+        module_ = module;
+        b_ = &call_b<F>;
+    }
+    template <NbTransport F>
+    void register_nb_transport_fw(Module* module) {
+        module_ = module;
+        nb_ = &call_nb<F>;
+    }
+    // A requester binding: the next binder, in bind order.
+    tlm::tlm_fw_transport_if<>& get_base_interface() override {
+        while (binders_.size() <= handed_out_)
+            binders_.push_back(std::make_unique<Binder>(this, int(binders_.size())));
+        return *binders_[handed_out_++];
+    }
+    const tlm::tlm_fw_transport_if<>& get_base_interface() const override { return *binders_[0]; }
+
+  private:
+    template <BTransport F>
+    static void call_b(Module* m, int id, Payload& gp, sc_core::sc_time& delay) {
+        (m->*F)(id, gp, delay);
+    }
+    template <NbTransport F>
+    static tlm::tlm_sync_enum call_nb(Module* m, int id, Payload& gp, tlm::tlm_phase& phase,
+                                      sc_core::sc_time& delay) {
+        return (m->*F)(id, gp, phase, delay);
+    }
+    struct Binder final : tlm::tlm_fw_transport_if<> {
+        TargetSocket* socket;
+        int id;
+        Binder(TargetSocket* s, int i) : socket(s), id(i) {}
+        void b_transport(Payload& gp, sc_core::sc_time& delay) override {
+            if (!socket->b_) return refuse(gp);
+            socket->b_(socket->module_, id, gp, delay);
+        }
+        tlm::tlm_sync_enum nb_transport_fw(Payload& gp, tlm::tlm_phase& phase,
+                                           sc_core::sc_time& delay) override {
+            if (!socket->nb_) {
+                refuse(gp);
+                return tlm::TLM_COMPLETED;
+            }
+            return socket->nb_(socket->module_, id, gp, phase, delay);
+        }
+        bool get_direct_mem_ptr(Payload&, tlm::tlm_dmi&) override { return false; }
+        unsigned int transport_dbg(Payload&) override { return 0; }
+        static void refuse(Payload& gp) { gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE); }
+    };
+    Module* module_ = nullptr;
+    void (*b_)(Module*, int, Payload&, sc_core::sc_time&) = nullptr;
+    tlm::tlm_sync_enum (*nb_)(Module*, int, Payload&, tlm::tlm_phase&, sc_core::sc_time&) = nullptr;
+    std::vector<std::unique_ptr<Binder>> binders_;
+    size_t handed_out_ = 0;
+};
 template <class Module>
 using InitiatorSocket = tlm_utils::simple_initiator_socket_optional<Module>;
 

@@ -31,8 +31,8 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
           depth_(std::min(config.at("depth").get<uint64_t>(), uint64_t(entries_))),
           hit_latency_(config.at("hit_latency_cycles").get<Cycle>()),
           setting_(setting) {
-        up.register_b_transport(this, &StreamBuffer::b_transport);
-        up.register_nb_transport_fw(this, &StreamBuffer::nb_transport_fw);
+        up.register_b_transport<&StreamBuffer::b_transport>(this);
+        up.register_nb_transport_fw<&StreamBuffer::nb_transport_fw>(this);
         down.register_nb_transport_bw(this, &StreamBuffer::nb_transport_bw);
     }
 

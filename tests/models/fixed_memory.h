@@ -19,7 +19,7 @@ class TargetMemory : public sc_core::sc_module, public MemoryPort {
     explicit TargetMemory(const sc_core::sc_module_name& name =
                               sc_core::sc_module_name(sc_core::sc_gen_unique_name("memory")))
         : sc_core::sc_module(name), up("up") {
-        up.register_b_transport(this, &TargetMemory::b_transport);
+        up.register_b_transport<&TargetMemory::b_transport>(this);
     }
     TargetSocket<TargetMemory> up;
 

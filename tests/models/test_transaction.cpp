@@ -224,6 +224,49 @@ TEST(MemoryContract, LooselyTimedCallsCountTheirDelayFromTheKernelsTime) {
     EXPECT_TRUE(requester.early_refused);
 }
 
+namespace {
+// A block that only records which requester each call came from.
+struct IdRecorder final : sc_core::sc_module {
+    TargetSocket<IdRecorder> up;
+    std::vector<int> ids;
+    explicit IdRecorder(sc_core::sc_module_name name) : sc_core::sc_module(name), up("up") {
+        up.register_b_transport<&IdRecorder::b_transport>(this);
+    }
+    void b_transport(int id, tlm::tlm_generic_payload& gp, sc_core::sc_time&) {
+        ids.push_back(id);
+        gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    }
+};
+struct Caller final : sc_core::sc_module {
+    InitiatorSocket<Caller> socket;
+    explicit Caller(sc_core::sc_module_name name) : sc_core::sc_module(name), socket("s") {}
+    tlm::tlm_response_status call(bool blocking) {
+        MemoryPayload gp;
+        sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+        tlm::tlm_phase phase = tlm::BEGIN_REQ;
+        if (blocking)
+            socket->b_transport(gp, delay);
+        else
+            socket->nb_transport_fw(gp, phase, delay);
+        return gp.get_response_status();
+    }
+};
+}  // namespace
+
+// The target socket hands each requester its own index, in the order they bound, and refuses a
+// call the block registered nothing for.
+TEST(MemoryContract, TheTargetSocketNamesEachRequesterInBindOrder) {
+    IdRecorder block("block");
+    Caller a("a"), b("b"), c("c");
+    b.socket.bind(block.up);
+    c.socket.bind(block.up);
+    a.socket.bind(block.up);
+    test::elaborate();
+    for (Caller* x : {&a, &b, &c, &a}) EXPECT_EQ(x->call(true), tlm::TLM_OK_RESPONSE);
+    EXPECT_EQ(block.ids, (std::vector<int>{2, 0, 1, 2}));
+    EXPECT_EQ(a.call(false), tlm::TLM_COMMAND_ERROR_RESPONSE);  // no nb_transport_fw registered
+}
+
 TEST(LineMap, AgreesWithAStandardMap) {
     std::mt19937_64 rng(11);
     for (const uint64_t span : {uint64_t(40), uint64_t(5000), uint64_t(1) << 40}) {
