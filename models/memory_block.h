@@ -38,7 +38,9 @@ struct MemoryBlockSetting {
     uint64_t address_limit_bytes = ~uint64_t(0);
 };
 
-class MemoryBlock : public sc_core::sc_module, public MemoryPort, public TimedTarget {
+// Both engines reach a block through its target socket only: nb_transport (accurate) and
+// b_transport (fast), as models/transaction.h lays down.
+class MemoryBlock : public sc_core::sc_module, public TimedTarget {
   public:
     explicit MemoryBlock(sc_core::sc_module_name name) : sc_core::sc_module(name) {}
     // Binds the block's initiator socket to the next level's target socket.
@@ -48,6 +50,9 @@ class MemoryBlock : public sc_core::sc_module, public MemoryPort, public TimedTa
     virtual nlohmann::json report(const ReportContext& ctx) const = 0;
     // The floor behind which its calendars may forget (a private floor for a block per core).
     virtual void follow(const TimeFloor* /*floor*/) {}
+    // Requests it served after one later in simulated time (stats.json out_of_order): the fast
+    // engine's order, which an order-dependent block's state follows.
+    virtual uint64_t out_of_order_requests() const { return 0; }
 };
 
 struct MemoryBlockEntry {
@@ -58,6 +63,9 @@ struct MemoryBlockEntry {
     // the schema.
     std::unique_ptr<MemoryBlock> (*make)(const char* module_name, const nlohmann::json& config,
                                          const MemoryBlockSetting& setting) = nullptr;
+    // What the schema's ranges cannot say of its section (fields that constrain each other):
+    // empty if the section is fine, else "FIELD: what is wrong" (FIELD within the section).
+    std::string (*check)(const nlohmann::json& config) = nullptr;
 };
 using MemoryBlockRegistry = Registry<MemoryBlockEntry>;
 

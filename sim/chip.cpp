@@ -63,16 +63,18 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     dram_port = std::make_unique<DramPort>("dram_port", *dram_regions);
     dram_port->set_stage_queue(&stages);
     // A block the config places in the memory path: built by its registration, charged to the
-    // level it stands in front of, bound to `next`.
+    // level it stands in front of, bound to `next`; what it fetches lies below `limit_bytes` (the
+    // caches' address limit at its level).
     const auto path_block = [&](MemoryPathPosition position, const std::string& instance,
-                                TargetSocketBase& next) -> std::unique_ptr<MemoryBlock> {
+                                TargetSocketBase& next,
+                                uint64_t limit_bytes) -> std::unique_ptr<MemoryBlock> {
         const std::string& kind = P.memory_path[size_t(position)];
         const MemoryBlockEntry& entry = MemoryBlockRegistry::at(kind);
         if (!entry.make || P.sim.ideal_memory) return nullptr;
         MemoryBlockSetting setting;
         setting.position = position;
         setting.level = position == MemoryPathPosition::kBelowL1 ? kLevelL2 : kLevelDram;
-        setting.address_limit_bytes = address_limit(layout);
+        setting.address_limit_bytes = limit_bytes;
         const nlohmann::json config = P.memory_block_config.contains(kind)
                                           ? P.memory_block_config.at(kind)
                                           : nlohmann::json::object();
@@ -82,12 +84,13 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         block->register_stats(stats);
         return block;
     };
-    below_l2 = path_block(MemoryPathPosition::kBelowL2, "below_l2", dram_port->up);
     CacheParams l2p = P.l2;
     l2p.address_limit_bytes = address_limit(layout);
     // The traversal's own data (spilled stacks, ray records, hit records) lives above the BVH.
     if (P.core.short_stack_entries > 0 || P.core.hit_record_bytes > 0 || P.ray_buffer.in_memory)
         l2p.address_limit_bytes = std::max(l2p.address_limit_bytes, kLocalRegionsEnd);
+    below_l2 = path_block(MemoryPathPosition::kBelowL2, "below_l2", dram_port->up,
+                          l2p.address_limit_bytes);
     l2 = std::make_unique<Cache>("l2", l2p, below_l2 ? &below_l2->target_socket() : &dram_port->up,
                                  kLevelL2);
     l2->set_stage_queue(&stages);
@@ -168,8 +171,8 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
     for (int i = 0; i < n; ++i) {
         // The core's L1s miss into its below_l1 block when there is one.
         TargetSocketBase* l1_next = below_l1;
-        if (auto block =
-                path_block(MemoryPathPosition::kBelowL1, indexed("below_l1", i), *l1_next)) {
+        if (auto block = path_block(MemoryPathPosition::kBelowL1, indexed("below_l1", i), *l1_next,
+                                    l1p.address_limit_bytes)) {
             l1_next = &block->target_socket();
             below_l1_blocks.push_back(std::move(block));
         }
@@ -288,6 +291,10 @@ nlohmann::json Chip::out_of_order_report() const {
                           {"issue_port_requests", issue},
                           {"calendar_late_requests", g_calendar_late_requests}};
     if (ray_buffer) out["ray_buffer_port_requests"] = ray_buffer->port_out_of_order();
+    if (below_l2) out["below_l2_requests"] = below_l2->out_of_order_requests();
+    uint64_t below_l1_requests = 0;
+    for (const auto& b : below_l1_blocks) below_l1_requests += b->out_of_order_requests();
+    if (!below_l1_blocks.empty()) out["below_l1_requests"] = below_l1_requests;
     return out;
 }
 

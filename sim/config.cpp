@@ -1,6 +1,7 @@
 #include "sim/config.h"
 
 #include "models/dram_device.h"
+#include "models/memory_block.h"
 #include "sim/sampling/registry.h"
 
 #include <fmt/format.h>
@@ -307,6 +308,12 @@ void validate_cross(const json& c, const std::string& where) {
             "{}: sim.sample_first_unit: expected -1 or below sim.sample_period_units ({}), got {}",
             where, c["sim"]["sample_period_units"].get<int64_t>(),
             c["sim"]["sample_first_unit"].get<int64_t>()));
+    for (const char* position : {"below_l1", "below_l2"}) {
+        const std::string kind = c["memory_path"][position];
+        const MemoryBlockEntry& block = MemoryBlockRegistry::at(kind);
+        const std::string why = block.check ? block.check(c["memory_path"][kind]) : "";
+        if (!why.empty()) throw InputError(fmt::format("{}: memory_path.{}.{}", where, kind, why));
+    }
     if (c["l2"]["line_bytes"].get<int64_t>() < c["l1"]["line_bytes"].get<int64_t>())
         throw InputError(fmt::format(
             "{}: l2.line_bytes: expected at least l1.line_bytes ({}), got {}", where,

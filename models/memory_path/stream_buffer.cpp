@@ -19,7 +19,7 @@
 namespace rtsim {
 namespace {
 
-class StreamBuffer final : public MemoryBlock, private StageHandler {
+class StreamBuffer final : public MemoryBlock, public MemoryPort, private StageHandler {
   public:
     StreamBuffer(sc_core::sc_module_name name, const nlohmann::json& config,
                  const MemoryBlockSetting& setting)
@@ -44,8 +44,11 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
 
     // ---- Loosely timed (MemoryPort, through b_transport) ----
     Cycle access(uint64_t addr, uint32_t size_bytes, Cycle now, AccessBreakdown* bd) override {
-        ++reads_;
-        if (const int s = find(addr, size_bytes); s >= 0) {
+        count_read(now);
+        // (A line read ahead at a later cycle than `now`, by a read the fast engine met first,
+        // was not yet asked for at `now`: the read misses, as it would in time order.)
+        if (const int s = find(addr, size_bytes);
+            s >= 0 && lines_[slots_[size_t(s)]].issued <= now) {
             const Cycle ready = lines_[slots_[size_t(s)]].ready;
             const Cycle done = std::max(now, ready) + hit_latency_;
             if (bd) bd->cycles[setting_.level] += done - now;
@@ -88,7 +91,11 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
         reg.add(block, "unused_read_aheads", &unused_,
                 "lines read ahead and dropped (buffer full, or written) before any read took them");
         reg.add(block, "writes", &writes_, "writes passed through");
+        reg.add(block, "out_of_order_reads", &out_of_order_reads_,
+                "reads that came after a read later in simulated time (the fast engine's order; "
+                "its lines read ahead depend on it)");
     }
+    uint64_t out_of_order_requests() const override { return out_of_order_reads_; }
     nlohmann::json report(const ReportContext&) const override {
         return {{"block", "stream_buffer"},
                 {"reads", reads_},
@@ -98,7 +105,8 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
                 {"read_aheads", read_aheads_},
                 // Of the lines read ahead, the share a read took.
                 {"accuracy", ReportContext::ratio(double(hits_), double(read_aheads_))},
-                {"writes", writes_}};
+                {"writes", writes_},
+                {"out_of_order_reads", out_of_order_reads_}};
     }
 
   private:
@@ -106,6 +114,7 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
     struct Line {
         uint64_t addr = 0;
         uint32_t size_bytes = 0;
+        Cycle issued = 0;     // the cycle it was read ahead at
         Cycle ready = 0;      // the cycle it is (or will be) there
         bool arrived = true;  // time-ordered: false while its read is on its way
         bool in_buffer = false;
@@ -114,6 +123,11 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
         std::vector<uint32_t> waiting;           // time-ordered: reads waiting for it (held ids)
     };
 
+    void count_read(Cycle t) {
+        ++reads_;
+        out_of_order_reads_ += t < latest_read_;
+        latest_read_ = std::max(latest_read_, t);
+    }
     // The slot holding (addr, size_bytes), or -1.
     int find(uint64_t addr, uint32_t size_bytes) {
         for (size_t s = 0; s < slots_.size(); ++s) {
@@ -167,7 +181,9 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
         if (!wanted(addr, size_bytes)) return;
         ++read_aheads_;
         const Cycle ready = below_.read(addr, size_bytes, now);
-        lines_[insert(addr, size_bytes, true)].ready = ready;
+        Line& l = lines_[insert(addr, size_bytes, true)];
+        l.issued = now;
+        l.ready = ready;
     }
     void warm_ahead(uint64_t addr, uint32_t size_bytes) {
         if (!wanted(addr, size_bytes)) return;
@@ -208,7 +224,7 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
         tlm::tlm_generic_payload& gp = *held_[h];
         const uint64_t addr = gp.get_address();
         const uint32_t size_bytes = gp.get_data_length();
-        ++reads_;
+        count_read(t);
         if (const int s = find(addr, size_bytes); s >= 0) {
             const uint32_t id = slots_[size_t(s)];
             const bool late = !lines_[id].arrived;
@@ -236,6 +252,7 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
         if (!wanted(addr, size_bytes)) return;
         ++read_aheads_;
         const uint32_t id = insert(addr, size_bytes, true);
+        lines_[id].issued = t;
         tlm::tlm_generic_payload& gp =
             payloads_.acquire(tlm::TLM_READ_COMMAND, addr, size_bytes, t);
         memory_request(gp).owner_id = id;
@@ -309,6 +326,8 @@ class StreamBuffer final : public MemoryBlock, private StageHandler {
     IdPool<tlm::tlm_generic_payload*> held_;  // reads answered from the buffer
     PayloadPool payloads_;                    // lines read ahead
     uint64_t reads_ = 0, hits_ = 0, late_hits_ = 0, read_aheads_ = 0, unused_ = 0, writes_ = 0;
+    uint64_t out_of_order_reads_ = 0;
+    Cycle latest_read_ = 0;
     LtPort below_{down};
 };
 

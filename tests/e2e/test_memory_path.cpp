@@ -2,6 +2,7 @@
 // both engines: a stream buffer's traffic is accounted for by the levels on either side of it.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
@@ -79,4 +80,47 @@ TEST(MemoryPath, StreamBuffersBelowTheL1sAccountForEveryL2AccessInBothEngines) {
     }
     EXPECT_NEAR(cycles["fast"].get<double>(), cycles["accurate"].get<double>(),
                 0.05 * cycles["accurate"].get<double>());
+}
+
+// A cache level of its own below the L2 (an L3), with the L2's write-backs: it looks up every
+// line the L2 fetches and every line it writes back, DRAM reads exactly its misses' lines and
+// writes exactly its own write-backs, in both engines.
+TEST(MemoryPath, AnL3BelowTheL2AccountsForEveryDramRequestInBothEngines) {
+    json cycles;
+    for (const char* engine : {"fast", "accurate"}) {
+        SCOPED_TRACE(engine);
+        const json s = run_with(
+            "l3", engine,
+            fmt::format("--config '{}/configs/write_traffic.json' --set l2.size_kib=16 --set "
+                        "memory_path.below_l2=cache --set memory_path.cache.size_kib=64",
+                        RTSIM_SOURCE_DIR));
+        ASSERT_TRUE(s.contains("memory_path"));
+        const json& l3 = s["memory_path"]["below_l2"];
+        const json& l2 = s["caches"]["l2"];
+        const json& d = s["bandwidth"]["dram"];
+        EXPECT_EQ(l3["block"], "cache");
+        EXPECT_GT(u(l3["hits"]), 0u);
+        EXPECT_GT(u(l3["writebacks"]), 0u);
+        EXPECT_EQ(u(l3["accesses"]), u(l2["misses"]));
+        EXPECT_EQ(u(l3["write_requests"]), u(l2["writebacks"]));
+        const uint64_t line = 64;
+        EXPECT_EQ(u(d["bytes"]) - u(d["write_bytes"]), line * u(l3["misses"]));
+        EXPECT_EQ(u(d["write_bytes"]), u(l3["writeback_bytes"]));
+        cycles[engine] = s["total_cycles"];
+    }
+    EXPECT_NEAR(cycles["fast"].get<double>(), cycles["accurate"].get<double>(),
+                0.05 * cycles["accurate"].get<double>());
+}
+
+// A block's geometry that its section's ranges allow but the block cannot build is one line
+// naming the field, and no output.
+TEST(MemoryPath, ABlockRefusesItsBadGeometryInOneLine) {
+    const fs::path out = work_dir() / "memory_path_bad";
+    const Result r = run_rtsim(fmt::format(
+        "run -q --set memory_path.below_l2=cache --set memory_path.cache.size_kib=3 --out '{}'",
+        out.string()));
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find("memory_path.cache.size_kib: "), std::string::npos) << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_FALSE(fs::exists(out / "stats.json"));
 }

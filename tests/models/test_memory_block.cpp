@@ -103,21 +103,30 @@ struct TimedRequester final : sc_core::sc_module, StageHandler {
     }
 };
 
+// Calls a block through its socket as the fast engine does (b_transport, LtPort).
+struct LtRequester final : sc_core::sc_module {
+    InitiatorSocket<LtRequester> socket;
+    LtPort port{socket};
+    explicit LtRequester(sc_core::sc_module_name name) : sc_module(name), socket("socket") {}
+};
+
 }  // namespace
 
 TEST(StreamBuffer, LooselyTimedReadsFollowTheHandTimeline) {
     IdealMemory memory("memory", 40);
     auto block = stream_buffer("sb", 4, 2, 2);
     block->bind_below(memory.up);
+    LtRequester requester("requester");
+    requester.socket.bind(block->target_socket());
     StatsRegistry reg;
     block->register_stats(reg);
     sc_core::sc_start(sc_core::SC_ZERO_TIME);  // elaboration binds the sockets
     std::vector<Cycle> answers;
     for (const Step& s : kSteps) {
         if (s.write)
-            block->write(s.addr, 64, s.at);
+            requester.port.write(s.addr, 64, s.at);
         else
-            answers.push_back(block->access(s.addr, 64, s.at));
+            answers.push_back(requester.port.read(s.addr, 64, s.at));
     }
     EXPECT_EQ(answers, kAnswers);
     expect_counters(reg, "sb");
@@ -149,12 +158,15 @@ TEST(StreamBuffer, ReadsNothingAheadPastTheLimitOrBeyondItsEntries) {
     near_limit->bind_below(memory.up);
     auto shallow = stream_buffer("shallow", 2, 8, 1);
     shallow->bind_below(memory.up);
+    LtRequester a("a"), b("b");
+    a.socket.bind(near_limit->target_socket());
+    b.socket.bind(shallow->target_socket());
     StatsRegistry reg;
     near_limit->register_stats(reg);
     shallow->register_stats(reg);
     sc_core::sc_start(sc_core::SC_ZERO_TIME);
-    near_limit->access(0, 64, 0);  // lines 1 and 2 end at the limit; 3 and 4 would pass it
-    shallow->access(0, 64, 0);
+    a.port.read(0, 64, 0);  // lines 1 and 2 end at the limit; 3 and 4 would pass it
+    b.port.read(0, 64, 0);
     const auto c = counters(reg);
     EXPECT_EQ(c.at("near.read_aheads"), 2u);
     EXPECT_EQ(c.at("shallow.read_aheads"), 2u);
@@ -167,11 +179,114 @@ TEST(StreamBuffer, WarmingLeavesTheLinesAndCountsNothing) {
     IdealMemory memory("memory", 40);
     auto block = stream_buffer("sb", 4, 2, 2);
     block->bind_below(memory.up);
+    LtRequester requester("requester");
+    requester.socket.bind(block->target_socket());
     StatsRegistry reg;
     block->register_stats(reg);
     sc_core::sc_start(sc_core::SC_ZERO_TIME);
-    block->warm(0, 64);
+    requester.port.warm(0, 64);
     for (const auto& [name, value] : counters(reg)) EXPECT_EQ(value, 0u) << name;
-    EXPECT_EQ(block->access(64, 64, 10), 12u);  // there since warming: the hit latency only
+    EXPECT_EQ(requester.port.read(64, 64, 10), 12u);  // there since warming: the hit latency only
     EXPECT_EQ(counters(reg).at("sb.hits"), 1u);
+}
+
+namespace {
+
+std::unique_ptr<MemoryBlock> cache_block(const char* name) {
+    MemoryBlockSetting setting;
+    setting.level = kLevelDram;
+    setting.address_limit_bytes = 1 << 20;
+    const nlohmann::json config = {{"size_kib", 4},
+                                   {"ways", 2},
+                                   {"line_bytes", 64},
+                                   {"hit_latency_cycles", 12},
+                                   {"mshrs", 4},
+                                   {"banks", 1},
+                                   {"replacement", "lru"},
+                                   {"rrpv_bits", 2},
+                                   {"write_policy", "write_back"}};
+    EXPECT_EQ(MemoryBlockRegistry::at("cache").check(config), "");
+    return MemoryBlockRegistry::at("cache").make(name, config, setting);
+}
+
+// A cache level of 12-cycle hits over a memory of latency 40: a read at 100 is looked up at 112,
+// misses, and its line is back at 152; the same line at 200 hits at 212; another line's read at
+// 200 waits for the bank behind it (one bank, one lookup a cycle), is looked up from 201, misses,
+// and is back at 201 + 12 + 40 = 253.
+const std::vector<Step> kCacheSteps = {{0, 100}, {0, 200}, {4096, 200}};
+const std::vector<Cycle> kCacheAnswers = {152, 212, 253};
+
+}  // namespace
+
+TEST(CacheBlock, LooselyTimedReadsFollowTheHandTimeline) {
+    IdealMemory memory("memory", 40);
+    auto block = cache_block("l3");
+    block->bind_below(memory.up);
+    LtRequester requester("requester");
+    requester.socket.bind(block->target_socket());
+    StatsRegistry reg;
+    block->register_stats(reg);
+    sc_core::sc_start(sc_core::SC_ZERO_TIME);
+    std::vector<Cycle> answers;
+    for (const Step& s : kCacheSteps) answers.push_back(requester.port.read(s.addr, 64, s.at));
+    EXPECT_EQ(answers, kCacheAnswers);
+    const auto c = counters(reg);
+    EXPECT_EQ(c.at("l3.cache.hits"), 1u);
+    EXPECT_EQ(c.at("l3.cache.misses"), 2u);
+}
+
+TEST(CacheBlock, TimeOrderedReadsFollowTheSameTimeline) {
+    StageQueue q;
+    IdealMemory memory("memory", 40);
+    auto block = cache_block("l3");
+    block->bind_below(memory.up);
+    TimedRequester requester("requester", &q);
+    requester.socket.bind(block->target_socket());
+    memory.set_stage_queue(&q);
+    block->set_stage_queue(&q);
+    sc_core::sc_start(sc_core::SC_ZERO_TIME);
+    requester.plan(kCacheSteps);
+    while (!q.empty()) q.run_next();
+    EXPECT_EQ(requester.answers, kCacheAnswers);
+}
+
+// What the schema's ranges cannot say is checked by the block: its sets, its policy's ways.
+TEST(CacheBlock, RefusesAGeometryItCannotBuild) {
+    nlohmann::json config = {{"size_kib", 3},
+                             {"ways", 2},
+                             {"line_bytes", 64},
+                             {"hit_latency_cycles", 12},
+                             {"mshrs", 4},
+                             {"banks", 1},
+                             {"replacement", "lru"},
+                             {"rrpv_bits", 2},
+                             {"write_policy", "write_back"}};
+    const auto check = MemoryBlockRegistry::at("cache").check;
+    EXPECT_NE(check(config).find("size_kib: "), std::string::npos) << check(config);
+    config["ways"] = 3;  // 3 KiB of 3 ways: 16 sets
+    EXPECT_EQ(check(config), "");
+    config["replacement"] = "tree_plru";
+    EXPECT_EQ(check(config).rfind("replacement: tree_plru needs a power-of-two number of ways", 0),
+              0u)
+        << check(config);
+}
+
+// The fast engine may meet a read after one later in simulated time. A line read ahead at 200
+// was not yet asked for at 150: a read of it at 150 misses (below at 150, back at 190) as in time
+// order, and is counted as out of order.
+TEST(StreamBuffer, AReadBeforeItsLineWasReadAheadMisses) {
+    IdealMemory memory("memory", 40);
+    auto block = stream_buffer("sb", 4, 1, 2);
+    block->bind_below(memory.up);
+    LtRequester requester("requester");
+    requester.socket.bind(block->target_socket());
+    StatsRegistry reg;
+    block->register_stats(reg);
+    sc_core::sc_start(sc_core::SC_ZERO_TIME);
+    EXPECT_EQ(requester.port.read(0, 64, 200), 240u);   // reads 64 ahead at 200
+    EXPECT_EQ(requester.port.read(64, 64, 150), 190u);  // before that: a miss
+    EXPECT_EQ(requester.port.read(64, 64, 250), 252u);  // after it: the line read ahead
+    const auto c = counters(reg);
+    EXPECT_EQ(c.at("sb.hits"), 1u);
+    EXPECT_EQ(c.at("sb.out_of_order_reads"), 1u);
 }
