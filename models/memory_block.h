@@ -53,6 +53,8 @@ class MemoryBlock : public sc_core::sc_module, public TimedTarget {
     // Requests it served after one later in simulated time (stats.json out_of_order): the fast
     // engine's order, which an order-dependent block's state follows.
     virtual uint64_t out_of_order_requests() const { return 0; }
+    // Requests it served (reads and writes), what the count above is a share of.
+    virtual uint64_t requests() const = 0;
 };
 
 struct MemoryBlockEntry {

@@ -20,9 +20,9 @@ the quanta: bench/results/fidelity_quanta.md is that record.)
 --random N draws N cells at random, each a config drawn from the schema's ranges (MSHRs 1-32,
 banks, channels, cores x slots up to 64 x 32, cache sizes and replacement policies, crossbar
 widths, unit sharing, treelets with and without loads, packets, write traffic, command DRAM,
-L1 and L2 prefetchers, stream buffers below the L1s or the L2, drawn from a stream of their own
-so that the rest of each config is what the seed drew before they existed) on
-a mesh (TUNED_SCENES, which the fixed matrix uses, and HELD_OUT_SCENES, which it never used)
+L1 and L2 prefetchers, stream buffers and cache levels below the L1s or the L2, drawn from
+streams of their own so that the rest of each config is what the seed drew before they existed)
+on a mesh (TUNED_SCENES, which the fixed matrix uses, and HELD_OUT_SCENES, which it never used)
 with a ray kind, from a seed it prints (drawn at run time unless --seed). It reports the cells
 within 1%, the worst, the distribution, and how the fast run judged itself (stats.json
 fidelity_check): every cell should be within 1% or flagged. Writes
@@ -84,7 +84,7 @@ RANDOM_KINDS = {"primary": ["--rays", "primary"], "ao": ["--rays", "ao"],
                 "diffuse": ["--rays", "diffuse", "--diffuse-depth", "1"]}
 
 
-def draw_config(rng, path_rng=None):
+def draw_config(rng, path_rng=None, cache_rng=None):
     """One config drawn from the schema's ranges: its fields, --set arguments and a label."""
     c = {}
     cores = rng.choice([1, 2, 4, 8, 16, 32, 64])
@@ -135,6 +135,13 @@ def draw_config(rng, path_rng=None):
                 c[f"memory_path.{position}"] = "stream_buffer"
                 c["memory_path.stream_buffer.entries"] = path_rng.choice([4, 8, 16])
                 c["memory_path.stream_buffer.depth"] = path_rng.choice([1, 2, 4])
+    if cache_rng is not None:  # a cache level of its own where no stream buffer is (a stream apart)
+        for position in ("below_l1", "below_l2"):
+            if cache_rng.random() < 0.15 and f"memory_path.{position}" not in c:
+                c[f"memory_path.{position}"] = "cache"
+                c["memory_path.cache.size_kib"] = cache_rng.choice([16, 64, 256, 1024])
+                c["memory_path.cache.ways"] = cache_rng.choice([4, 8, 16])
+                c["memory_path.cache.mshrs"] = cache_rng.choice([4, 16, 64])
     sets = []
     for k, v in c.items():
         sets += ["--set", f"{k}={json.dumps(v) if isinstance(v, bool) else v}"]
@@ -143,9 +150,17 @@ def draw_config(rng, path_rng=None):
              f"{'+load' if c.get('traversal.treelet_prefetch') else ''}"
              f"{' cmd' if 'dram.model' in c else ''}{' wr' if 'core.hit_record_bytes' in c else ''}"
              f"{' pf' if 'l1.prefetcher' in c else ''}"
-             f"{' sb1' if 'memory_path.below_l1' in c else ''}"
-             f"{' sb2' if 'memory_path.below_l2' in c else ''}")
+             f"{path_label(c)}")
     return sets, label, c
+
+
+def path_label(c):
+    """The memory-path blocks of a config, for its label: sb1/sb2 (a stream buffer below the
+    L1s/the L2), l15/l3 (a cache level)."""
+    names = {("below_l1", "stream_buffer"): " sb1", ("below_l2", "stream_buffer"): " sb2",
+             ("below_l1", "cache"): " l15", ("below_l2", "cache"): " l3"}
+    return "".join(names[(p, c[f"memory_path.{p}"])] for p in ("below_l1", "below_l2")
+                   if f"memory_path.{p}" in c)
 
 
 def config_loads(rtsim, sets):
@@ -192,6 +207,7 @@ def random_main(a):
               f"evaluation", file=sys.stderr)
     rng = random.Random(seed)
     path_rng = random.Random(seed * 1000003 + 7)
+    cache_rng = random.Random(seed * 1000003 + 11)
     print(f"bench_fidelity: --random {a.random} --seed {seed}", file=sys.stderr)
     scenes = TUNED_SCENES + HELD_OUT_SCENES
     for n in scenes:
@@ -200,7 +216,7 @@ def random_main(a):
     tmp = tempfile.mkdtemp(prefix="bench_fidelity_random_")
     cells = []
     while len(cells) < a.random:
-        sets, label, c = draw_config(rng, path_rng)
+        sets, label, c = draw_config(rng, path_rng, cache_rng)
         scene = rng.choice(scenes)
         kind = rng.choice(list(RANDOM_KINDS))
         if not config_loads(a.rtsim, sets):

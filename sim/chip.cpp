@@ -329,8 +329,16 @@ nlohmann::json Chip::report(const ReportContext& ctx) const {
     if (crossbar) out["bandwidth"]["crossbar"] = crossbar->report(ctx);
     if (below_l2 || !below_l1_blocks.empty()) {
         json path = json::object();
-        for (const auto& b : below_l1_blocks) path[b->name()] = b->report(ctx);
-        if (below_l2) path[below_l2->name()] = below_l2->report(ctx);
+        // Every block's section also says how many requests it served and how many of them came
+        // after one later in simulated time (sim/fidelity_check.cpp reads the share).
+        const auto section = [&](const MemoryBlock& b) {
+            json s = b.report(ctx);
+            s["requests"] = b.requests();
+            s["out_of_order_requests"] = b.out_of_order_requests();
+            return s;
+        };
+        for (const auto& b : below_l1_blocks) path[b->name()] = section(*b);
+        if (below_l2) path[below_l2->name()] = section(*below_l2);
         out["memory_path"] = path;
     }
 

@@ -44,6 +44,7 @@ class CacheBlock final : public MemoryBlock {
     }
     void follow(const TimeFloor* floor) override { cache_.follow(floor); }
     uint64_t out_of_order_requests() const override { return cache_.lookup_out_of_order; }
+    uint64_t requests() const override { return cache_.accesses + cache_.write_requests; }
 
   private:
     Cache cache_;

@@ -96,6 +96,7 @@ class StreamBuffer final : public MemoryBlock, public MemoryPort, private StageH
                 "its lines read ahead depend on it)");
     }
     uint64_t out_of_order_requests() const override { return out_of_order_reads_; }
+    uint64_t requests() const override { return reads_ + writes_; }
     nlohmann::json report(const ReportContext&) const override {
         return {{"block", "stream_buffer"},
                 {"reads", reads_},

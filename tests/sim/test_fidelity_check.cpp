@@ -62,6 +62,16 @@ TEST(FidelityCheck, RegimesFollowTheirMeasures) {
     EXPECT_TRUE(names(fidelity_check(command, report(0.1, 0, 1000))).empty());
     EXPECT_TRUE(names(fidelity_check(plain, writes)).empty());
 
+    // Memory-path blocks that met over 1% of their requests out of time order, over all of them
+    // (2 + 1 of 200 is 1.5%); 2 of 200 (1%) is not over.
+    json path = report(0.1, 0, 1000);
+    path["memory_path"]["below_l1[0]"] = {{"requests", 100}, {"out_of_order_requests", 2}};
+    path["memory_path"]["below_l2"] = {{"requests", 100}, {"out_of_order_requests", 1}};
+    EXPECT_EQ(names(fidelity_check(plain, path)), std::vector<std::string>{"memory_path_order"});
+    EXPECT_EQ(fidelity_check(plain, path)["expected_error_pct"].get<double>(), 14.0);
+    path["memory_path"]["below_l2"]["out_of_order_requests"] = 0;
+    EXPECT_TRUE(names(fidelity_check(plain, path)).empty());
+
     // The accurate engine is the reference: it makes no claim about itself.
     const json acc =
         fidelity_check(load_config("", {"sim.fidelity=accurate"}).typed, report(0.9, 900, 1000));
