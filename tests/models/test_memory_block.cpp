@@ -110,26 +110,36 @@ struct LtRequester final : sc_core::sc_module {
     explicit LtRequester(sc_core::sc_module_name name) : sc_module(name), socket("socket") {}
 };
 
+// A block over a memory of `latency_cycles`, called through its socket by a requester as the
+// fast engine calls it, its counters in `reg`; elaborated.
+struct LtRig {
+    IdealMemory memory;
+    std::unique_ptr<MemoryBlock> block;
+    LtRequester requester{"requester"};
+    StatsRegistry reg;
+    LtRig(Cycle latency_cycles, std::unique_ptr<MemoryBlock> b)
+        : memory("memory", latency_cycles), block(std::move(b)) {
+        block->bind_below(memory.up);
+        requester.socket.bind(block->target_socket());
+        block->register_stats(reg);
+        sc_core::sc_start(sc_core::SC_ZERO_TIME);  // elaboration binds the sockets
+    }
+    LtPort& port() { return requester.port; }
+};
+
 }  // namespace
 
 TEST(StreamBuffer, LooselyTimedReadsFollowTheHandTimeline) {
-    IdealMemory memory("memory", 40);
-    auto block = stream_buffer("sb", 4, 2, 2);
-    block->bind_below(memory.up);
-    LtRequester requester("requester");
-    requester.socket.bind(block->target_socket());
-    StatsRegistry reg;
-    block->register_stats(reg);
-    sc_core::sc_start(sc_core::SC_ZERO_TIME);  // elaboration binds the sockets
+    LtRig rig(40, stream_buffer("sb", 4, 2, 2));
     std::vector<Cycle> answers;
     for (const Step& s : kSteps) {
         if (s.write)
-            requester.port.write(s.addr, 64, s.at);
+            rig.port().write(s.addr, 64, s.at);
         else
-            answers.push_back(requester.port.read(s.addr, 64, s.at));
+            answers.push_back(rig.port().read(s.addr, 64, s.at));
     }
     EXPECT_EQ(answers, kAnswers);
-    expect_counters(reg, "sb");
+    expect_counters(rig.reg, "sb");
 }
 
 TEST(StreamBuffer, TimeOrderedReadsFollowTheSameTimeline) {
@@ -176,35 +186,33 @@ TEST(StreamBuffer, ReadsNothingAheadPastTheLimitOrBeyondItsEntries) {
 // Functional warming leaves the lines a read would, and counts nothing: a timed read after
 // warming finds the line the warmed miss read ahead.
 TEST(StreamBuffer, WarmingLeavesTheLinesAndCountsNothing) {
-    IdealMemory memory("memory", 40);
-    auto block = stream_buffer("sb", 4, 2, 2);
-    block->bind_below(memory.up);
-    LtRequester requester("requester");
-    requester.socket.bind(block->target_socket());
-    StatsRegistry reg;
-    block->register_stats(reg);
-    sc_core::sc_start(sc_core::SC_ZERO_TIME);
-    requester.port.warm(0, 64);
-    for (const auto& [name, value] : counters(reg)) EXPECT_EQ(value, 0u) << name;
-    EXPECT_EQ(requester.port.read(64, 64, 10), 12u);  // there since warming: the hit latency only
-    EXPECT_EQ(counters(reg).at("sb.hits"), 1u);
+    LtRig rig(40, stream_buffer("sb", 4, 2, 2));
+    rig.port().warm(0, 64);
+    for (const auto& [name, value] : counters(rig.reg)) EXPECT_EQ(value, 0u) << name;
+    EXPECT_EQ(rig.port().read(64, 64, 10), 12u);  // there since warming: the hit latency only
+    EXPECT_EQ(counters(rig.reg).at("sb.hits"), 1u);
 }
 
 namespace {
+
+// A cache block's section: 4 KiB of 2 ways, 64-byte lines, 12-cycle hits, one bank.
+nlohmann::json cache_config() {
+    return {{"size_kib", 4},
+            {"ways", 2},
+            {"line_bytes", 64},
+            {"hit_latency_cycles", 12},
+            {"mshrs", 4},
+            {"banks", 1},
+            {"replacement", "lru"},
+            {"rrpv_bits", 2},
+            {"write_policy", "write_back"}};
+}
 
 std::unique_ptr<MemoryBlock> cache_block(const char* name) {
     MemoryBlockSetting setting;
     setting.level = kLevelDram;
     setting.address_limit_bytes = 1 << 20;
-    const nlohmann::json config = {{"size_kib", 4},
-                                   {"ways", 2},
-                                   {"line_bytes", 64},
-                                   {"hit_latency_cycles", 12},
-                                   {"mshrs", 4},
-                                   {"banks", 1},
-                                   {"replacement", "lru"},
-                                   {"rrpv_bits", 2},
-                                   {"write_policy", "write_back"}};
+    const nlohmann::json config = cache_config();
     EXPECT_EQ(MemoryBlockRegistry::at("cache").check(config), "");
     return MemoryBlockRegistry::at("cache").make(name, config, setting);
 }
@@ -219,18 +227,11 @@ const std::vector<Cycle> kCacheAnswers = {152, 212, 253};
 }  // namespace
 
 TEST(CacheBlock, LooselyTimedReadsFollowTheHandTimeline) {
-    IdealMemory memory("memory", 40);
-    auto block = cache_block("l3");
-    block->bind_below(memory.up);
-    LtRequester requester("requester");
-    requester.socket.bind(block->target_socket());
-    StatsRegistry reg;
-    block->register_stats(reg);
-    sc_core::sc_start(sc_core::SC_ZERO_TIME);
+    LtRig rig(40, cache_block("l3"));
     std::vector<Cycle> answers;
-    for (const Step& s : kCacheSteps) answers.push_back(requester.port.read(s.addr, 64, s.at));
+    for (const Step& s : kCacheSteps) answers.push_back(rig.port().read(s.addr, 64, s.at));
     EXPECT_EQ(answers, kCacheAnswers);
-    const auto c = counters(reg);
+    const auto c = counters(rig.reg);
     EXPECT_EQ(c.at("l3.cache.hits"), 1u);
     EXPECT_EQ(c.at("l3.cache.misses"), 2u);
 }
@@ -252,15 +253,8 @@ TEST(CacheBlock, TimeOrderedReadsFollowTheSameTimeline) {
 
 // What the schema's ranges cannot say is checked by the block: its sets, its policy's ways.
 TEST(CacheBlock, RefusesAGeometryItCannotBuild) {
-    nlohmann::json config = {{"size_kib", 3},
-                             {"ways", 2},
-                             {"line_bytes", 64},
-                             {"hit_latency_cycles", 12},
-                             {"mshrs", 4},
-                             {"banks", 1},
-                             {"replacement", "lru"},
-                             {"rrpv_bits", 2},
-                             {"write_policy", "write_back"}};
+    nlohmann::json config = cache_config();
+    config["size_kib"] = 3;
     const auto check = MemoryBlockRegistry::at("cache").check;
     EXPECT_NE(check(config).find("size_kib: "), std::string::npos) << check(config);
     config["ways"] = 3;  // 3 KiB of 3 ways: 16 sets
@@ -275,18 +269,11 @@ TEST(CacheBlock, RefusesAGeometryItCannotBuild) {
 // was not yet asked for at 150: a read of it at 150 misses (below at 150, back at 190) as in time
 // order, and is counted as out of order.
 TEST(StreamBuffer, AReadBeforeItsLineWasReadAheadMisses) {
-    IdealMemory memory("memory", 40);
-    auto block = stream_buffer("sb", 4, 1, 2);
-    block->bind_below(memory.up);
-    LtRequester requester("requester");
-    requester.socket.bind(block->target_socket());
-    StatsRegistry reg;
-    block->register_stats(reg);
-    sc_core::sc_start(sc_core::SC_ZERO_TIME);
-    EXPECT_EQ(requester.port.read(0, 64, 200), 240u);   // reads 64 ahead at 200
-    EXPECT_EQ(requester.port.read(64, 64, 150), 190u);  // before that: a miss
-    EXPECT_EQ(requester.port.read(64, 64, 250), 252u);  // after it: the line read ahead
-    const auto c = counters(reg);
+    LtRig rig(40, stream_buffer("sb", 4, 1, 2));
+    EXPECT_EQ(rig.port().read(0, 64, 200), 240u);   // reads 64 ahead at 200
+    EXPECT_EQ(rig.port().read(64, 64, 150), 190u);  // before that: a miss
+    EXPECT_EQ(rig.port().read(64, 64, 250), 252u);  // after it: the line read ahead
+    const auto c = counters(rig.reg);
     EXPECT_EQ(c.at("sb.hits"), 1u);
     EXPECT_EQ(c.at("sb.out_of_order_reads"), 1u);
 }
