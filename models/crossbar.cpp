@@ -79,15 +79,14 @@ Cycle Crossbar::carry_back(Cycle returned, uint32_t size_bytes, AccessBreakdown*
 // A timed read passes through as it came (a request crosses at once) and its answer takes the
 // link: access() without a payload of its own.
 void Crossbar::b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
-    const MemoryRequest& r = memory_request(gp);
+    MemoryRequest& r = memory_request(gp);
     if (r.lt != MemoryRequest::Lt::kTimed || gp.is_write()) {
         serve_loosely_timed(*this, gp, delay);
         return;
     }
-    down->b_transport(gp, delay);
-    const Cycle kernel = kernel_cycle();
-    delay = cycles_delay(
-        carry_back(kernel + delay_cycles(delay), gp.get_data_length(), r.breakdown) - kernel);
+    below_.forward(gp, delay);
+    r.lt_done = carry_back(r.lt_done, gp.get_data_length(), r.breakdown);
+    delay = cycles_delay(r.lt_done - r.lt_kernel);
 }
 
 Cycle Crossbar::carry(Cycle returned, uint32_t size_bytes) {

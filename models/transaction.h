@@ -117,6 +117,11 @@ struct MemoryRequest : tlm::tlm_extension<MemoryRequest> {
     };
     Lt lt = Lt::kTimed;
     AccessBreakdown* breakdown = nullptr;
+    // A loosely timed call's cycles, beside the annotated delay that says the same: the kernel's
+    // cycle the delay counts from, the request's cycle (kernel + delay), and, on return, the
+    // cycle the target was done. Every level reads and writes them instead of converting the
+    // delay (a division and a floating-point product per level and direction).
+    Cycle lt_kernel = 0, lt_at = 0, lt_done = 0;
 
     // A fresh request issued at `start` (route and timeline parts left as they were: unused).
     void reset(Cycle issued) {
@@ -177,6 +182,24 @@ inline Cycle kernel_cycle() {
     return kernel ? kernel->time_stamp().value() / kTimeUnitsPerCycle : 0;
 }
 
+// A target socket's direct entry for loosely timed calls (TargetSocket below): the block's
+// registered b_transport as a plain function of the block and the requester's index. An LtPort
+// bound to such a socket calls it instead of the binder's virtual b_transport (one indirect call
+// instead of a virtual thunk and two); the call is the same b_transport, with the same payload
+// and delay.
+using LtEntry = void (*)(void* block, int requester, tlm::tlm_generic_payload&, sc_core::sc_time&);
+struct LtDirectTarget {
+    struct Entry {
+        LtEntry call = nullptr;  // nullptr: the block registered no b_transport
+        void* block = nullptr;
+        int requester = 0;
+    };
+    virtual Entry lt_entry() const = 0;
+
+  protected:
+    ~LtDirectTarget() = default;
+};
+
 // A requester's loosely timed calls through its initiator socket. A call's payload is the next
 // free one of a stack that every port shares (a call returns before its requester makes another,
 // and the calls it leads to below are nested in it): the few a chain of calls uses stay in the
@@ -189,7 +212,12 @@ class LtPort {
     void attach(Port& port) { port_ = &port; }
     // Whether anything is bound (known once the kernel has elaborated the sockets).
     bool bound() const {
-        if (!fw_ && port_->size() > 0) fw_ = port_->operator->();
+        if (!fw_ && port_->size() > 0) {
+            fw_ = port_->operator->();
+            // (Once per port, on its first call: whether the target offers a direct entry.)
+            if (const auto* direct = dynamic_cast<const LtDirectTarget*>(fw_))
+                direct_ = direct->lt_entry();
+        }
         if (!fw_ && sc_core::sc_get_status() == sc_core::SC_ELABORATION)
             throw std::logic_error(std::string(port_->name()) +
                                    ": a block's socket is used before elaboration (sc_start)");
@@ -221,7 +249,17 @@ class LtPort {
         Call call(write ? tlm::TLM_WRITE_COMMAND : tlm::TLM_READ_COMMAND, addr, size_bytes,
                   MemoryRequest::Lt::kWarm, nullptr);
         sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
-        target().b_transport(call.gp, delay);
+        forward(call.gp, delay);
+    }
+    // Passes a loosely timed call on as it came (a block that adds nothing to the request's way
+    // down, as the crossbar): the payload's lt_* cycles and the delay are the caller's.
+    void forward(tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+        if (!fw_ && !bound())
+            throw std::logic_error(std::string(port_->name()) + ": nothing is bound to it");
+        if (direct_.call)
+            direct_.call(direct_.block, direct_.requester, gp, delay);
+        else
+            fw_->b_transport(gp, delay);
     }
 
   private:
@@ -247,7 +285,7 @@ class LtPort {
         return *stack_[depth_++];
     }
     [[gnu::noinline]] static void grow() { stack_.push_back(std::make_unique<MemoryPayload>()); }
-    Cycle kernel_at(Cycle now) const {
+    [[gnu::always_inline]] Cycle kernel_at(Cycle now) const {
         const Cycle kernel = kernel_cycle();
         if (now < kernel)
             throw std::logic_error(std::string(port_->name()) + ": a loosely timed request at " +
@@ -262,19 +300,17 @@ class LtPort {
                                      Cycle& done) {
         const Cycle kernel = kernel_at(now);
         Call call(command, addr, size_bytes, lt, bd);
+        call.gp.request.lt_kernel = kernel;
+        call.gp.request.lt_at = now;
         sc_core::sc_time delay = cycles_delay(now - kernel);
-        target().b_transport(call.gp, delay);
+        forward(call.gp, delay);
         if (!call.gp.is_response_ok()) return false;
-        done = kernel + delay_cycles(delay);
+        done = call.gp.request.lt_done;
         return true;
-    }
-    tlm::tlm_fw_transport_if<>& target() {
-        if (!fw_ && !bound())
-            throw std::logic_error(std::string(port_->name()) + ": nothing is bound to it");
-        return *fw_;
     }
     Port* port_ = nullptr;
     mutable tlm::tlm_fw_transport_if<>* fw_ = nullptr;  // what is bound, once elaborated
+    mutable LtDirectTarget::Entry direct_;              // its direct entry, if it has one
     static inline std::vector<std::unique_ptr<MemoryPayload>> stack_;
     static inline size_t depth_ = 0;
 };
@@ -284,7 +320,7 @@ class LtPort {
 template <class Block>
 void serve_loosely_timed(Block& block, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
     static_assert(std::is_base_of_v<MemoryPort, Block>, "a block serves as its MemoryPort");
-    const MemoryRequest& r = memory_request(gp);
+    MemoryRequest& r = memory_request(gp);
     const uint64_t addr = gp.get_address();
     const uint32_t size_bytes = gp.get_data_length();
     gp.set_response_status(tlm::TLM_OK_RESPONSE);
@@ -295,8 +331,7 @@ void serve_loosely_timed(Block& block, tlm::tlm_generic_payload& gp, sc_core::sc
             block.warm(addr, size_bytes);
         return;
     }
-    const Cycle kernel = kernel_cycle();
-    const Cycle now = kernel + delay_cycles(delay);
+    const Cycle now = r.lt_at;  // the kernel's cycle + the delay
     Cycle done;
     if (r.lt == MemoryRequest::Lt::kLocalOnly) {
         if (!block.access_local(addr, size_bytes, now, done, r.breakdown)) {
@@ -308,7 +343,8 @@ void serve_loosely_timed(Block& block, tlm::tlm_generic_payload& gp, sc_core::sc
     } else {
         done = block.access(addr, size_bytes, now, r.breakdown);
     }
-    delay = cycles_delay(done - kernel);
+    r.lt_done = done;
+    delay = cycles_delay(done - r.lt_kernel);
 }
 
 // Payloads a requester owns, each with its MemoryRequest, reused once answered.
@@ -517,18 +553,19 @@ class TargetSocket final : public TargetSocketBase {
 
   private:
     template <BTransport F>
-    static void call_b(Module* m, int id, Payload& gp, sc_core::sc_time& delay) {
-        (m->*F)(id, gp, delay);
+    static void call_b(void* m, int id, Payload& gp, sc_core::sc_time& delay) {
+        (static_cast<Module*>(m)->*F)(id, gp, delay);
     }
     template <NbTransport F>
     static tlm::tlm_sync_enum call_nb(Module* m, int id, Payload& gp, tlm::tlm_phase& phase,
                                       sc_core::sc_time& delay) {
         return (m->*F)(id, gp, phase, delay);
     }
-    struct Binder final : tlm::tlm_fw_transport_if<> {
+    struct Binder final : tlm::tlm_fw_transport_if<>, LtDirectTarget {
         TargetSocket* socket;
         int id;
         Binder(TargetSocket* s, int i) : socket(s), id(i) {}
+        Entry lt_entry() const override { return {socket->b_, socket->module_, id}; }
         void b_transport(Payload& gp, sc_core::sc_time& delay) override {
             if (!socket->b_) return refuse(gp);
             socket->b_(socket->module_, id, gp, delay);
@@ -546,7 +583,7 @@ class TargetSocket final : public TargetSocketBase {
         static void refuse(Payload& gp) { gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE); }
     };
     Module* module_ = nullptr;
-    void (*b_)(Module*, int, Payload&, sc_core::sc_time&) = nullptr;
+    LtEntry b_ = nullptr;
     tlm::tlm_sync_enum (*nb_)(Module*, int, Payload&, tlm::tlm_phase&, sc_core::sc_time&) = nullptr;
     std::vector<std::unique_ptr<Binder>> binders_;
     size_t handed_out_ = 0;
