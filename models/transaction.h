@@ -15,8 +15,10 @@
 // with b_transport (LtPort below). The annotated delay places the request at its cycle, counted
 // from the kernel's time (the cores' scheduler runs ahead of the kernel, never behind it); the
 // block works out the request's whole path below it within the call and returns with the delay
-// advanced to the cycle its data is there (a read) or it took the write. The block's side of
-// this is its MemoryPort (models/timing.h), which serve_loosely_timed calls.
+// advanced to the cycle its data is there (a read) or it took the write. The MemoryRequest
+// extension carries the same cycles (lt_kernel, lt_at, lt_done), so that no level converts the
+// delay. The block's side of this is its MemoryPort (models/timing.h), which
+// serve_loosely_timed calls.
 #pragma once
 
 #include <tlm_utils/simple_initiator_socket.h>
