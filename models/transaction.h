@@ -399,6 +399,8 @@ class IdPool {
     }
     T& operator[](uint32_t id) { return items_[id]; }
     void remove(uint32_t id) { free_.push_back(id); }
+    // Ids handed out so far, removed ones included: every id below it names a record.
+    size_t size() const { return items_.size(); }
 
   private:
     std::vector<T> items_;

@@ -106,8 +106,7 @@ class StreamBuffer final : public MemoryBlock, public MemoryPort, private StageH
                 {"read_aheads", read_aheads_},
                 // Of the lines read ahead, the share a read took.
                 {"accuracy", ReportContext::ratio(double(hits_), double(read_aheads_))},
-                {"writes", writes_},
-                {"out_of_order_reads", out_of_order_reads_}};
+                {"writes", writes_}};
     }
 
   private:
@@ -303,25 +302,11 @@ class StreamBuffer final : public MemoryBlock, public MemoryPort, private StageH
         up[memory_request(gp).pop_route()]->nb_transport_bw(gp, phase, delay);
     }
 
-    // Line records with their size, so that an id can be checked against a payload.
-    class Lines : public IdPool<Line> {
-      public:
-        uint32_t take() {
-            const uint32_t id = IdPool<Line>::take();
-            size_ = std::max<size_t>(size_, id + 1);
-            return id;
-        }
-        size_t size() const { return size_; }
-
-      private:
-        size_t size_ = 0;
-    };
-
     const size_t entries_;
     const uint64_t depth_;
     const Cycle hit_latency_;
     const MemoryBlockSetting setting_;
-    Lines lines_;
+    IdPool<Line> lines_;
     std::deque<uint32_t> slots_;  // the buffer, oldest first
     StageQueue* stages_ = nullptr;
     IdPool<tlm::tlm_generic_payload*> held_;  // reads answered from the buffer
