@@ -413,7 +413,13 @@ bool DramController::try_refresh_bank(Channel& c, int channel, int rank_index, u
 }
 
 bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
-    // Banks whose open row a starving request waits to close: no more hits there.
+    // The queue holds one kind (reads or writes): while the data bus is taken past this one's
+    // data start, no column command can issue (a busy channel spends most cycles here).
+    const uint64_t data_latency = uint64_t(!q.empty() && q.front().write ? spec_.cwl : spec_.cl);
+    if (t + data_latency < c.data_free) return false;
+    if (still_idle(c, c.idle_column, q, t)) return false;
+    // Banks whose open row a starving request waits to close: no more hits there. (Starving
+    // only grows with time, so it never lets a remembered idle scan end sooner.)
     auto blocked = [&](const Request& hit) {
         if (spec_.starvation_cycles == 0) return false;
         for (const Request& o : q) {
@@ -422,18 +428,29 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
         }
         return false;
     };
+    uint64_t idle_until = ~uint64_t(0);  // the earliest cycle a skipped request may be ready
     for (auto it = q.begin(); it != q.end(); ++it) {
-        if (t < it->arrival + uint64_t(spec_.frontend_cycles)) continue;  // not yet scheduled
+        const uint64_t scheduled = it->arrival + uint64_t(spec_.frontend_cycles);
+        if (t < scheduled) {  // not yet scheduled
+            idle_until = std::min(idle_until, scheduled);
+            continue;
+        }
         Bank& b = bank(c, it->a);
         if (!b.open || b.row != it->a.row) continue;
         if (refresh_blocks(c, it->a)) continue;  // its bank is closing for a refresh
         if (blocked(*it)) continue;
-        if (t < (it->write ? b.next_wr : b.next_rd)) continue;
+        const uint64_t bank_ready = it->write ? b.next_wr : b.next_rd;
+        if (t < bank_ready) {
+            idle_until = std::min(idle_until, bank_ready);
+            continue;
+        }
         // The data bus: one burst at a time, with a switch gap between ranks.
-        const uint64_t data_start = t + uint64_t(it->write ? spec_.cwl : spec_.cl);
         const uint64_t gap =
             c.last_data_rank >= 0 && c.last_data_rank != it->a.rank ? uint64_t(spec_.t_rtrs) : 0;
-        if (data_start < c.data_free + gap) continue;
+        if (t + data_latency < c.data_free + gap) {
+            idle_until = std::min(idle_until, c.data_free + gap - data_latency);
+            continue;
+        }
         if (spec_.wck_sync_cycles > 0 && t >= c.wck_until) {
             // The data clock has stopped: a CAS with WCK sync takes this cycle's command slot
             // unless one is under way, and every column command waits for it.
@@ -442,44 +459,79 @@ bool DramController::try_column(Channel& c, int channel, std::deque<Request>& q,
                 ++counters_.wck_syncs;
                 return true;
             }
-            if (t < c.wck_sync_done) return false;
+            if (t < c.wck_sync_done) {
+                remember_idle(c, c.idle_column, q, std::min(idle_until, c.wck_sync_done));
+                return false;
+            }
         }
         issue_column(c, channel, *it, t);
         q.erase(it);
         return true;
     }
+    remember_idle(c, c.idle_column, q, idle_until);
     return false;
 }
 
 bool DramController::try_row(Channel& c, int channel, std::deque<Request>& q, uint64_t t) {
+    if (still_idle(c, c.idle_row, q, t)) return false;
+    // Whether a queued request still wants a bank's open row, found in one pass over the queue
+    // when the first conflict asks (a pass per conflict was quadratic in the queue's length, and
+    // the fast model runs copies of the controller per request).
+    bool wanted_known = false;
+    auto row_wanted = [&](const Bank& b) {
+        if (!wanted_known) {
+            for (Bank& k : c.banks) k.row_wanted = false;
+            for (const Request& o : q) {
+                Bank& ob = bank(c, o.a);
+                if (ob.open && ob.row == o.a.row) ob.row_wanted = true;
+            }
+            wanted_known = true;
+        }
+        return b.row_wanted;
+    };
+    uint64_t idle_until = ~uint64_t(0);  // the earliest cycle a skipped request may be ready
     for (Request& r : q) {
-        if (t < r.arrival + uint64_t(spec_.frontend_cycles)) continue;  // not yet scheduled
+        const uint64_t scheduled = r.arrival + uint64_t(spec_.frontend_cycles);
+        if (t < scheduled) {  // not yet scheduled
+            idle_until = std::min(idle_until, scheduled);
+            continue;
+        }
         Rank& rank = c.ranks[size_t(r.a.rank)];
         Bank& b = bank(c, r.a);
         if (b.open && b.row == r.a.row) continue;  // waits for its column command
         if (refresh_blocks(c, r.a)) continue;      // no new rows while a refresh is owed
         if (b.open) {
             // A conflict: close the row, unless a queued request still wants it.
-            const bool wanted = std::any_of(q.begin(), q.end(), [&](const Request& o) {
-                return same_bank(o.a, r.a) && o.a.row == b.row;
-            });
-            if ((wanted && !starving(r, t)) || t < b.next_pre) continue;
+            const bool held_open = row_wanted(b) && !starving(r, t);
+            if (held_open && spec_.starvation_cycles > 0)
+                idle_until = std::min(idle_until, r.arrival + uint64_t(spec_.starvation_cycles));
+            if (t < b.next_pre) idle_until = std::min(idle_until, b.next_pre);
+            if (held_open || t < b.next_pre) continue;
             r.conflict = true;
             issue_pre(c, channel, r.a.rank, b, r.a.bankgroup, r.a.bank, t);
             return true;
         }
-        if (t < b.next_act) continue;
+        if (t < b.next_act) {
+            idle_until = std::min(idle_until, b.next_act);
+            continue;
+        }
         // tRRD (per bank group) is folded into each bank's next_act at issue; the activate windows
         // look back through the rank's last activates: tFAW to the fourth-last, t_32aw to the
         // 32nd-last.
         const auto& acts = rank.acts;
-        if (acts.count >= 4 && t < acts.back(4) + uint64_t(spec_.t_faw)) continue;
-        if (spec_.t_32aw > 0 && acts.count >= 32 && t < acts.back(32) + uint64_t(spec_.t_32aw))
+        if (acts.count >= 4 && t < acts.back(4) + uint64_t(spec_.t_faw)) {
+            idle_until = std::min(idle_until, acts.back(4) + uint64_t(spec_.t_faw));
             continue;
+        }
+        if (spec_.t_32aw > 0 && acts.count >= 32 && t < acts.back(32) + uint64_t(spec_.t_32aw)) {
+            idle_until = std::min(idle_until, acts.back(32) + uint64_t(spec_.t_32aw));
+            continue;
+        }
         r.caused_act = true;
         issue_act(c, channel, r.a, t);
         return true;
     }
+    remember_idle(c, c.idle_row, q, idle_until);
     return false;
 }
 

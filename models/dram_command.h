@@ -217,6 +217,7 @@ class DramController {
         bool open = false;
         uint32_t row = 0;
         uint64_t next_act = 0, next_pre = 0, next_rd = 0, next_wr = 0;
+        bool row_wanted = false;  // try_row's scratch: a queued request wants the open row
     };
     struct Rank {
         // The last 32 activates, for the activate windows (tFAW, t_32aw). A fixed ring, not a
@@ -249,7 +250,29 @@ class DramController {
         int last_data_rank = -1;
         uint64_t wck_until = 0;      // the data clock runs until this cycle
         uint64_t wck_sync_done = 0;  // the last WCK sync completes at this cycle
+        // A scan of the queue that found no command to issue, and the cycle before which none
+        // can issue while nothing changes (no command issued, the queue as it was).
+        struct IdleScan {
+            uint64_t until = 0, commands = 0;
+            size_t queued = 0;
+            bool draining = false;
+        } idle_column, idle_row;
     };
+    // Commands issued so far (any kind, any channel): a scan's state is unchanged while this and
+    // its queue's length are.
+    uint64_t commands_issued() const {
+        return counters_.reads + counters_.writes + counters_.acts + counters_.pres +
+               counters_.refs + counters_.refs_per_bank + counters_.wck_syncs;
+    }
+    bool still_idle(const Channel& c, const Channel::IdleScan& s, const std::deque<Request>& q,
+                    uint64_t t) const {
+        return t < s.until && s.commands == commands_issued() && s.queued == q.size() &&
+               s.draining == c.draining;
+    }
+    void remember_idle(const Channel& c, Channel::IdleScan& s, const std::deque<Request>& q,
+                       uint64_t until) const {
+        s = {until, commands_issued(), q.size(), c.draining};
+    }
 
     Bank& bank(Channel& c, const DramAddress& a) {
         return c.banks[size_t((a.rank * spec_.bankgroups + a.bankgroup) * spec_.banks_per_group +

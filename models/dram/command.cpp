@@ -165,12 +165,20 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
         const auto at = std::upper_bound(held_.begin(), held_.end(), h);
         const size_t before = size_t(at - held_.begin());
         held_.insert(at, h);
-        Cycle result;
-        // The controller as this request finds it: a copy given the held requests before it.
-        DramController copy = ctrl_;
+        // Snapshots that counted held requests from `before` on lack this one.
+        while (!snapshots_.empty() && snapshots_.back().held_count > before) snapshots_.pop_back();
+        // The controller as this request finds it: a copy given the held requests before it,
+        // started from the latest snapshot at or before them.
+        DramController copy = snapshots_.empty() ? ctrl_ : snapshots_.back().ctrl;
+        uint64_t id = snapshots_.empty() ? next_id_ : snapshots_.back().next_id;
+        const size_t from = snapshots_.empty() ? 0 : snapshots_.back().held_count;
+        for (size_t k = from; k < before; ++k) put(copy, id, held_[k]);
+        if (before - from >= kSnapshotSpacing) {
+            snapshots_.push_back({before, id, copy});
+            snapshots_.back().ctrl.completions().clear();
+        }
         copy.completions().clear();
-        uint64_t id = next_id_;
-        for (size_t k = 0; k < before; ++k) put(copy, id, held_[k]);
+        Cycle result;
         const uint64_t first = id;
         const uint64_t entered = put(copy, id, h);
         if (h.write) {
@@ -219,6 +227,12 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
             enqueue(r, held_[k].chip);
         }
         held_.erase(held_.begin(), held_.begin() + std::ptrdiff_t(k));
+        // A snapshot past the released requests is the controller now plus the held requests
+        // after them (entering a request is deterministic); one before them is behind it.
+        size_t behind = 0;
+        while (behind < snapshots_.size() && snapshots_[behind].held_count <= k) ++behind;
+        snapshots_.erase(snapshots_.begin(), snapshots_.begin() + std::ptrdiff_t(behind));
+        for (Snapshot& s : snapshots_) s.held_count -= k;
         ctrl_.completions().clear();  // the fast model uses the predictions only
     }
 
@@ -312,6 +326,16 @@ class CommandDram final : public sc_core::sc_module, public DramModel {
     uint64_t latest_arrival_ = 0;  // device cycle
     const TimeFloor* floor_ = nullptr;
     std::vector<Held> held_;  // fast model: arrived, not yet in the controller; in time order
+    // The controller with the first held_count held requests entered, every kSnapshotSpacing or
+    // more of them, so that predicting a request replays the few held since the last one and
+    // not every one held (hundreds when the cores run far apart in time).
+    struct Snapshot {
+        size_t held_count;
+        uint64_t next_id;
+        DramController ctrl;
+    };
+    static constexpr size_t kSnapshotSpacing = 16;
+    std::vector<Snapshot> snapshots_;  // by held_count, ascending
     uint64_t held_seq_ = 0;
 };
 

@@ -3,9 +3,14 @@
 // tFAW = 34, tRAS = 52, tRP = 22, tRTP = 12, tWTR_S/L = 4/12, tREFI = 12480, tRFC = 560).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <map>
+#include <random>
 
+#include "models/dram.h"
 #include "models/dram_command.h"
+#include "models/dram_device.h"
 
 using namespace rtsim;
 
@@ -527,4 +532,103 @@ TEST(DramCommand, BankWiseBackgroundChargesEachOpenBank) {
     DramDeviceSpec bad = ddr4();
     bad.bankwise_rho = 1.5;
     EXPECT_NE(bad.check().find("bankwise_rho"), std::string::npos);
+}
+
+// The fast engine's use of the controller (dram.model = command, MemoryPort calls under a time
+// floor): a request is held until the floor passes it, and its completion is predicted on a copy
+// of the controller given every held request that arrived before it. The model starts its copies
+// from snapshots; the reference here is the rule as stated, replaying every held request into a
+// fresh copy for each prediction. Requests come out of time order (up to 400 cycles back, as
+// the cores of the fast engine send them), with row conflicts, writes and refresh.
+TEST(DramCommand, FastModelPredictsWhatAReplayOfEveryHeldRequestWould) {
+    DramParams p;
+    p.chip_clock_ghz = 1.0;
+    p.latency_cycles = 20;
+    const DramDeviceSpec spec = command_dram_spec(p);
+    auto model = DramModelRegistry::at("command").make("fast_replay_dram", p);
+    TimeFloor floor;
+    model->follow(&floor);
+
+    struct Held {
+        uint64_t chip, seq, addr;
+        uint32_t size_bytes;
+        bool write;
+    };
+    std::vector<Held> held;  // the reference's, in (cycle, arrival) order
+    DramController real(spec);
+    uint64_t next_id = 0;
+    const double device_per_chip = 1.0 / p.chip_clock_ghz / spec.tck_ns;
+    auto to_device = [&](uint64_t chip) {
+        return uint64_t(std::ceil(double(chip) * device_per_chip - 1e-9));
+    };
+    auto to_chip = [&](uint64_t device) {
+        return uint64_t(std::ceil(double(device) / device_per_chip - 1e-9));
+    };
+    // A request's bursts enter `c` from its cycle on, each waiting for room in a full queue;
+    // returns the device cycle the last one entered.
+    auto put = [&](DramController& c, uint64_t& id, const Held& h) {
+        const uint64_t burst = spec.burst_bytes();
+        const uint64_t count = std::max<uint64_t>(1, (h.size_bytes + burst - 1) / burst);
+        uint64_t entered = to_device(h.chip);
+        for (uint64_t k = 0; k < count; ++k, ++id) {
+            uint64_t at = std::max(to_device(h.chip), c.now());
+            while (!c.enqueue(id, h.addr / burst * burst + k * burst, h.write, at))
+                at = c.now() + 1;
+            entered = std::max(entered, at);
+        }
+        return entered;
+    };
+
+    std::mt19937_64 rng(20261208);
+    uint64_t front = 1000, addr = 0, seq = 0;
+    size_t most_held_before = 0;
+    for (int n = 0; n < 1500; ++n) {
+        front += rng() % 6;
+        const uint64_t chip = rng() % 10 < 3 ? front - rng() % 400 : front;
+        if (rng() % 10 < 7)
+            addr += 64;  // streams along a row
+        else
+            addr = (rng() % (1u << 26)) & ~uint64_t(63);  // anywhere: conflicts
+        const Held h{chip, seq++, addr, uint32_t(rng() % 4 == 0 ? 128 : 64), rng() % 5 == 0};
+        floor.cycle = front - 400;  // no request comes from before it
+
+        // The reference: release what the floor passed, then replay for this one.
+        size_t k = 0;
+        for (; k < held.size() && held[k].chip < floor.cycle; ++k) put(real, next_id, held[k]);
+        held.erase(held.begin(), held.begin() + std::ptrdiff_t(k));
+        real.completions().clear();
+        const auto at =
+            std::upper_bound(held.begin(), held.end(), h, [](const Held& a, const Held& b) {
+                return a.chip != b.chip ? a.chip < b.chip : a.seq < b.seq;
+            });
+        const size_t before = size_t(at - held.begin());
+        most_held_before = std::max(most_held_before, before);
+        DramController copy = real;
+        copy.completions().clear();
+        uint64_t id = next_id;
+        for (size_t j = 0; j < before; ++j) put(copy, id, held[j]);
+        const uint64_t first = id;
+        const uint64_t entered = put(copy, id, h);
+        uint64_t expected;
+        if (h.write) {
+            expected = std::max(h.chip, to_chip(entered));
+        } else {
+            uint64_t last = 0, seen = 0;
+            while (seen < id - first && copy.pending() > 0) {
+                copy.run_until(copy.now());
+                for (const auto& c : copy.completions())
+                    if (c.id >= first && c.id < id) last = std::max(last, c.cycle), ++seen;
+                copy.completions().clear();
+            }
+            expected = std::max(h.chip + 1, to_chip(last) + p.latency_cycles);
+        }
+        held.insert(at, h);
+
+        const uint64_t got = h.write ? model->write(h.addr, h.size_bytes, h.chip)
+                                     : model->access(h.addr, h.size_bytes, h.chip);
+        ASSERT_EQ(got, expected) << "request " << n << (h.write ? " (write)" : " (read)")
+                                 << " at chip cycle " << h.chip << ", " << before
+                                 << " held before it";
+    }
+    EXPECT_GT(most_held_before, 100u);  // predictions started far past the model's snapshots
 }
