@@ -38,7 +38,7 @@ struct LeastTwo {
 
 Core::Core(sc_core::sc_module_name name, const CoreParams& params,
            const std::array<TargetSocketBase*, kStepKinds>& memory,
-           const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source)
+           const std::array<TargetSocketBase*, kStepKinds>& units, RayWorkSource* source)
     : sc_core::sc_module(name),
       local_socket("local_socket"),
       params_(params),
@@ -53,7 +53,8 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
         memory_socket[k].register_nb_transport_bw(this, &Core::nb_transport_bw);
         if (memory[size_t(k)]) memory_socket[k].bind(*memory[size_t(k)]);
         lt_memory_[k].attach(memory_socket[k]);
-        unit_by_kind_[k] = units[size_t(k)];
+        unit_socket[k].register_nb_transport_bw(this, &Core::nb_transport_bw);
+        if (units[size_t(k)]) unit_socket[k].bind(*units[size_t(k)]);
         instructions_by_kind_[k] = params.step_instructions[k];
     }
     // Slots beyond ray_slots pad the keys to the eights the pick unrolls; they never run.
@@ -61,6 +62,16 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
     issue_port_.per_cycle = params.issue_width;
     for (Slot& s : slots_) s.stack = ShortStack(params.short_stack_entries);
     write_buffer_.assign(params.write_buffer_entries, 0);
+}
+
+void Core::end_of_elaboration() {
+    for (int k = 0; k < kStepKinds; ++k) {
+        if (unit_socket[k].size() == 0) continue;  // a step kind this chip has no unit for
+        unit_by_kind_[k] = PipelinedUnit::direct(*unit_socket[k].operator->());
+        if (!unit_by_kind_[k])
+            throw std::logic_error(std::string(unit_socket[k].name()) +
+                                   ": the target bound to it is not a unit");
+    }
 }
 
 // Issues `instructions` (at least 1) instructions ready at t through the core's shared issue

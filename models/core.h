@@ -122,11 +122,11 @@ class RayBuffer;
 class Core : public sc_core::sc_module {
   public:
     // Per StepKind, the memory its fetches go to (the same L1 for all, or a split L1's node and
-    // triangle caches) and the unit that tests it.
-    // `memory` (where given) is bound to memory_socket here.
+    // triangle caches) and the unit that tests it (a PipelinedUnit's socket).
+    // `memory` and `units` (where given) are bound to memory_socket and unit_socket here.
     Core(sc_core::sc_module_name name, const CoreParams& params,
          const std::array<TargetSocketBase*, kStepKinds>& memory,
-         const std::array<PipelinedUnit*, kStepKinds>& units, RayWorkSource* source);
+         const std::array<TargetSocketBase*, kStepKinds>& units, RayWorkSource* source);
     // Per StepKind, the cache at the other end of memory_socket (null: not a cache, such as
     // ideal memory). The fast engine reads its tags to serve a private hit ahead of the other
     // cores, and to hold back a miss until one of its MSHRs frees (models/core.cpp); everything
@@ -168,6 +168,10 @@ class Core : public sc_core::sc_module {
     // fetches go to, and below the L1s (stack refills and spills, ray records, hit records).
     InitiatorSocket<Core> memory_socket[kStepKinds];
     InitiatorSocket<Core> local_socket;
+    // Per StepKind, the unit that tests it. A step's operation books the unit the socket leads
+    // to, called directly once found through the socket at the end of elaboration
+    // (models/unit.h).
+    InitiatorSocket<Core> unit_socket[kStepKinds];
     // What the answers to those requests go to (the time-ordered engine).
     class Requester {
       public:
@@ -264,7 +268,6 @@ class Core : public sc_core::sc_module {
         slots_[slot].idle_since = since;
         set_ready(slot, retired ? kNeverCycle : kParkedCycle);
     }
-    PipelinedUnit* unit(int kind) const { return unit_by_kind_[kind]; }
     RayWorkSource* source() const { return source_; }
     RayBuffer* ray_buffer() const { return ray_buffer_; }
 
@@ -378,8 +381,10 @@ class Core : public sc_core::sc_module {
     // Per StepKind, the L1 its fetches go to when it is a Cache (set_first_caches): its hit path
     // is called directly, on every step.
     Cache* cache_by_kind_[kStepKinds] = {};
-    PipelinedUnit* unit_by_kind_[kStepKinds];  // per StepKind: the unit its test runs on
-    int instructions_by_kind_[kStepKinds];     // per StepKind: control instructions per step
+    // Per StepKind: the unit its test runs on, found through unit_socket.
+    PipelinedUnit* unit_by_kind_[kStepKinds] = {};
+    void end_of_elaboration() override;
+    int instructions_by_kind_[kStepKinds];  // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
     // Per write-buffer entry, the cycle it frees (empty: unbounded).
     std::vector<Cycle> write_buffer_;

@@ -1,15 +1,72 @@
 #include "models/unit.h"
 
 #include <algorithm>
+#include <stdexcept>
+#include <string>
 
 namespace rtsim {
 
 PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& params)
-    : sc_core::sc_module(name), params_(params), calendar_(params.count) {
+    : sc_core::sc_module(name), up("up"), params_(params), calendar_(params.count) {
+    up.register_b_transport<&PipelinedUnit::b_transport>(this);
     const int width = std::max(1, params_.width);
     params_.width = width;
     for (int items = 0; items < int(ops_for_items_.size()); ++items)
         ops_for_items_[size_t(items)] = uint16_t(std::max(1, (items + width - 1) / width));
+}
+
+void PipelinedUnit::b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+    UnitOp* op = gp.get_extension<UnitOp>();
+    if (!op || gp.get_command() != tlm::TLM_IGNORE_COMMAND) {
+        gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE);
+        return;
+    }
+    gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    if (op->ask_direct) {
+        op->direct = this;
+        return;
+    }
+    const Cycle kernel = kernel_cycle();
+    op->done = issue(kernel + delay_cycles(delay), op->items, op->rays);
+    delay = cycles_delay(op->done - kernel);
+}
+
+namespace {
+// A payload carrying `op` for one call through a unit's socket.
+struct UnitCall {
+    tlm::tlm_generic_payload gp;
+    explicit UnitCall(UnitOp& op) {
+        gp.set_command(tlm::TLM_IGNORE_COMMAND);
+        gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+        gp.set_extension(&op);
+    }
+    ~UnitCall() { gp.clear_extension<UnitOp>(); }
+};
+}  // namespace
+
+Cycle PipelinedUnit::transport(tlm::tlm_fw_transport_if<>& unit, Cycle ready, int items, int rays) {
+    UnitOp op;
+    op.items = items;
+    op.rays = rays;
+    UnitCall call(op);
+    const Cycle kernel = kernel_cycle();
+    if (ready < kernel)
+        throw std::logic_error("a unit operation at " + std::to_string(ready) +
+                               " came before the kernel's time " + std::to_string(kernel));
+    sc_core::sc_time delay = cycles_delay(ready - kernel);
+    unit.b_transport(call.gp, delay);
+    if (!call.gp.is_response_ok())
+        throw std::logic_error("a unit operation was refused by its target");
+    return op.done;
+}
+
+PipelinedUnit* PipelinedUnit::direct(tlm::tlm_fw_transport_if<>& unit) {
+    UnitOp op;
+    op.ask_direct = true;
+    UnitCall call(op);
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    unit.b_transport(call.gp, delay);
+    return call.gp.is_response_ok() ? op.direct : nullptr;
 }
 
 void PipelinedUnit::register_stats(StatsRegistry& reg) {

@@ -210,9 +210,9 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         // Their warm() reaches the L2 through nothing but the crossbar (a sampled run's replay).
         if (!ideal_memory && treelet_caches.empty() && below_l1_blocks.empty())
             l1s_over_l2.push_back(first_caches);
-        std::array<PipelinedUnit*, kStepKinds> core_units;
+        std::array<TargetSocketBase*, kStepKinds> core_units;
         for (int k = 0; k < kStepKinds; ++k)
-            core_units[size_t(k)] = units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])].get();
+            core_units[size_t(k)] = &units[size_t(k)][size_t(i / P.unit_shared_by[size_t(k)])]->up;
         core_memories.push_back(memories);
         cores.push_back(std::make_unique<Core>(indexed("core", i).c_str(), cp, memory_sockets,
                                                core_units, source));

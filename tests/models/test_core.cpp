@@ -48,7 +48,7 @@ TEST(Core, FullPipelineThroughCoreFinishesInNPlusLMinusOne) {
     cp.ray_slots = n;
     cp.issue_width = n;
     cp.issue_latency_cycles = 0;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.rays, uint64_t(n));
@@ -71,7 +71,7 @@ TEST(Core, NoWorkCyclesAreChargedAndNothingIsLeftOver) {
     cp.ray_slots = 4;
     cp.issue_width = 4;
     cp.issue_latency_cycles = I;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     const Cycle D = I + I + M + T;
@@ -104,9 +104,9 @@ struct WriteBufferRun {
         cp.issue_latency_cycles = 0;
         cp.hit_record_bytes = 16;
         cp.write_buffer_entries = entries;
-        core = std::make_unique<Core>("core", cp,
-                                      std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
-                                      std::array<PipelinedUnit*, kStepKinds>{&box, &tri}, &src);
+        core = std::make_unique<Core>(
+            "core", cp, std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
+            std::array<TargetSocketBase*, kStepKinds>{&box.up, &tri.up}, &src);
         core->set_local_memory(&local.up, 0);
         sched = std::make_unique<CoreScheduler>("sched", std::vector<Core*>{core.get()});
         sc_core::sc_start();
@@ -141,7 +141,7 @@ TEST(Core, SingleSlotLatenciesAdd) {
     CoreParams cp;
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * (I + M + T)));
@@ -182,7 +182,7 @@ TEST(Core, InstanceTransformStepRunsOnItsOwnUnit) {
     CoreParams cp;
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
-    Core core("core", cp, {&mem.up, &mem.up, &mem.up}, {&box, &tri, &xf}, &src);
+    Core core("core", cp, {&mem.up, &mem.up, &mem.up}, {&box.up, &tri.up, &xf.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, I + (I + M + B) + (I + M + X) + (I + M + B) + (I + M + T));
@@ -218,7 +218,8 @@ TEST(Core, AnyHitStepIssuesTheShaderAndWaitsItsLatency) {
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
     cp.step_instructions[int(StepKind::AnyHit)] = N;
-    Core core("core", cp, {&mem.up, &mem.up, &mem.up, &mem.up}, {&box, &tri, &xf, &shader}, &src);
+    Core core("core", cp, {&mem.up, &mem.up, &mem.up, &mem.up},
+              {&box.up, &tri.up, &xf.up, &shader.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, I + (I + M + T) + (N - 1 + I + M + S) + (N - 1 + I + S));
@@ -239,7 +240,7 @@ TEST(Core, IssueWidthLimitsThroughput) {
     cp.ray_slots = k;
     cp.issue_width = 1;
     cp.issue_latency_cycles = 0;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     // 2k issue slots at one per cycle: the last issues at 2k - 1, then the unit adds 1.
@@ -251,7 +252,7 @@ TEST(Core, NoWorkCostsNothing) {
     test::FixedLatencyMemory mem(0);
     PipelinedUnit box("box", UnitParams{}), tri("tri", UnitParams{});
     SyntheticSource src(0, 1, StepKind::Node);
-    Core core("core", CoreParams{}, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", CoreParams{}, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.rays, 0u);
@@ -271,7 +272,7 @@ TEST(Core, StepInstructionsOccupyTheIssuePort) {
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
     cp.step_instructions[int(StepKind::Triangle)] = n;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
     CoreScheduler sched("sched", {&core});
     sc_core::sc_start();
     EXPECT_EQ(core.last_cycle, Cycle(rays) * (I + steps * ((n - 1) + I + M + T)));
@@ -295,7 +296,7 @@ void run_cores_sharing_memory(std::vector<Cycle>& times, uint64_t& rays) {
         sources.push_back(std::make_unique<SyntheticSource>(20 + 5 * i, 3 + i, StepKind::Triangle));
         cores.push_back(std::make_unique<Core>(
             ("core" + n).c_str(), cp, std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
-            std::array<PipelinedUnit*, kStepKinds>{units.back().get(), units.back().get()},
+            std::array<TargetSocketBase*, kStepKinds>{&units.back()->up, &units.back()->up},
             sources.back().get()));
         ptrs.push_back(cores.back().get());
     }
@@ -349,7 +350,8 @@ TEST(Core, TheSlotStateMachineFollowsItsEngineByHand) {
     CoreParams cp;
     cp.ray_slots = 1;
     cp.issue_latency_cycles = I;
-    Core core("core", cp, {&mem.up, &mem.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
+    test::elaborate();  // the core finds its units through their sockets
     RecordingEngine e;
     const Cycle by_level[kMemLevels] = {0, 0, M, 0};
     EXPECT_EQ(core.run_slot(0, 0, e), Core::kRunOn);
@@ -463,7 +465,8 @@ TEST(Core, TheAccurateEngineRunsOnTheKernelsTime) {
     SyntheticSource src(64, 3, StepKind::Node);
     CoreParams cp;
     cp.ray_slots = 4;
-    Core core("core", cp, {&memory.up, &memory.up, &memory.up, &memory.up}, {&box, &tri}, &src);
+    Core core("core", cp, {&memory.up, &memory.up, &memory.up, &memory.up}, {&box.up, &tri.up},
+              &src);
     core.set_local_memory(&memory.up, 0);
     DriverSetup setup;
     setup.cores = {&core};

@@ -201,10 +201,10 @@ void run_cores_through_buffer(uint32_t capacity, uint64_t& rays_done, uint64_t& 
     CoreParams cp;
     cp.ray_slots = 4;
     for (int i = 0; i < 3; ++i) {
-        cores.push_back(
-            std::make_unique<Core>(("core" + std::to_string(i)).c_str(), cp,
-                                   std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
-                                   std::array<PipelinedUnit*, kStepKinds>{&box, &tri}, &src));
+        cores.push_back(std::make_unique<Core>(
+            ("core" + std::to_string(i)).c_str(), cp,
+            std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
+            std::array<TargetSocketBase*, kStepKinds>{&box.up, &tri.up}, &src));
         cores.back()->set_ray_buffer(&rb);
         ptrs.push_back(cores.back().get());
     }

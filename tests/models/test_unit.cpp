@@ -68,3 +68,42 @@ TEST(PipelinedUnit, AnOperationReadyEarlierDoesNotQueueBehindALaterOne) {
     EXPECT_EQ(u.issue(300), 309u);  // this one does wait: cycle 300 is taken
     EXPECT_EQ(u.queue_cycles, 1u);
 }
+
+namespace {
+// A requester of its own: an initiator socket, as a core has one per step kind.
+struct UnitRequester : sc_core::sc_module {
+    InitiatorSocket<UnitRequester> socket;
+    explicit UnitRequester(sc_core::sc_module_name name) : sc_core::sc_module(name), socket("s") {}
+    Cycle op(Cycle ready, int items) {
+        return PipelinedUnit::transport(*socket.operator->(), ready, items, 1);
+    }
+};
+}  // namespace
+
+// Two requesters share one unit through its socket (box_unit.shared_by = 2). The unit: one
+// pipeline, latency 4, an operation every 2 cycles, 8 boxes per operation. By hand: A and B both
+// ready at 10: A issues at 10 (done 14), B waits for 12 (done 16); A's 16-box node at 11 takes
+// two operations from 14, at 14 and 16: done 20. Waits: 2 + 3 cycles.
+TEST(PipelinedUnit, RequestersShareTheUnitThroughItsSocket) {
+    PipelinedUnit unit(sc_core::sc_gen_unique_name("u"), UnitParams{1, 4, 2, 8});
+    UnitRequester a(sc_core::sc_gen_unique_name("a")), b(sc_core::sc_gen_unique_name("b"));
+    a.socket.bind(unit.up);
+    b.socket.bind(unit.up);
+    sc_core::sc_report_handler::set_actions(sc_core::SC_ID_NO_SC_START_ACTIVITY_,
+                                            sc_core::SC_DO_NOTHING);
+    sc_core::sc_start(sc_core::SC_ZERO_TIME);
+    EXPECT_EQ(a.op(10, 1), 14u);
+    EXPECT_EQ(b.op(10, 1), 16u);
+    EXPECT_EQ(a.op(11, 16), 20u);
+    EXPECT_EQ(unit.ops, 4u);
+    EXPECT_EQ(unit.queue_cycles, 5u);
+    // The direct access a core asks for once is the unit itself; a payload that is not a unit
+    // operation is refused.
+    EXPECT_EQ(PipelinedUnit::direct(*a.socket.operator->()), &unit);
+    tlm::tlm_generic_payload gp;
+    gp.set_command(tlm::TLM_READ_COMMAND);
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    a.socket->b_transport(gp, delay);
+    EXPECT_EQ(gp.get_response_status(), tlm::TLM_COMMAND_ERROR_RESPONSE);
+    EXPECT_EQ(unit.ops, 4u);
+}

@@ -65,7 +65,7 @@ TEST(StatsReport, StallSharesAndUnaccountedCycles) {
     } none;
     CoreParams cp;
     cp.ray_slots = 3;
-    Core core("core[0]", cp, {&mem.up, &mem.up}, {&box, &tri}, &none);
+    Core core("core[0]", cp, {&mem.up, &mem.up}, {&box.up, &tri.up}, &none);
     // issue, l1, l2, dram, crossbar, box_unit, triangle_unit, ray_buffer: 2100 charged.
     const uint64_t charged[Core::kStallKinds] = {100, 200, 300, 400, 0, 500, 600, 0};
     for (int k = 0; k < Core::kStallKinds; ++k) core.stall_cycles[k] = charged[k];
