@@ -48,6 +48,7 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
       ready_(padded_to_8(slots_.size())),
       keys_(ready_.size()) {
     local_socket.register_nb_transport_bw(this, &Core::nb_transport_bw);
+    ray_buffer_socket.register_nb_transport_bw(this, &Core::nb_transport_bw);
     lt_local_.attach(local_socket);
     for (int k = 0; k < kStepKinds; ++k) {
         memory_socket[k].register_nb_transport_bw(this, &Core::nb_transport_bw);
@@ -67,10 +68,17 @@ Core::Core(sc_core::sc_module_name name, const CoreParams& params,
 void Core::end_of_elaboration() {
     for (int k = 0; k < kStepKinds; ++k) {
         if (unit_socket[k].size() == 0) continue;  // a step kind this chip has no unit for
-        unit_by_kind_[k] = PipelinedUnit::direct(*unit_socket[k].operator->());
+        unit_by_kind_[k] = find_direct<PipelinedUnit>(*unit_socket[k].operator->());
         if (!unit_by_kind_[k])
             throw std::logic_error(std::string(unit_socket[k].name()) +
                                    ": the target bound to it is not a unit");
+    }
+    if (ray_buffer_socket.size() > 0) {
+        RayBuffer* buffer = find_direct<RayBuffer>(*ray_buffer_socket.operator->());
+        if (!buffer)
+            throw std::logic_error(std::string(ray_buffer_socket.name()) +
+                                   ": the target bound to it is not a ray buffer");
+        attach_ray_buffer(buffer);
     }
 }
 
@@ -91,7 +99,7 @@ void Core::count_finished(uint32_t work_rays, Cycle start, Cycle done) {
     if (source_wake_) source_->finished(work_rays, done);
 }
 
-void Core::set_ray_buffer(RayBuffer* buffer) {
+void Core::attach_ray_buffer(RayBuffer* buffer) {
     ray_buffer_ = buffer;
     // Rays then come from the buffer, which parks and wakes slots itself.
     if (buffer) source_wake_ = nullptr;
@@ -351,7 +359,7 @@ void Core::register_stats(StatsRegistry& reg) {
             "slot cycles parked without a ray (retired slots' tails are added in the report)");
     reg.add(block, "issue_port_out_of_order", &issue_port_.out_of_order,
             "issues ready before an earlier issue's ready cycle (served out of time order)");
-    if (ray_buffer_) {
+    if (treelet_mode_) {  // (stats are registered before the buffer is found)
         reg.add(block, "treelet_loads", &treelet_loads, "treelets loaded for a batch");
         reg.add(block, "treelet_load_bytes", &treelet_load_bytes, "bytes of treelets loaded");
     }

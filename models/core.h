@@ -150,8 +150,14 @@ class Core : public sc_core::sc_module {
     static nlohmann::json packet_report(const std::vector<const Core*>& cores);
     void set_series(TimeSeries* rays_done) { rays_series_ = rays_done; }
     // Treelet mode: rays come in per-treelet batches from the ray buffer (which admits them
-    // from the source) instead of one by one from the source.
-    void set_ray_buffer(RayBuffer* buffer);
+    // from the source) instead of one by one from the source. `buffer` (its `up` socket) is
+    // bound to ray_buffer_socket here; the core finds the buffer through it at the end of
+    // elaboration.
+    void set_ray_buffer(TargetSocketBase* buffer) {
+        if (!buffer) return;
+        ray_buffer_socket.bind(*buffer);
+        treelet_mode_ = true;
+    }
     // Where stack spills, refills and hit records go (the L1s' next level; bound to
     // local_socket here), and the chip-wide index of this core's first slot (each slot spills to
     // its own stack region).
@@ -172,6 +178,7 @@ class Core : public sc_core::sc_module {
     // to, called directly once found through the socket at the end of elaboration
     // (models/unit.h).
     InitiatorSocket<Core> unit_socket[kStepKinds];
+    InitiatorSocket<Core> ray_buffer_socket;  // treelet mode: the ray buffer
     // What the answers to those requests go to (the time-ordered engine).
     class Requester {
       public:
@@ -384,8 +391,10 @@ class Core : public sc_core::sc_module {
     // Per StepKind: the unit its test runs on, found through unit_socket.
     PipelinedUnit* unit_by_kind_[kStepKinds] = {};
     void end_of_elaboration() override;
+    void attach_ray_buffer(RayBuffer* buffer);
     int instructions_by_kind_[kStepKinds];  // per StepKind: control instructions per step
     RayBuffer* ray_buffer_ = nullptr;
+    bool treelet_mode_ = false;  // a ray buffer is bound (found at the end of elaboration)
     // Per write-buffer entry, the cycle it frees (empty: unbounded).
     std::vector<Cycle> write_buffer_;
     // The cycle a write ready at t finds an entry free.

@@ -8,12 +8,14 @@ namespace rtsim {
 RayBuffer::RayBuffer(sc_core::sc_module_name name, const RayBufferParams& params,
                      std::vector<TreeletSpan> treelets, RayWorkSource* source)
     : sc_core::sc_module(name),
+      up("up"),
       down("down"),
       params_(params),
       treelets_(std::move(treelets)),
       source_(source),
       entries_(params.capacity_rays),
       queues_(std::max<size_t>(1, treelets_.size())) {
+    up.register_b_transport<&RayBuffer::b_transport>(this);
     ports_.per_cycle = params.ports;
     TreeletSchedulerParams sp;
     sp.treelets = uint32_t(queues_.size());

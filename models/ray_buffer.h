@@ -77,6 +77,11 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     // A finished ray leaves the buffer.
     void release(uint32_t handle);
 
+    // The cores' socket: each finds the buffer through it (DirectAccess, models/transaction.h)
+    // and calls it directly, as it schedules, reads and writes rays on every step; it answers
+    // nothing else.
+    TargetSocket<RayBuffer> up;
+
     // Records in memory (params().in_memory): their reads and writes go through `down` (bound
     // to the level below the L1s). A driver that runs memory requests itself (the time-ordered
     // engine) defers them: reads then return when the record may be read (it reads it itself),
@@ -109,6 +114,9 @@ class RayBuffer : public sc_core::sc_module, public WakeSource {
     uint64_t crossings = 0;  // rays queued again for another treelet
 
   private:
+    void b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time&) {
+        if (!answer_direct(this, gp)) gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE);
+    }
     Cycle port(Cycle now);
     // A record written at `now`: through the SRAM's ports, or to memory; the cycle it is there.
     Cycle write_record(uint32_t handle, Cycle now);

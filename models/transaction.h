@@ -255,7 +255,7 @@ class LtPort {
     }
     // Passes a loosely timed call on as it came (a block that adds nothing to the request's way
     // down, as the crossbar): the payload's lt_* cycles and the delay are the caller's.
-    void forward(tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+    [[gnu::always_inline]] void forward(tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
         if (!fw_ && !bound())
             throw std::logic_error(std::string(port_->name()) + ": nothing is bound to it");
         if (direct_.call)
@@ -594,6 +594,42 @@ class TargetSocket final : public TargetSocketBase {
 };
 template <class Module>
 using InitiatorSocket = tlm_utils::simple_initiator_socket_optional<Module>;
+
+// Direct access to a block found through a socket, as TLM-2.0's DMI hands out memory: a requester
+// that calls a block on every step (a core its units and its ray buffer) asks once, through the
+// socket its binding gave it, for the block itself, and calls it directly from then on. The
+// binding still decides which block it is (shared units, one ray buffer for all cores).
+template <class Block>
+struct DirectAccess : tlm::tlm_extension<DirectAccess<Block>> {
+    Block* block = nullptr;
+    tlm::tlm_extension_base* clone() const override { return new DirectAccess(*this); }
+    void copy_from(const tlm::tlm_extension_base& other) override {
+        block = static_cast<const DirectAccess&>(other).block;
+    }
+};
+// The requester's side: the Block at the other end of `target`, or nullptr if it is not one.
+template <class Block>
+Block* find_direct(tlm::tlm_fw_transport_if<>& target) {
+    DirectAccess<Block> ask;
+    tlm::tlm_generic_payload gp;
+    gp.set_command(tlm::TLM_IGNORE_COMMAND);
+    gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+    gp.set_extension(&ask);
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    target.b_transport(gp, delay);
+    gp.clear_extension(&ask);
+    return gp.is_response_ok() ? ask.block : nullptr;
+}
+// The block's side, first thing in its b_transport: answers a request for direct access (true)
+// or leaves the payload to the block (false).
+template <class Block>
+bool answer_direct(Block* block, tlm::tlm_generic_payload& gp) {
+    auto* ask = gp.get_extension<DirectAccess<Block>>();
+    if (!ask) return false;
+    ask->block = block;
+    gp.set_response_status(tlm::TLM_OK_RESPONSE);
+    return true;
+}
 
 // A block the cores reach through its target socket.
 class TimedTarget {

@@ -16,16 +16,13 @@ PipelinedUnit::PipelinedUnit(sc_core::sc_module_name name, const UnitParams& par
 }
 
 void PipelinedUnit::b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_time& delay) {
+    if (answer_direct(this, gp)) return;
     UnitOp* op = gp.get_extension<UnitOp>();
     if (!op || gp.get_command() != tlm::TLM_IGNORE_COMMAND) {
         gp.set_response_status(tlm::TLM_COMMAND_ERROR_RESPONSE);
         return;
     }
     gp.set_response_status(tlm::TLM_OK_RESPONSE);
-    if (op->ask_direct) {
-        op->direct = this;
-        return;
-    }
     const Cycle kernel = kernel_cycle();
     op->done = issue(kernel + delay_cycles(delay), op->items, op->rays);
     delay = cycles_delay(op->done - kernel);
@@ -58,15 +55,6 @@ Cycle PipelinedUnit::transport(tlm::tlm_fw_transport_if<>& unit, Cycle ready, in
     if (!call.gp.is_response_ok())
         throw std::logic_error("a unit operation was refused by its target");
     return op.done;
-}
-
-PipelinedUnit* PipelinedUnit::direct(tlm::tlm_fw_transport_if<>& unit) {
-    UnitOp op;
-    op.ask_direct = true;
-    UnitCall call(op);
-    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
-    unit.b_transport(call.gp, delay);
-    return call.gp.is_response_ok() ? op.direct : nullptr;
 }
 
 void PipelinedUnit::register_stats(StatsRegistry& reg) {

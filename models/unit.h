@@ -7,8 +7,8 @@
 // b_transport books it, the annotated delay placing it at its ready cycle and returning with the
 // cycle its last result is there. Both engines issue an operation at its cycle (the fast one in
 // each core's time order, the accurate one in global time order), and a core issues one on
-// every step, so a core asks the unit once, through the same socket, for direct access (as
-// TLM-2.0's DMI does for memory) and then calls issue() inline: the same booking as
+// every step, so a core asks the unit once, through the same socket, for direct access
+// (DirectAccess, models/transaction.h) and then calls issue() inline: the same booking as
 // b_transport's, without a payload per step.
 #pragma once
 
@@ -39,13 +39,10 @@ struct UnitParams {
 class PipelinedUnit;
 
 // A unit operation's extension: `items` items `rays` times over (issue() below), and, on return,
-// the cycle the last result is there. With ask_direct, nothing is booked: the unit answers with
-// itself (`direct`), for a requester that calls it directly from then on.
+// the cycle the last result is there.
 struct UnitOp : tlm::tlm_extension<UnitOp> {
     int items = 1, rays = 1;
     Cycle done = 0;
-    bool ask_direct = false;
-    PipelinedUnit* direct = nullptr;
     tlm::tlm_extension_base* clone() const override { return new UnitOp(*this); }
     void copy_from(const tlm::tlm_extension_base& other) override {
         *this = static_cast<const UnitOp&>(other);
@@ -59,8 +56,6 @@ class PipelinedUnit : public sc_core::sc_module {
     // Through a requester's socket bound to a unit's `up`: one operation ready at `ready`
     // (loosely timed, at or after the kernel's time); the cycle its last result is there.
     static Cycle transport(tlm::tlm_fw_transport_if<>& unit, Cycle ready, int items, int rays);
-    // The unit itself, asked through the socket (nullptr if the target is not a unit).
-    static PipelinedUnit* direct(tlm::tlm_fw_transport_if<>& unit);
     // Issues the operations for `items` items (ceil(items / width), back to back on one pipeline)
     // that are ready at `ready`, `rays` times over (the lanes of a packet); returns the cycle
     // the last result is available. Operations need not come in `ready` order: each takes the

@@ -217,7 +217,7 @@ Chip::Chip(const Params& P, RayWorkSource* source, const BvhLayout& layout,
         cores.push_back(std::make_unique<Core>(indexed("core", i).c_str(), cp, memory_sockets,
                                                core_units, source));
         cores.back()->set_first_caches(first_caches);
-        cores.back()->set_ray_buffer(ray_buffer.get());
+        if (ray_buffer) cores.back()->set_ray_buffer(&ray_buffer->up);
         cores.back()->set_local_memory(below_l1s, uint64_t(i) * uint64_t(cp.ray_slots));
         cores.back()->register_stats(stats);
         cores.back()->set_series(series.rays.get());

@@ -42,11 +42,15 @@ class ReferenceScheduler final : public ChipDriver, private StageHandler, privat
             cs.write_wait_from.resize(size_t(core->params().ray_slots));
             states_.push_back(std::move(cs));
             core->set_requester(this);
-            // Ray records in memory: read and written here, each stage at its cycle.
-            if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
-                rb->set_defer(true);
         }
         SC_METHOD(run_cycle);
+    }
+    void start_of_simulation() override {
+        // Ray records in memory: read and written here, each stage at its cycle. (The cores know
+        // their ray buffer once elaborated.)
+        for (Core* core : cores_)
+            if (RayBuffer* rb = core->ray_buffer(); rb && rb->params().in_memory)
+                rb->set_defer(true);
     }
     double host_busy_seconds() const override { return host_busy_seconds_; }
     const TimeFloor* shared_floor() const override { return stages_.floor(); }

@@ -205,7 +205,7 @@ void run_cores_through_buffer(uint32_t capacity, uint64_t& rays_done, uint64_t& 
             ("core" + std::to_string(i)).c_str(), cp,
             std::array<TargetSocketBase*, kStepKinds>{&mem.up, &mem.up},
             std::array<TargetSocketBase*, kStepKinds>{&box.up, &tri.up}, &src));
-        cores.back()->set_ray_buffer(&rb);
+        cores.back()->set_ray_buffer(&rb.up);
         ptrs.push_back(cores.back().get());
     }
     static CoreScheduler sched("sched", ptrs, &rb);
@@ -242,4 +242,24 @@ TEST(RayBufferCores, TinyBufferBackPressuresAndLosesNoRay) {
     EXPECT_LE(rb->peak_rays, 5u);
     EXPECT_EQ(rb->crossings, crossings);
     EXPECT_TRUE(rb->finished());
+}
+
+// A core finds the ray buffer through the socket chip assembly bound (its `up`), once the
+// kernel has elaborated the sockets; the buffer answers nothing but that request.
+TEST(RayBufferCores, ACoreFindsTheBufferThroughItsSocket) {
+    TreeletSource src(std::vector<std::vector<uint32_t>>{{0}});
+    RayBuffer rb("rb_found", RayBufferParams{}, spans(1), &src);
+    test::FixedLatencyMemory mem(3);
+    PipelinedUnit box("box_found", UnitParams{1, 4, 1, 8}), tri("tri_found", UnitParams{1, 8, 1});
+    Core core("core_found", CoreParams{}, {&mem.up, &mem.up}, {&box.up, &tri.up}, &src);
+    core.set_ray_buffer(&rb.up);
+    EXPECT_EQ(core.ray_buffer(), nullptr);
+    test::elaborate();
+    EXPECT_EQ(core.ray_buffer(), &rb);
+    EXPECT_EQ(find_direct<PipelinedUnit>(*core.ray_buffer_socket.operator->()), nullptr);
+    tlm::tlm_generic_payload gp;
+    gp.set_command(tlm::TLM_READ_COMMAND);
+    sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
+    core.ray_buffer_socket->b_transport(gp, delay);
+    EXPECT_EQ(gp.get_response_status(), tlm::TLM_COMMAND_ERROR_RESPONSE);
 }

@@ -99,7 +99,7 @@ TEST(PipelinedUnit, RequestersShareTheUnitThroughItsSocket) {
     EXPECT_EQ(unit.queue_cycles, 5u);
     // The direct access a core asks for once is the unit itself; a payload that is not a unit
     // operation is refused.
-    EXPECT_EQ(PipelinedUnit::direct(*a.socket.operator->()), &unit);
+    EXPECT_EQ(find_direct<PipelinedUnit>(*a.socket.operator->()), &unit);
     tlm::tlm_generic_payload gp;
     gp.set_command(tlm::TLM_READ_COMMAND);
     sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
