@@ -213,6 +213,36 @@ TEST(DramCommand, AStoppedDataClockCostsAWckSyncBeforeTheColumnCommand) {
     EXPECT_EQ(d.counters().read_latency_sum, (149u - 100) + (140 + 26 - 140) + (301 + 26 - 300));
 }
 
+// Two ranks share the data bus, with tRTRS (1) between bursts of different ranks. Reads to rank 0
+// and rank 1 at cycle 0: ACT r0 at 0, ACT r1 at 1 (one command a cycle); RD r0 at tRCD = 22 (data
+// 44..48); r1's bank is ready at 23, but its data may start only at 48 + 1 = 49, so RD r1 at
+// 49 - CL = 27 (data 49..53). Its cycles in between the controller skips as idle: this is the
+// one wait that ends on a rank switch's gap.
+TEST(DramCommand, ARankSwitchWaitsTrtrsOnTheDataBus) {
+    DramDeviceSpec spec = ddr4("rochrababgco");
+    spec.ranks = 2;
+    ASSERT_EQ(spec.check(), "");
+    const uint64_t rank1 = uint64_t(1) << (6 + 7 + 2 + 2);  // offset, column, bank group, bank
+    ASSERT_EQ(DramAddressMap(spec).map(rank1).rank, 1);
+    DramController d(spec);
+    d.record_commands(true);
+    ASSERT_TRUE(d.enqueue(1, 0, false, 0));
+    ASSERT_TRUE(d.enqueue(2, rank1, false, 0));
+    d.drain();
+    const auto act = of_kind(d, DramCommand::Act), rd = of_kind(d, DramCommand::Rd);
+    ASSERT_EQ(act.size(), 2u);
+    ASSERT_EQ(rd.size(), 2u);
+    EXPECT_EQ(act[1].cycle, 1u);
+    EXPECT_EQ(rd[0].cycle, 22u);
+    EXPECT_EQ(rd[0].rank, 0);
+    EXPECT_EQ(rd[1].cycle, 27u);
+    EXPECT_EQ(rd[1].rank, 1);
+    std::map<uint64_t, uint64_t> done;
+    for (const auto& c : d.completions()) done[c.id] = c.cycle;
+    EXPECT_EQ(done[1], 48u);
+    EXPECT_EQ(done[2], 53u);
+}
+
 TEST(DramCommand, ReadToWriteLeavesTheBusTurnaround) {
     // A read at 22 (data 44..48) then a write to the open row: its data may start tRTRS after
     // the read's, so WR >= 22 + CL + burst + tRTRS - CWL = 33.
