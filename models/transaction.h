@@ -607,18 +607,31 @@ struct DirectAccess : tlm::tlm_extension<DirectAccess<Block>> {
         block = static_cast<const DirectAccess&>(other).block;
     }
 };
+// A payload that is not a memory access (TLM_IGNORE_COMMAND) and carries `ext`, for one call;
+// the extension is taken off again when the call ends.
+template <class Extension>
+struct ExtensionCall {
+    tlm::tlm_generic_payload gp;
+    explicit ExtensionCall(Extension& ext) : ext_(ext) {
+        gp.set_command(tlm::TLM_IGNORE_COMMAND);
+        gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
+        gp.set_extension(&ext_);
+    }
+    ~ExtensionCall() { gp.clear_extension(&ext_); }
+    ExtensionCall(const ExtensionCall&) = delete;
+    ExtensionCall& operator=(const ExtensionCall&) = delete;
+
+  private:
+    Extension& ext_;
+};
 // The requester's side: the Block at the other end of `target`, or nullptr if it is not one.
 template <class Block>
 Block* find_direct(tlm::tlm_fw_transport_if<>& target) {
     DirectAccess<Block> ask;
-    tlm::tlm_generic_payload gp;
-    gp.set_command(tlm::TLM_IGNORE_COMMAND);
-    gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
-    gp.set_extension(&ask);
+    ExtensionCall<DirectAccess<Block>> call(ask);
     sc_core::sc_time delay = sc_core::SC_ZERO_TIME;
-    target.b_transport(gp, delay);
-    gp.clear_extension(&ask);
-    return gp.is_response_ok() ? ask.block : nullptr;
+    target.b_transport(call.gp, delay);
+    return call.gp.is_response_ok() ? ask.block : nullptr;
 }
 // The block's side, first thing in its b_transport: answers a request for direct access (true)
 // or leaves the payload to the block (false).

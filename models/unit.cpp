@@ -28,24 +28,11 @@ void PipelinedUnit::b_transport(int, tlm::tlm_generic_payload& gp, sc_core::sc_t
     delay = cycles_delay(op->done - kernel);
 }
 
-namespace {
-// A payload carrying `op` for one call through a unit's socket.
-struct UnitCall {
-    tlm::tlm_generic_payload gp;
-    explicit UnitCall(UnitOp& op) {
-        gp.set_command(tlm::TLM_IGNORE_COMMAND);
-        gp.set_response_status(tlm::TLM_INCOMPLETE_RESPONSE);
-        gp.set_extension(&op);
-    }
-    ~UnitCall() { gp.clear_extension<UnitOp>(); }
-};
-}  // namespace
-
 Cycle PipelinedUnit::transport(tlm::tlm_fw_transport_if<>& unit, Cycle ready, int items, int rays) {
     UnitOp op;
     op.items = items;
     op.rays = rays;
-    UnitCall call(op);
+    ExtensionCall<UnitOp> call(op);
     const Cycle kernel = kernel_cycle();
     if (ready < kernel)
         throw std::logic_error("a unit operation at " + std::to_string(ready) +

@@ -45,28 +45,31 @@ void in_both_engines(const std::string& name, const std::string& sets,
                 0.05 * cycles["accurate"].get<double>());
 }
 
+// A block below the L2 on a frame with write-backs (a small write-back L2 and stack spills);
+// `block` its settings.
+std::string below_a_writing_l2(const std::string& block) {
+    return fmt::format("--config '{}/configs/write_traffic.json' --set l2.size_kib=16 {}",
+                       RTSIM_SOURCE_DIR, block);
+}
+
 }  // namespace
 
 // Between the L2 and DRAM, with write-backs (a small write-back L2 and stack spills): every
 // line DRAM reads is a read the buffer passed on (it held no line for it) or one it read ahead,
 // and every write reaches DRAM. The engines agree within a few percent on cycles.
 TEST(MemoryPath, AStreamBufferBelowTheL2AccountsForEveryDramRequestInBothEngines) {
-    in_both_engines(
-        "l2",
-        fmt::format("--config '{}/configs/write_traffic.json' --set l2.size_kib=16 --set "
-                    "memory_path.below_l2=stream_buffer",
-                    RTSIM_SOURCE_DIR),
-        [](const json& s) {
-            const json& b = s["memory_path"]["below_l2"];
-            const json& d = s["bandwidth"]["dram"];
-            EXPECT_GT(u(b["hits"]), 0u);
-            EXPECT_GT(u(b["writes"]), 0u);
-            const uint64_t line = 64;  // the L2's line and the DRAM's burst
-            EXPECT_EQ(u(d["bytes"]) - u(d["write_bytes"]),
-                      line * (u(b["reads"]) - u(b["hits"]) + u(b["read_aheads"])));
-            EXPECT_EQ(u(b["writes"]), u(s["caches"]["l2"]["writebacks"]));
-            EXPECT_EQ(u(d["write_bytes"]), u(s["caches"]["l2"]["writeback_bytes"]));
-        });
+    in_both_engines("l2", below_a_writing_l2("--set memory_path.below_l2=stream_buffer"),
+                    [](const json& s) {
+                        const json& b = s["memory_path"]["below_l2"];
+                        const json& d = s["bandwidth"]["dram"];
+                        EXPECT_GT(u(b["hits"]), 0u);
+                        EXPECT_GT(u(b["writes"]), 0u);
+                        const uint64_t line = 64;  // the L2's line and the DRAM's burst
+                        EXPECT_EQ(u(d["bytes"]) - u(d["write_bytes"]),
+                                  line * (u(b["reads"]) - u(b["hits"]) + u(b["read_aheads"])));
+                        EXPECT_EQ(u(b["writes"]), u(s["caches"]["l2"]["writebacks"]));
+                        EXPECT_EQ(u(d["write_bytes"]), u(s["caches"]["l2"]["writeback_bytes"]));
+                    });
 }
 
 // One block per core between its L1 and the crossbar: the L2 sees each block's passed-on reads
@@ -92,9 +95,7 @@ TEST(MemoryPath, StreamBuffersBelowTheL1sAccountForEveryL2AccessInBothEngines) {
 TEST(MemoryPath, AnL3BelowTheL2AccountsForEveryDramRequestInBothEngines) {
     in_both_engines(
         "l3",
-        fmt::format("--config '{}/configs/write_traffic.json' --set l2.size_kib=16 --set "
-                    "memory_path.below_l2=cache --set memory_path.cache.size_kib=64",
-                    RTSIM_SOURCE_DIR),
+        below_a_writing_l2("--set memory_path.below_l2=cache --set memory_path.cache.size_kib=64"),
         [](const json& s) {
             const json& l3 = s["memory_path"]["below_l2"];
             const json& l2 = s["caches"]["l2"];
